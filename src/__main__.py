@@ -1,0 +1,5 @@
+"""Entry point for ``python -m simgap``."""
+
+from simgap.cli import app
+
+app()

@@ -1,0 +1,1 @@
+"""Analysis: result datasets, reports and figures."""

@@ -1,0 +1,152 @@
+"""Reference numbers from the paper: Table 2 and the high-precision thresholds.
+
+The paper (Gazebo simulation vs. PASS hardware, D435i RGB camera, ArUco tags 0 and 1) tabulates
+the maximum and minimum *absolute* pose error per global-frame axis and per tag over its 270
+configurations (15 pin holes x 18 visible turntable angles per tag). Translation errors are in
+metres, rotation errors in radians. Our report prints its own envelope beside these numbers.
+
+Examples
+--------
+>>> from simgap.analysis.paper import TABLE2, threshold_for
+>>> TABLE2[("ty", 1)].hardware_max
+0.0859
+>>> threshold_for("rz")
+0.0873
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Final
+
+import numpy as np
+import xarray as xr
+
+AXES: Final[tuple[str, ...]] = ("tx", "ty", "tz", "rx", "ry", "rz")
+"""Pose axes of the result dataset's ``axis`` coordinate, in contract order."""
+
+TRANSLATION_AXES: Final[tuple[str, ...]] = ("tx", "ty", "tz")
+"""Translation axes (errors in metres)."""
+
+ROTATION_AXES: Final[tuple[str, ...]] = ("rx", "ry", "rz")
+"""Rotation axes (rotation-vector components, errors in radians)."""
+
+AXIS_UNITS: Final = MappingProxyType(
+    {**dict.fromkeys(TRANSLATION_AXES, "m"), **dict.fromkeys(ROTATION_AXES, "rad")}
+)
+"""Unit of each axis' error: ``"m"`` for translation, ``"rad"`` for rotation."""
+
+TRANSLATION_THRESHOLD_M: Final[float] = 0.005
+"""High-precision threshold on the absolute translation error per axis, in metres."""
+
+ROTATION_THRESHOLD_RAD: Final[float] = 0.0873
+"""High-precision threshold on the absolute rotation error per axis, in radians (about 5 deg)."""
+
+TAGS: Final[tuple[int, ...]] = (0, 1)
+"""Tag ids for which the paper reports errors."""
+
+
+@dataclass(frozen=True)
+class PaperEnvelope:
+    """Maximum and minimum absolute error of one axis and tag in the paper's Table 2.
+
+    Parameters
+    ----------
+    simulation_max : float
+        Largest absolute error of the Gazebo simulation (m for translation, rad for rotation).
+    hardware_max : float
+        Largest absolute error of the hardware test (m or rad).
+    simulation_min : float
+        Smallest absolute error of the simulation (m or rad).
+    hardware_min : float
+        Smallest absolute error of the hardware test (m or rad).
+    """
+
+    simulation_max: float
+    hardware_max: float
+    simulation_min: float
+    hardware_min: float
+
+
+TABLE2: Final = MappingProxyType(
+    {
+        # (axis, tag): simulation max, hardware max, simulation min, hardware min
+        ("tx", 0): PaperEnvelope(0.0065, 0.0135, 0.0000, 0.0042),
+        ("tx", 1): PaperEnvelope(0.0036, 0.0152, 0.0000, 0.0062),
+        ("ty", 0): PaperEnvelope(0.0435, 0.0318, 0.0001, 0.0074),
+        ("ty", 1): PaperEnvelope(0.0593, 0.0859, 0.0004, 0.0051),
+        ("tz", 0): PaperEnvelope(0.0087, 0.0079, 0.0071, 0.0032),
+        ("tz", 1): PaperEnvelope(0.0088, 0.0071, 0.0076, 0.0031),
+        ("rx", 0): PaperEnvelope(0.0243, 0.0112, 0.0000, 0.0001),
+        ("rx", 1): PaperEnvelope(0.0181, 0.0173, 0.0000, 0.0001),
+        ("ry", 0): PaperEnvelope(0.0779, 0.0410, 0.0000, 0.0093),
+        ("ry", 1): PaperEnvelope(0.0662, 0.0672, 0.0001, 0.0003),
+        ("rz", 0): PaperEnvelope(0.6694, 0.2911, 0.0002, 0.0000),
+        ("rz", 1): PaperEnvelope(1.3370, 0.8592, 0.0006, 0.0001),
+    }
+)
+"""The paper's Table 2, keyed by ``(axis, tag)``; values in m (``t*``) or rad (``r*``)."""
+
+
+def threshold_for(axis: str) -> float:
+    """Return the high-precision threshold of one axis.
+
+    Parameters
+    ----------
+    axis : str
+        One of ``"tx", "ty", "tz", "rx", "ry", "rz"``.
+
+    Returns
+    -------
+    float
+        0.005 (m) for a translation axis, 0.0873 (rad) for a rotation axis.
+
+    Raises
+    ------
+    ValueError
+        If `axis` is not one of the six axes.
+    """
+    if axis in TRANSLATION_AXES:
+        return TRANSLATION_THRESHOLD_M
+    if axis in ROTATION_AXES:
+        return ROTATION_THRESHOLD_RAD
+    raise ValueError(f"axis must be one of {', '.join(AXES)}; got {axis!r}")
+
+
+def table2_dataarray() -> xr.DataArray:
+    """Return the paper's Table 2 as a labelled array.
+
+    Returns
+    -------
+    xarray.DataArray
+        Dims ``(axis, tag, source, statistic)`` with ``source`` in ``["simulation", "hardware"]``
+        and ``statistic`` in ``["max", "min"]``; absolute error in m (translation axes) or rad
+        (rotation axes). The ``units`` attr says so, and the ``unit`` coordinate gives each axis'
+        unit.
+    """
+    values = np.array(
+        [
+            [
+                [
+                    [TABLE2[(axis, tag)].simulation_max, TABLE2[(axis, tag)].simulation_min],
+                    [TABLE2[(axis, tag)].hardware_max, TABLE2[(axis, tag)].hardware_min],
+                ]
+                for tag in TAGS
+            ]
+            for axis in AXES
+        ]
+    )
+    return xr.DataArray(
+        values,
+        dims=("axis", "tag", "source", "statistic"),
+        coords={
+            "axis": list(AXES),
+            "tag": list(TAGS),
+            "source": ["simulation", "hardware"],
+            "statistic": ["max", "min"],
+            "unit": ("axis", [AXIS_UNITS[a] for a in AXES]),
+        },
+        name="paper_table2_abs_error",
+        attrs={"units": "m (tx, ty, tz) or rad (rx, ry, rz)", "source": "paper Table 2"},
+    )

@@ -1,0 +1,96 @@
+"""Command line: ``simgap run``, ``simgap report``, ``simgap assets``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from simgap.config import ConfigError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+
+CACHE_HELP = "Cache folder for renders and results (default: $SIMGAP_CACHE or ~/.cache/simgap)."
+
+
+def _fail(message: str) -> None:
+    typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+    raise typer.Exit(code=2)
+
+
+@app.command()
+def run(
+    experiment: Path = typer.Argument(..., help="Experiment YAML (e.g. experiments/smoke.yaml)."),
+    output: Path = typer.Option(..., "-o", "--output", help="Result dataset to write (netCDF)."),
+    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+) -> None:
+    """Run an experiment and write its result dataset."""
+    from simgap.analysis.dataset import write_netcdf
+    from simgap.experiment import load_experiment
+    from simgap.paths import default_cache_dir
+    from simgap.sweep import run_experiment
+
+    try:
+        exp = load_experiment(experiment)
+    except ConfigError as exc:
+        _fail(str(exc))
+    ds = run_experiment(exp, cache or default_cache_dir(), show_progress=progress)
+    write_netcdf(ds, output)
+    vis = ds.visible.values
+    det = ds.detected.values[0, 0]
+    typer.echo(
+        f"wrote {output}: {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
+    )
+
+
+@app.command()
+def report(
+    result: Path = typer.Argument(..., help="Result dataset (netCDF) from `simgap run`."),
+    output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
+) -> None:
+    """Write figures and the paper-style Table 2 for a result dataset."""
+    from simgap.analysis.dataset import read_netcdf
+    from simgap.analysis.report import write_report
+
+    try:
+        ds = read_netcdf(result)
+    except (FileNotFoundError, OSError, ValueError) as exc:
+        _fail(f"{result}: cannot read result dataset: {exc}")
+    try:
+        paths = write_report(ds, output)
+    except ValueError as exc:
+        _fail(f"{result}: {exc}")
+    for p in paths:
+        typer.echo(str(p))
+
+
+@app.command()
+def assets() -> None:
+    """Regenerate fixture meshes and tag textures in assets/."""
+    from simgap.render.assets import write_assets
+
+    for p in write_assets():
+        typer.echo(str(p))
+
+
+@app.command()
+def study(
+    experiment: Path = typer.Argument(Path("experiments/baseline.yaml"), help="Experiment YAML."),
+    output: Path = typer.Option(Path("results"), "-o", "--output", help="Output folder."),
+    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+) -> None:
+    """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
+    from simgap.experiment import load_experiment
+
+    try:
+        name = load_experiment(experiment).name
+    except ConfigError as exc:
+        _fail(str(exc))
+    nc = output / f"{name}.nc"
+    run(experiment, nc, cache, True)
+    report(nc, output / f"{name}-report")
+
+
+if __name__ == "__main__":
+    app()

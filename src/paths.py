@@ -1,0 +1,32 @@
+"""Where the project's data folders live (repository checkout or ``SIMGAP_ROOT``)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+
+def project_root() -> Path:
+    """Return the folder holding ``assets/``, ``mitsuba_scenes/`` and ``experiments/``.
+
+    ``SIMGAP_ROOT`` wins; otherwise the repository checkout this package was installed from
+    (editable install, as the README's set-up does).
+    """
+    env = os.environ.get("SIMGAP_ROOT")
+    return Path(env) if env else Path(__file__).resolve().parent.parent
+
+
+def assets_dir() -> Path:
+    """Folder of fixture meshes and tag textures."""
+    return project_root() / "assets"
+
+
+def scenes_dir() -> Path:
+    """Folder of scene templates."""
+    return project_root() / "mitsuba_scenes"
+
+
+def default_cache_dir() -> Path:
+    """Cache of renders and results: ``SIMGAP_CACHE`` or ``~/.cache/simgap``."""
+    env = os.environ.get("SIMGAP_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "simgap"

@@ -1,0 +1,1 @@
+"""Pose estimation: ArUco detection, PnP, conversion to the global frame, errors."""

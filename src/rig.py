@@ -1,0 +1,285 @@
+"""The test fixture as data: camera, the transform tree of the paper's Table 1, grids and tags.
+
+Frames (DESIGN §1), all right-handed, lengths in metres, angles in radians:
+
+``eyepoint``
+    The camera's optical centre; orientation of the global frame (+X right, +Y forward, +Z up).
+``carriage``
+    Bottom of the carriage pin; moves along the rail with the pin hole ``p``.
+``rail``
+    The carriage frame at ``p = 0``; fixed to the table. Renders are built in this frame.
+``turntable``
+    Turntable centre, rotated by ``theta`` counter-clockwise about +Z.
+``tag{i}``
+    Marker frame of tag ``i``: z out of the marker, y up, x right (OpenCV ArUco convention).
+
+Fixture errors (mount offset, turntable zero, carriage pitch, tag mounting) are applied on their own
+link by :class:`FixtureErrors`, so the same tree gives the nominal (CAD) and the perturbed (true)
+geometry.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from simgap import transforms as tf
+from simgap.config import deep_merge, from_mapping, read_yaml, require
+
+DEFAULT_RIG_FILE = Path(__file__).with_name("rig.yaml")
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Pinhole camera with Brown-Conrady distortion, OpenCV convention.
+
+    Attributes
+    ----------
+    width, height : int
+        Image size (px).
+    fx, fy, cx, cy : float
+        Focal lengths and principal point (px); pixel centres at integer coordinates.
+    distortion : tuple of float
+        ``(k1, k2, p1, p2, k3)``, dimensionless.
+    """
+
+    width: int = 1920
+    height: int = 1080
+    fx: float = 1386.0
+    fy: float = 1386.0
+    cx: float = 959.5
+    cy: float = 539.5
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        require(self.width > 0 and self.height > 0, "width/height: expected positive pixel sizes")
+        require(self.fx > 0 and self.fy > 0, "fx/fy: expected positive focal lengths (px)")
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 3x3 camera matrix K (px)."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def dist_coeffs(self) -> np.ndarray:
+        """Distortion coefficients as OpenCV expects them, shape (5,)."""
+        return np.asarray(self.distortion, dtype=float)
+
+    def replace(self, **changes) -> CameraModel:
+        """Return a copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class Links:
+    """Static and dynamic links of the transform tree (m)."""
+
+    eyepoint_to_carriage: tuple[float, float, float] = (-0.004249, -0.03860486, -0.0798068)
+    carriage_to_turntable: tuple[float, float, float] = (0.036749, 0.321749, 0.02396)
+    pin_pitch: float = 0.0254
+    tag_height: float = 0.03967814
+
+    def __post_init__(self) -> None:
+        require(self.pin_pitch > 0, "pin_pitch: expected a positive length (m)")
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Carriage pin holes and turntable stops."""
+
+    p: tuple[int, ...] = tuple(range(15))
+    theta_step_deg: float = 10.0
+    theta_count: int = 36
+
+    def __post_init__(self) -> None:
+        require(len(self.p) > 0 and min(self.p) >= 0, "p: expected non-negative pin holes")
+        require(self.theta_count >= 1, "theta_count: expected an integer >= 1")
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Turntable angles (rad)."""
+        return np.deg2rad(self.theta_step_deg * np.arange(self.theta_count))
+
+
+@dataclass(frozen=True)
+class TagFace:
+    """One tag on the node: id, radius from the turntable axis (m), which face it is on."""
+
+    id: int
+    radius: float
+    facing: Literal["outward", "inward"] = "outward"
+
+    def __post_init__(self) -> None:
+        require(self.radius > 0, "radius: expected a positive length (m)")
+
+
+@dataclass(frozen=True)
+class Tags:
+    """ArUco tags: dictionary name (``cv2.aruco`` constant), size (m), quiet zone, faces."""
+
+    dictionary: str = "DICT_ARUCO_MIP_36H12"
+    size: float = 0.02032
+    quiet_zone_cells: int = 2
+    faces: tuple[TagFace, ...] = (TagFace(0, 0.0806, "outward"), TagFace(1, 0.0381, "inward"))
+
+    def __post_init__(self) -> None:
+        require(self.size > 0, "size: expected a positive length (m)")
+        require(self.quiet_zone_cells >= 0, "quiet_zone_cells: expected an integer >= 0")
+        ids = [f.id for f in self.faces]
+        require(len(set(ids)) == len(ids), f"faces: tag ids must be unique, got {ids}")
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        """Tag ids in face order."""
+        return tuple(f.id for f in self.faces)
+
+    def face(self, tag: int) -> TagFace:
+        """Return the face of tag ``tag``."""
+        for f in self.faces:
+            if f.id == tag:
+                return f
+        raise KeyError(f"tag {tag} is not on the rig (tags: {self.ids})")
+
+
+@dataclass(frozen=True)
+class Visibility:
+    """When a tag is expected to be detectable."""
+
+    min_view_angle_deg: float = 15.0
+
+    def __post_init__(self) -> None:
+        require(0 <= self.min_view_angle_deg < 90, "min_view_angle_deg: expected 0 <= x < 90 (deg)")
+
+
+@dataclass(frozen=True)
+class FixtureErrors:
+    """Differences between the real fixture and its CAD, each on one link of the tree.
+
+    Attributes
+    ----------
+    mount_translation : tuple of float
+        Camera eyepoint offset in the carriage frame (m).
+    mount_rotation : tuple of float
+        Camera rotation about the eyepoint as a rotation vector in the carriage frame (rad).
+    turntable_zero : float
+        Turntable zero offset added to every theta (rad).
+    pitch_scale : float
+        Relative carriage pitch error: the true pitch is ``pin_pitch * (1 + pitch_scale)``.
+    tag_offset : tuple of float
+        Tag mounting offset in each tag's marker frame (m), the same for every tag.
+    """
+
+    mount_translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mount_rotation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    turntable_zero: float = 0.0
+    pitch_scale: float = 0.0
+    tag_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        require(abs(self.pitch_scale) < 0.5, "pitch_scale: expected |x| < 0.5")
+
+
+NOMINAL = FixtureErrors()
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The whole fixture description, loaded from ``rig.yaml``."""
+
+    camera: CameraModel = field(default_factory=CameraModel)
+    links: Links = field(default_factory=Links)
+    grid: Grid = field(default_factory=Grid)
+    tags: Tags = field(default_factory=Tags)
+    visibility: Visibility = field(default_factory=Visibility)
+
+    # --- the transform tree ---------------------------------------------------------------
+
+    def carriage_from_eyepoint(self, err: FixtureErrors = NOMINAL) -> np.ndarray:
+        """Pose of the camera eyepoint in the carriage frame."""
+        t = -np.asarray(self.links.eyepoint_to_carriage) + np.asarray(err.mount_translation)
+        return tf.make(tf.rotvec_to_matrix(err.mount_rotation), t)
+
+    def rail_from_carriage(self, p: float, err: FixtureErrors = NOMINAL) -> np.ndarray:
+        """Pose of the carriage at pin hole ``p`` in the rail frame (carriage at p=0)."""
+        pitch = self.links.pin_pitch * (1.0 + err.pitch_scale)
+        return tf.make(None, (0.0, -pitch * p, 0.0))
+
+    def rail_from_turntable(self, theta: float, err: FixtureErrors = NOMINAL) -> np.ndarray:
+        """Pose of the turntable (rotated by ``theta`` rad) in the rail frame."""
+        return tf.make(tf.rot_z(theta + err.turntable_zero), self.links.carriage_to_turntable)
+
+    def turntable_from_tag(self, tag: int, err: FixtureErrors = NOMINAL) -> np.ndarray:
+        """Pose of tag ``tag``'s marker frame in the turntable frame."""
+        face = self.tags.face(tag)
+        normal = np.array([0.0, -1.0, 0.0]) if face.facing == "outward" else np.array([0, 1.0, 0])
+        y = np.array([0.0, 0.0, 1.0])
+        r = np.column_stack([np.cross(y, normal), y, normal])
+        centre = np.array([0.0, -face.radius, self.links.tag_height])
+        return tf.make(r, centre + r @ np.asarray(err.tag_offset))
+
+    def rail_from_eyepoint(self, p: float, err: FixtureErrors = NOMINAL) -> np.ndarray:
+        """Pose of the eyepoint in the rail frame."""
+        return self.rail_from_carriage(p, err) @ self.carriage_from_eyepoint(err)
+
+    def eyepoint_from_tag(
+        self, tag: int, p: float, theta: float, err: FixtureErrors = NOMINAL
+    ) -> np.ndarray:
+        """Pose of a tag in the eyepoint (global) frame: the expected pose when ``err`` is nominal."""
+        rail_from_tag = self.rail_from_turntable(theta, err) @ self.turntable_from_tag(tag, err)
+        return tf.invert(self.rail_from_eyepoint(p, err)) @ rail_from_tag
+
+    def expected_pose(self, tag: int, p: float, theta: float) -> np.ndarray:
+        """Expected pose ``(tx, ty, tz, rx, ry, rz)``: translation (m) and rotation vector (rad).
+
+        The rotation vector is that of the marker frame's orientation in the global frame.
+        """
+        m = self.eyepoint_from_tag(tag, p, theta)
+        return np.concatenate([m[:3, 3], tf.matrix_to_rotvec(m[:3, :3])])
+
+    def view_angle(self, tag: int, p: float, theta: float, err: FixtureErrors = NOMINAL) -> float:
+        """Angle between the line of sight and the tag plane (rad); negative when facing away."""
+        m = self.eyepoint_from_tag(tag, p, theta, err)
+        to_camera = -m[:3, 3] / np.linalg.norm(m[:3, 3])
+        return float(np.arcsin(np.clip(to_camera @ m[:3, 2], -1.0, 1.0)))
+
+    def is_visible(self, tag: int, p: float, theta: float) -> bool:
+        """Whether the tag is expected to be detectable (faces the camera steeply enough)."""
+        return self.view_angle(tag, p, theta) > np.deg2rad(self.visibility.min_view_angle_deg)
+
+    # --- helpers --------------------------------------------------------------------------
+
+    @cached_property
+    def tag_corners_local(self) -> np.ndarray:
+        """The four outer corners TL, TR, BR, BL in the marker frame, shape (4, 3) (m)."""
+        h = self.tags.size / 2
+        return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
+
+    def sticker_size(self) -> float:
+        """Side of the white sticker including the quiet zone (m)."""
+        cells = _marker_cells(self.tags.dictionary)
+        return self.tags.size * (cells + 2 * self.tags.quiet_zone_cells) / cells
+
+
+def _marker_cells(dictionary: str) -> int:
+    """Cells across a marker of ``dictionary``, including its one-cell black border."""
+    import cv2
+
+    return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)).markerSize) + 2
+
+
+def load_rig(path: str | Path | None = None, overrides: dict | None = None) -> Rig:
+    """Load a rig from YAML (default: the packaged ``rig.yaml``), with optional overrides.
+
+    Raises
+    ------
+    simgap.config.ConfigError
+        Naming the file and key path of any unknown key, wrong type or out-of-range value.
+    """
+    path = Path(path) if path else DEFAULT_RIG_FILE
+    data = deep_merge(read_yaml(path), overrides or {})
+    return from_mapping(Rig, data, where=f"{path}: ")
