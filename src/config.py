@@ -49,7 +49,7 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
 
 
 def deep_merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
-    """Return ``base`` updated recursively by ``over`` (mappings merge, everything else replaces)."""
+    """Return ``base`` updated recursively by ``over`` (mappings merge, others replace)."""
     out = dict(base)
     for key, value in over.items():
         if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
@@ -107,7 +107,8 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
             if len(args) != len(value):
                 raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}")
             return tuple(
-                _convert(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value))
+                _convert(a, v, f"{where}[{i}]")
+                for i, (a, v) in enumerate(zip(args, value, strict=True))
             )
         return tuple(_convert(arg, v, f"{where}[{i}]") for i, v in enumerate(value))
     if origin is dict:

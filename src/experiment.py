@@ -12,8 +12,8 @@ An experiment YAML holds (all optional but ``name``)::
     detector: {corner_refinement: SUBPIX, ...}
     pnp: {method: IPPE_SQUARE}
 
-Unknown keys, wrong types and out-of-range values raise :class:`simgap.config.ConfigError` naming the
-file and key path.
+Unknown keys, wrong types and out-of-range values raise :class:`~simgap.config.ConfigError` naming
+the file and key path.
 """
 
 from __future__ import annotations
@@ -129,7 +129,7 @@ class Experiment:
         bad = sorted(set(ps) - set(rig.grid.p))
         if bad:
             raise ConfigError(
-                f"{self.source}: configurations.p: {bad[0]} is not a pin hole of the rig {rig.grid.p}"
+                f"{self.source}: configurations.p: {bad[0]} is not a pin hole of the rig"
             )
         if c.theta_deg:
             stops = rig.grid.theta_step_deg * np.arange(rig.grid.theta_count)
@@ -146,7 +146,7 @@ class Experiment:
         bad_tags = sorted(set(tags) - set(rig.tags.ids))
         if bad_tags:
             raise ConfigError(
-                f"{self.source}: configurations.tags: tag {bad_tags[0]} is not on the rig {rig.tags.ids}"
+                f"{self.source}: configurations.tags: tag {bad_tags[0]} is not on the rig"
             )
         return tuple(ps), thetas, tuple(tags)
 

@@ -229,7 +229,7 @@ class Rig:
     def eyepoint_from_tag(
         self, tag: int, p: float, theta: float, err: FixtureErrors = NOMINAL
     ) -> np.ndarray:
-        """Pose of a tag in the eyepoint (global) frame: the expected pose when ``err`` is nominal."""
+        """Tag pose in the eyepoint (global) frame; the expected pose when ``err`` is nominal."""
         rail_from_tag = self.rail_from_turntable(theta, err) @ self.turntable_from_tag(tag, err)
         return tf.invert(self.rail_from_eyepoint(p, err)) @ rail_from_tag
 

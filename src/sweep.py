@@ -9,6 +9,7 @@ so that the detector's size-relative thresholds see the real image size (DESIGN 
 
 from __future__ import annotations
 
+import json
 import math
 import platform
 from dataclasses import dataclass
@@ -21,13 +22,14 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 import simgap
 from simgap.analysis.dataset import build_dataset
-from simgap.cache import Cache, content_hash, file_hash
+from simgap.cache import Cache, content_hash, file_hash, write_text
 from simgap.experiment import Experiment
 from simgap.paths import assets_dir
 from simgap.pose.detect import Detector
 from simgap.pose.estimate import estimate_pose, pose_error
 from simgap.render import imaging
-from simgap.rig import NOMINAL, Rig
+from simgap.render.scene import projected_sticker_boxes
+from simgap.rig import NOMINAL
 
 
 @dataclass(frozen=True)
@@ -47,19 +49,18 @@ class ConfigResult:
         }
 
 
-def crop_size(rig: Rig, ps, thetas, margin_px: int) -> tuple[int, int]:
-    """Square crop side (px, multiple of 16) that holds every facing sticker plus ``margin_px``."""
-    from simgap.render.scene import projected_sticker_boxes
+#: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
+CROP_STEP_PX = 32
 
-    side = 0.0
-    for p in ps:
-        for theta in thetas:
-            for u0, v0, u1, v1 in projected_sticker_boxes(rig, p, theta).values():
-                side = max(side, u1 - u0, v1 - v0)
-    side = min(
-        int(math.ceil((side + 2 * margin_px) / 16.0) * 16), rig.camera.width, rig.camera.height
-    )
-    return side, side
+
+def crop_side(boxes: dict, margin_px: int, image: tuple[int, int]) -> int:
+    """Square crop side (px, multiple of :data:`CROP_STEP_PX`) holding the boxes plus a margin."""
+    u0 = min(b[0] for b in boxes.values())
+    v0 = min(b[1] for b in boxes.values())
+    u1 = max(b[2] for b in boxes.values())
+    v1 = max(b[3] for b in boxes.values())
+    side = max(u1 - u0, v1 - v0) + 2 * margin_px
+    return int(min(math.ceil(side / CROP_STEP_PX) * CROP_STEP_PX, image[0], image[1]))
 
 
 def crop_offset(boxes: dict, size: tuple[int, int], image: tuple[int, int]) -> tuple[int, int]:
@@ -78,6 +79,23 @@ def config_seed(base: int, p: int, theta: float) -> int:
     return int(content_hash("seed", base, int(p), round(float(theta), 9))[:8], 16) & 0x7FFFFFFF
 
 
+@dataclass(frozen=True)
+class Frame:
+    """The camera's 8-bit RGB crop around the tags, and where it sits in the full image (px)."""
+
+    crop: np.ndarray
+    offset: tuple[int, int]
+    size: tuple[int, int]
+
+    def gray(self) -> np.ndarray:
+        """Full-size 8-bit grey frame for the detector (the crop pasted in)."""
+        return imaging.paste(imaging.to_gray(self.crop), self.offset, self.size)
+
+    def rgb(self) -> np.ndarray:
+        """Full-size 8-bit RGB frame."""
+        return imaging.paste(self.crop, self.offset, self.size)
+
+
 class Pipeline:
     """Everything needed to turn one (p, theta) into a :class:`ConfigResult`, with caching."""
 
@@ -85,23 +103,32 @@ class Pipeline:
         self.exp, self.cache = exp, cache
         self.rig = exp.rig_model
         self.ps, self.thetas, self.tags = exp.grid()
-        self.crop = crop_size(self.rig, self.ps, self.thetas, exp.render.crop_margin_px)
+        cam = self.rig.camera
+        self.image_size = (cam.width, cam.height)
         assets = sorted(assets_dir().glob("*.ply")) + sorted(assets_dir().glob("tag_*.png"))
         self.scene_key = content_hash(
-            "scene", self.rig, NOMINAL, exp.scene_spec, exp.render, self.crop, file_hash(assets)
+            "scene", self.rig, NOMINAL, exp.scene_spec, exp.render, file_hash(assets)
         )
         self.detector = Detector(exp.detector)
-        self._scene = None
+        self._scenes: dict[int, object] = {}
 
-    @property
-    def scene(self):
-        """The Mitsuba scene, loaded on first use (cached runs never load it)."""
-        if self._scene is None:
+    def scene(self, side: int):
+        """The Mitsuba scene with a ``side`` x ``side`` film, loaded on first use."""
+        if side not in self._scenes:
             from simgap.render.scene import FixtureScene
 
             r = self.exp.render
-            self._scene = FixtureScene(self.rig, self.exp.scene_spec, self.crop, r.spp, r.sampler)
-        return self._scene
+            spec = self.exp.scene_spec
+            self._scenes[side] = FixtureScene(self.rig, spec, (side, side), r.spp, r.sampler)
+        return self._scenes[side]
+
+    def crop(self, p: int, theta: float) -> tuple[int, tuple[int, int]] | None:
+        """Crop side and offset (px) of one configuration; None when no sticker faces it."""
+        boxes = projected_sticker_boxes(self.rig, p, theta)
+        if not boxes:
+            return None
+        side = crop_side(boxes, self.exp.render.crop_margin_px, self.image_size)
+        return side, crop_offset(boxes, (side, side), self.image_size)
 
     def render_key(self, p: int, theta: float) -> str:
         """Cache key of the linear render of one configuration."""
@@ -109,29 +136,32 @@ class Pipeline:
 
     def hdr(self, p: int, theta: float) -> tuple[np.ndarray, tuple[int, int]] | None:
         """The linear crop render and its offset, or None when no sticker faces the camera."""
-        from simgap.render.scene import projected_sticker_boxes
-
-        boxes = projected_sticker_boxes(self.rig, p, theta)
-        if not boxes:
+        crop = self.crop(p, theta)
+        if crop is None:
             return None
-        cam = self.rig.camera
-        offset = crop_offset(boxes, self.crop, (cam.width, cam.height))
+        side, offset = crop
         path = self.cache.path("renders", self.render_key(p, theta), ".exr")
         if path.is_file():
             return imaging.read_exr(path), offset
-        self.scene.set_pose(p, theta)
-        hdr = imaging.quantise_half(
-            self.scene.render(offset, config_seed(self.exp.render.seed, p, theta))
-        )
+        scene = self.scene(side)
+        scene.set_pose(p, theta)
+        seed = config_seed(self.exp.render.seed, p, theta)
+        hdr = imaging.quantise_half(scene.render(offset, seed))
         imaging.write_exr(path, hdr)
         return hdr, offset
 
-    def frame(self, p: int, theta: float) -> np.ndarray | None:
-        """The 8-bit RGB frame the camera delivers (full size), or None when nothing faces it."""
+    def frame(self, p: int, theta: float) -> Frame | None:
+        """The 8-bit frame the camera delivers, or None when no sticker faces it.
+
+        Cached as the crop (PNG) plus its offset (JSON); the rest of the frame is fill.
+        """
         key = content_hash(self.render_key(p, theta), self.exp.image)
-        path = self.cache.path("frames", key, ".png")
-        if path.is_file():
-            return cv2.cvtColor(cv2.imread(str(path), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        png = self.cache.path("frames", key, ".png")
+        meta = png.with_suffix(".json")
+        if png.is_file() and meta.is_file():
+            offset = tuple(json.loads(meta.read_text())["offset"])
+            crop8 = cv2.cvtColor(cv2.imread(str(png), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+            return Frame(crop8, offset, self.image_size)
         rendered = self.hdr(p, theta)
         if rendered is None:
             return None
@@ -141,10 +171,9 @@ class Pipeline:
             crop8 = imaging.encode_srgb8(linear)
         else:
             crop8 = np.clip(np.round(linear * 255.0), 0, 255).astype(np.uint8)
-        cam = self.rig.camera
-        frame = imaging.paste(crop8, offset, (cam.width, cam.height))
-        imaging.write_png(path, frame)
-        return frame
+        write_text(meta, json.dumps({"offset": list(offset), "size": list(self.image_size)}))
+        imaging.write_png(png, crop8)
+        return Frame(crop8, offset, self.image_size)
 
     def result_key(self, p: int, theta: float) -> str:
         """Cache key of one configuration's detection and pose results."""
@@ -165,7 +194,7 @@ class Pipeline:
         if cached is not None:
             return ConfigResult(**cached)
         frame = self.frame(p, theta)
-        found = {} if frame is None else self.detector.detect(imaging.to_gray(frame))
+        found = {} if frame is None else self.detector.detect(frame.gray())
         result = self.estimate(found, p, theta)
         self.cache.save_arrays("results", key, result.arrays())
         return result
@@ -257,7 +286,7 @@ def dataset_attrs(exp: Experiment, pipe: Pipeline) -> dict[str, str]:
         "xarray_version": xr.__version__,
         "python_version": platform.python_version(),
         "renderer_variant": choose_variant(),
-        "render_crop_px": f"{pipe.crop[0]}x{pipe.crop[1]}",
+        "render_crop": f"square crops around the facing tags, sides in steps of {CROP_STEP_PX} px",
         "detector": f"{exp.detector}",
         "pnp": f"{exp.pnp}",
         "conventions": "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)",

@@ -73,7 +73,7 @@ def build_dataset(
                 error,
                 {
                     "units": ERROR_UNITS,
-                    "long_name": "signed error: estimated - expected translation; rotvec(R_est R_exp^T)",
+                    "long_name": "signed error: estimated - expected; rotvec(R_est R_exp^T)",
                 },
             ),
             "visible": (

@@ -87,7 +87,7 @@ class Detector:
         found: dict[int, np.ndarray] = {}
         if ids is None:
             return found
-        for c, i in zip(corners, ids.ravel()):
+        for c, i in zip(corners, ids.ravel(), strict=True):
             c = c.reshape(4, 2).astype(np.float64)
             if int(i) not in found or cv2.contourArea(c.astype(np.float32)) > cv2.contourArea(
                 found[int(i)].astype(np.float32)

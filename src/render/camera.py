@@ -1,8 +1,8 @@
 """A Mitsuba sensor that follows OpenCV's camera model exactly.
 
 Mitsuba's built-in ``perspective`` sensor cannot do ``fx != fy`` nor lens distortion, and moving its
-crop window recompiles the render kernel. :class:`OpenCVCamera` generates, for every film sample, the
-ray whose OpenCV projection (``cv2.projectPoints`` with the same K and Brown-Conrady coefficients)
+crop window recompiles the render kernel. :class:`OpenCVCamera` generates, for every film sample,
+the ray whose OpenCV projection (``cv2.projectPoints``, same K and Brown-Conrady coefficients)
 lands on that sample. All its parameters are opaque Dr.Jit variables, so changing the pose, the
 intrinsics or the crop window between renders reuses the compiled kernel.
 

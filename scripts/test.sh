@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Set up, then run lint and the test suite (slow tests are excluded by default; pass -m slow for them).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+.venv/bin/ruff check src tests benchmarks
+exec .venv/bin/python -m pytest "$@"
