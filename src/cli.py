@@ -55,7 +55,9 @@ def report(
 
     try:
         ds = read_netcdf(result)
-    except (FileNotFoundError, OSError, ValueError) as exc:
+    except FileNotFoundError as exc:
+        _fail(str(exc))
+    except (OSError, ValueError) as exc:
         _fail(f"{result}: cannot read result dataset: {exc}")
     try:
         paths = write_report(ds, output)

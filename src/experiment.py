@@ -129,7 +129,8 @@ class Experiment:
         bad = sorted(set(ps) - set(rig.grid.p))
         if bad:
             raise ConfigError(
-                f"{self.source}: configurations.p: {bad[0]} is not a pin hole of the rig"
+                f"{self.source}: configurations.p: {bad[0]} is not a pin hole; "
+                f"expected one of {list(rig.grid.p)}"
             )
         if c.theta_deg:
             stops = rig.grid.theta_step_deg * np.arange(rig.grid.theta_count)
@@ -146,7 +147,8 @@ class Experiment:
         bad_tags = sorted(set(tags) - set(rig.tags.ids))
         if bad_tags:
             raise ConfigError(
-                f"{self.source}: configurations.tags: tag {bad_tags[0]} is not on the rig"
+                f"{self.source}: configurations.tags: tag {bad_tags[0]} is not on the rig; "
+                f"expected one of {list(rig.tags.ids)}"
             )
         return tuple(ps), thetas, tuple(tags)
 

@@ -174,9 +174,6 @@ def test_failed_write_keeps_previous_file(tmp_path):
     np.testing.assert_array_equal(back.error.values, ds.error.values)
 
 
-@pytest.mark.xfail(
-    strict=True, reason="src bug: write_netcdf does not remove its temp file when writing fails"
-)
 def test_failed_write_leaves_no_temp_file(tmp_path):
     ds, *_ = build()
     path = tmp_path / "result.nc"

@@ -22,7 +22,12 @@ def _sphere_scene(size, spp=64):
             "integrator": {"type": "direct"},
             "sensor": {
                 "type": PLUGIN_NAME,
-                "film": {"type": "hdrfilm", "width": size[0], "height": size[1], "rfilter": {"type": "box"}},
+                "film": {
+                    "type": "hdrfilm",
+                    "width": size[0],
+                    "height": size[1],
+                    "rfilter": {"type": "box"},
+                },
                 "sampler": {"type": "multijitter", "sample_count": spp},
             },
             "ball": {
@@ -52,11 +57,13 @@ def test_sphere_centre_lands_on_projectpoints(fx, fy, cx, cy, dist, point):
     scene = _sphere_scene(size)
     cam = scene.sensors()[0]
     K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
-    uv, _ = cv2.projectPoints(np.array([point], float), np.zeros(3), np.zeros(3), K, np.array(dist, float))
+    uv, _ = cv2.projectPoints(
+        np.array([point], float), np.zeros(3), np.zeros(3), K, np.array(dist, float)
+    )
     u, v = uv.ravel()
     x0, y0 = int(u) - size[0] // 2 + 3, int(v) - size[1] // 2 - 2  # off-centre crop on purpose
     cam.set_intrinsics(fx, fy, cx, cy, dist)
-    # camera at -point looking along +z: the sphere (at the origin) sits at `point` in the camera frame
+    # camera at -point looking along +z: the sphere (origin) sits at `point` in the camera frame
     pose = np.eye(4)
     pose[:3, 3] = -np.asarray(point)
     cam.set_pose(pose)
@@ -89,7 +96,9 @@ def test_ideal_render_pose_accuracy(rig, ideal_render):
     found = Detector(DetectorSettings(corner_refinement="SUBPIX")).detect(imaging.to_gray(frame))
     assert 0 in found and 1 not in found
     cam = rig.camera
-    truth = project_tag_corners(rig.eyepoint_from_tag(0, 0, 0.0), rig.tags.size, cam.matrix, cam.dist_coeffs)
+    truth = project_tag_corners(
+        rig.eyepoint_from_tag(0, 0, 0.0), rig.tags.size, cam.matrix, cam.dist_coeffs
+    )
     # measured 0.20 px max (the sRGB curve pulls the black square's edges inward by ~0.2 px)
     assert np.abs(found[0] - truth).max() < 0.3
     est = estimate_pose(found[0], rig.tags.size, cam.matrix, cam.dist_coeffs)

@@ -34,10 +34,17 @@ class PnPSettings:
         ``cv2.solvePnP`` flag name without the ``SOLVEPNP_`` prefix.
     refine_lm : bool
         Polish the solution with ``cv2.solvePnPRefineLM``.
+    fallback_reproj_px : float or None
+        If the best solution of ``method`` reprojects worse than this (px) or is not finite, also
+        solve with ``ITERATIVE`` and keep the better one. OpenCV's IPPE is degenerate when the
+        marker's rotation in the camera frame is exactly pi (a level camera facing a vertical tag,
+        as in the nominal rig) and then returns wrong poses with 1-5 px reprojection error on
+        perfect corners. None disables the guard (raw solver behaviour).
     """
 
     method: Literal["IPPE_SQUARE", "IPPE", "ITERATIVE", "SQPNP", "EPNP"] = "IPPE_SQUARE"
     refine_lm: bool = False
+    fallback_reproj_px: float | None = 1.0
 
 
 def marker_object_points(size: float) -> np.ndarray:
@@ -66,19 +73,69 @@ def estimate_pose(
     """Solve the marker pose from its four corners (px); None if PnP fails."""
     obj = marker_object_points(size)
     img = np.asarray(corners, dtype=np.float64).reshape(4, 1, 2)
-    ok, rvec, tvec = cv2.solvePnP(
-        obj, img, camera_matrix, dist_coeffs, flags=PNP_METHODS[settings.method]
-    )
-    if not ok:
+    best = _solve(obj, img, camera_matrix, dist_coeffs, settings.method, settings.refine_lm)
+    limit = settings.fallback_reproj_px
+    if limit is not None and settings.method != "ITERATIVE" and (best is None or best[2] > limit):
+        other = _solve(obj, img, camera_matrix, dist_coeffs, "ITERATIVE", settings.refine_lm)
+        if other is not None and (best is None or other[2] < best[2]):
+            best = other
+    if best is None:
         return None
-    if settings.refine_lm:
-        rvec, tvec = cv2.solvePnPRefineLM(obj, img, camera_matrix, dist_coeffs, rvec, tvec)
-    proj, _ = cv2.projectPoints(obj, rvec, tvec, camera_matrix, dist_coeffs)
-    reproj = float(np.sqrt(np.mean(np.sum((proj.reshape(4, 2) - img.reshape(4, 2)) ** 2, axis=1))))
+    rvec, tvec, reproj = best
     r_global = tf.GLOBAL_FROM_CV @ tf.rotvec_to_matrix(rvec.ravel())
     t_global = tf.GLOBAL_FROM_CV @ tvec.ravel()
     pose = np.concatenate([t_global, tf.matrix_to_rotvec(r_global)])
     return PoseEstimate(pose, rvec.ravel(), tvec.ravel(), reproj)
+
+
+#: IPPE's rotation-to-vector step is degenerate for a rotation of exactly pi, which is what a level
+#: camera facing a vertical tag gives (the nominal rig). IPPE methods therefore solve in a virtual
+#: camera turned by this known rotation (0.5 rad about (1, 2, 3)/sqrt(14)), and the result is turned
+#: back; the geometry is unchanged, only the degenerate parametrisation is avoided.
+VIRTUAL_FROM_CAMERA = tf.rotvec_to_matrix(0.5 * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0))
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
+
+
+def _solutions(obj, img, camera_matrix, dist_coeffs, method: str):
+    """All (rvec, tvec) of one PnP method in the real camera frame."""
+    flags = PNP_METHODS[method]
+    if method not in ("IPPE", "IPPE_SQUARE"):
+        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, camera_matrix, dist_coeffs, flags=flags)
+        return list(zip(rvecs[:n], tvecs[:n], strict=True))
+    dist = np.zeros(5) if dist_coeffs is None else dist_coeffs
+    norm = cv2.undistortPoints(img, camera_matrix, dist, criteria=_UNDISTORT_CRITERIA)
+    rays = np.concatenate([norm.reshape(-1, 2), np.ones((len(obj), 1))], axis=1)
+    rays = rays @ VIRTUAL_FROM_CAMERA.T
+    virtual = (rays[:, :2] / rays[:, 2:]).reshape(-1, 1, 2)
+    n, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, virtual, np.eye(3), None, flags=flags)
+    back = VIRTUAL_FROM_CAMERA.T
+    return [
+        (
+            cv2.Rodrigues(back @ tf.rotvec_to_matrix(r.ravel()))[0],
+            (back @ t.reshape(3)).reshape(3, 1),
+        )
+        for r, t in zip(rvecs[:n], tvecs[:n], strict=True)
+    ]
+
+
+def _solve(obj, img, camera_matrix, dist_coeffs, method: str, refine_lm: bool):
+    """All solutions of one PnP method; the finite one that reprojects best (rvec, tvec, px)."""
+    try:
+        solutions = _solutions(obj, img, camera_matrix, dist_coeffs, method)
+    except cv2.error:
+        return None
+    best = None
+    for rvec, tvec in solutions:
+        rvec, tvec = np.asarray(rvec, float).reshape(3, 1), np.asarray(tvec, float).reshape(3, 1)
+        if refine_lm:
+            rvec, tvec = cv2.solvePnPRefineLM(obj, img, camera_matrix, dist_coeffs, rvec, tvec)
+        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
+            continue
+        proj, _ = cv2.projectPoints(obj, rvec, tvec, camera_matrix, dist_coeffs)
+        rms = float(np.sqrt(np.mean(np.sum((proj.reshape(4, 2) - img.reshape(4, 2)) ** 2, axis=1))))
+        if best is None or rms < best[2]:
+            best = (rvec, tvec, rms)
+    return best
 
 
 def pose_error(estimated: np.ndarray, expected: np.ndarray) -> np.ndarray:
