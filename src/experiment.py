@@ -4,6 +4,7 @@ An experiment YAML holds (all optional but ``name``)::
 
     name: smoke
     description: ...
+    inherit: smoke.yaml     # another experiment file (relative to this one); this file wins
     rig: {...}              # overrides of the packaged rig.yaml
     scene: {...}            # overrides of mitsuba_scenes/pass_fixture.yaml
     configurations: {p: [0, 7, 14], theta_deg: [0, 30, 180], tags: [0, 1]}
@@ -11,6 +12,13 @@ An experiment YAML holds (all optional but ``name``)::
     image: {exposure: 1.0, encoding: srgb}
     detector: {corner_refinement: SUBPIX, ...}
     pnp: {method: IPPE_SQUARE}
+    effects: {lighting: {cct_k: 4000}}         # applied to every variant
+    variants:                                  # one at a time; `baseline` is added if absent
+      - {name: distortion, effects: {lens_distortion: {k1: 0.1}}}
+    grid:                                      # full factorial over effect parameters
+      exposure.ev: [-1, 0, 1]
+      blur.sigma_px: [0.5, 1.0]
+    repeats: 3                                 # Monte Carlo repeats (image-stage noise)
 
 Unknown keys, wrong types and out-of-range values raise :class:`~simgap.config.ConfigError` naming
 the file and key path.
@@ -18,6 +26,7 @@ the file and key path.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -26,7 +35,15 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
-from simgap.config import ConfigError, from_mapping, read_yaml, require, to_mapping
+from simgap.config import ConfigError, deep_merge, from_mapping, read_yaml, require, to_mapping
+from simgap.effects import make_effect
+from simgap.effects.state import (
+    EstimationState,
+    ImageState,
+    RenderQuality,
+    SceneState,
+    VariantState,
+)
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.render.scene import SceneSpec, load_scene_spec
@@ -55,7 +72,12 @@ class RenderSettings:
     seed : int
         Base seed; each configuration's render seed is derived from it and (p, theta).
     crop_margin_px : int
-        Margin around the largest projected sticker when sizing the render crop (px).
+        Margin around the projected stickers when sizing a render crop (px).
+    max_depth : int
+        Maximum path length of the path tracer.
+    reseed_repeats : bool
+        Render each repeat with its own seed (Monte Carlo over render noise too; costs a render
+        per repeat). Otherwise repeats differ only in image-stage noise.
     """
 
     spp: int = 16
@@ -64,9 +86,12 @@ class RenderSettings:
     )
     seed: int = 0
     crop_margin_px: int = 24
+    max_depth: int = 3
+    reseed_repeats: bool = False
 
     def __post_init__(self) -> None:
         require(self.spp >= 1, f"spp: expected an integer >= 1, got {self.spp}")
+        require(self.max_depth >= 2 or self.max_depth == -1, "max_depth: expected >= 2 or -1")
         require(self.crop_margin_px >= 4, "crop_margin_px: expected an integer >= 4 (px)")
 
 
@@ -90,6 +115,17 @@ class ImageSettings:
 
 
 @dataclass(frozen=True)
+class VariantSpec:
+    """A named set of effects (effect name -> parameters) applied on top of the experiment's."""
+
+    name: str
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        require(bool(self.name.strip()), "name: expected a non-empty variant name")
+
+
+@dataclass(frozen=True)
 class Experiment:
     """A resolved experiment (see module docstring)."""
 
@@ -102,12 +138,83 @@ class Experiment:
     image: ImageSettings = field(default_factory=ImageSettings)
     detector: DetectorSettings = field(default_factory=DetectorSettings)
     pnp: PnPSettings = field(default_factory=PnPSettings)
+    inherit: str | None = None
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
+    variants: tuple[VariantSpec, ...] = ()
+    grid: dict[str, tuple[Any, ...]] = field(default_factory=dict)
+    repeats: int = 1
     source: str = "<memory>"
+
+    def __post_init__(self) -> None:
+        require(self.repeats >= 1, f"repeats: expected an integer >= 1, got {self.repeats}")
+        names = [v.name for v in self.variants]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        require(not dup, f"variants: duplicate variant name {dup[0] if dup else ''!r}")
+        for key, values in self.grid.items():
+            require(key.count(".") == 1, f"grid.{key}: expected a key of the form effect.parameter")
+            require(len(values) >= 1, f"grid.{key}: expected a non-empty list of values")
+
+    def variant_specs(self) -> list[VariantSpec]:
+        """All variants: ``baseline`` first, then the listed ones, then the grid's combinations."""
+        specs = list(self.variants)
+        if "baseline" not in [v.name for v in specs]:
+            specs.insert(0, VariantSpec("baseline"))
+        keys = list(self.grid)
+        combos = itertools.product(*(self.grid[k] for k in keys)) if keys else ()
+        for combo in combos:
+            effects: dict[str, dict[str, Any]] = {}
+            for key, value in zip(keys, combo, strict=True):
+                effect, param = key.split(".")
+                effects.setdefault(effect, {})[param] = value
+            name = ",".join(f"{k}={v}" for k, v in zip(keys, combo, strict=True))
+            specs.append(VariantSpec(name, effects))
+        return specs
+
+    def base_state(self) -> VariantState:
+        """The state every variant starts from: this experiment's settings, before effects."""
+        rig = self.rig_model
+        r = self.render
+        return VariantState(
+            scene=SceneState(
+                overrides=self.scene,
+                camera=rig.camera,
+                quality=RenderQuality(r.spp, r.sampler, r.max_depth),
+                render_seed=r.seed,
+            ),
+            image=ImageState(encoding=self.image.encoding, exposure=self.image.exposure),
+            estimation=EstimationState(
+                calibration=rig.camera, detector=self.detector, pnp=self.pnp
+            ),
+        )
+
+    def variant_states(self) -> list[tuple[str, VariantState]]:
+        """``(name, state)`` of every variant, with the experiment's and the variant's effects.
+
+        Raises
+        ------
+        simgap.config.ConfigError
+            Naming the file and key path of an unknown effect or a bad parameter.
+        """
+        base = self.base_state()
+        for name, params in self.effects.items():
+            base = make_effect(name, params, where=f"{self.source}: effects.").apply(base)
+        out = []
+        listed = {v.name: i for i, v in enumerate(self.variants)}
+        for spec in self.variant_specs():
+            where = (
+                f"{self.source}: variants[{listed[spec.name]}].effects."
+                if spec.name in listed
+                else f"{self.source}: grid: "
+            )
+            state = base
+            for name, params in spec.effects.items():
+                state = make_effect(name, params, where=where).apply(state)
+            out.append((spec.name, state))
+        return out
 
     @cached_property
     def rig_model(self) -> Rig:
         """The rig with this experiment's overrides."""
-        from simgap.config import deep_merge
         from simgap.rig import DEFAULT_RIG_FILE
 
         data = deep_merge(read_yaml(DEFAULT_RIG_FILE), self.rig)
@@ -121,7 +228,7 @@ class Experiment:
         except ConfigError as exc:
             raise ConfigError(f"{self.source}: scene: {exc}") from exc
 
-    def grid(self) -> tuple[tuple[int, ...], np.ndarray, tuple[int, ...]]:
+    def configuration_axes(self) -> tuple[tuple[int, ...], np.ndarray, tuple[int, ...]]:
         """Return pin holes, turntable angles (rad) and tag ids of this experiment."""
         rig = self.rig_model
         c = self.configurations
@@ -159,8 +266,29 @@ class Experiment:
         return yaml.safe_dump(data, sort_keys=False)
 
 
+def _read_with_parents(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """Read an experiment file merged over the files it inherits from (this file wins)."""
+    data = read_yaml(path)
+    if "source" in data:
+        raise ConfigError(f"{path}: source: unknown key (reserved)")
+    parent = data.get("inherit")
+    if parent is None:
+        return data
+    if not isinstance(parent, str):
+        raise ConfigError(f"{path}: inherit: expected a file path, got {parent!r}")
+    parent_path = (path.parent / parent).resolve()
+    if parent_path in seen or parent_path == path.resolve():
+        raise ConfigError(f"{path}: inherit: circular inheritance through {parent_path}")
+    if not parent_path.is_file():
+        raise ConfigError(f"{path}: inherit: {parent_path} not found")
+    base = _read_with_parents(parent_path, seen + (path.resolve(),))
+    base.pop("name", None)
+    base.pop("description", None)
+    return deep_merge(base, data)
+
+
 def load_experiment(path: str | Path) -> Experiment:
-    """Load and validate an experiment YAML file.
+    """Load and validate an experiment YAML file (and the files it inherits from).
 
     Raises
     ------
@@ -168,10 +296,11 @@ def load_experiment(path: str | Path) -> Experiment:
         Naming the file and key path of what is wrong.
     """
     path = Path(path)
-    data = read_yaml(path)
+    data = _read_with_parents(path)
     data.setdefault("name", path.stem)
     exp = from_mapping(Experiment, {**data, "source": str(path)}, where=f"{path}: ")
     exp.rig_model  # noqa: B018  (validate now, not in the middle of a sweep)
     exp.scene_spec  # noqa: B018
-    exp.grid()
+    exp.configuration_axes()
+    exp.variant_states()
     return exp

@@ -1,10 +1,21 @@
-"""Run an experiment over its configurations: render -> frame -> corners -> pose -> dataset.
+"""Run an experiment: for every (p, theta), every variant and repeat, render -> frame -> pose.
 
-Each stage's product is cached under a content hash of everything upstream (:mod:`simgap.cache`):
-linear renders as EXR, 8-bit frames as PNG, per-configuration results as ``.npz``. A rerun serves
-finished configurations from the cache, and an interrupted sweep resumes where it stopped.
-Only a crop around the stickers facing the camera is rendered; it is pasted into a full-size frame
-so that the detector's size-relative thresholds see the real image size (DESIGN §4).
+Stages and their caches (:mod:`simgap.cache`), each keyed by a content hash of its inputs only, so a
+variant reuses everything upstream of the first stage it changes (DESIGN §2):
+
+=========  ===============================================  ====================================
+product    key depends on                                    stored as
+=========  ===============================================  ====================================
+render     scene state (lights, materials, optics, true      linear HDR crop, half-float EXR
+           camera, true geometry, quality, seed), p, theta
+frame      render key, image state, noise seed (repeat)      8-bit sRGB crop PNG + offset JSON
+result     frame key, estimation state, tags                 ``.npz`` of corners, poses, errors
+=========  ===============================================  ====================================
+
+Only a square crop around the stickers facing the camera is rendered; the detector sees it pasted
+into a full-size frame so that its size-relative thresholds see the real image size (DESIGN §4).
+Work is spread over a Dask scheduler: an in-process ``LocalCluster`` by default, or any cluster by
+address; one task is one (p, theta) for all variants and repeats, so renders are shared in a task.
 """
 
 from __future__ import annotations
@@ -23,13 +34,19 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 import simgap
 from simgap.analysis.dataset import build_dataset
 from simgap.cache import Cache, content_hash, file_hash, write_text
+from simgap.effects.image import BLOCK_ALIGN_PX, ImageContext, run_pipeline
+from simgap.effects.state import VariantState
 from simgap.experiment import Experiment
 from simgap.paths import assets_dir
 from simgap.pose.detect import Detector
 from simgap.pose.estimate import estimate_pose, pose_error
 from simgap.render import imaging
 from simgap.render.scene import projected_sticker_boxes
-from simgap.rig import NOMINAL
+from simgap.rig import Rig
+
+#: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
+CROP_STEP_PX = 32
+RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners")
 
 
 @dataclass(frozen=True)
@@ -44,39 +61,7 @@ class ConfigResult:
 
     def arrays(self) -> dict[str, np.ndarray]:
         """As a mapping for storage."""
-        return {
-            k: getattr(self, k) for k in ("detected", "estimated", "error", "reproj_px", "corners")
-        }
-
-
-#: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
-CROP_STEP_PX = 32
-
-
-def crop_side(boxes: dict, margin_px: int, image: tuple[int, int]) -> int:
-    """Square crop side (px, multiple of :data:`CROP_STEP_PX`) holding the boxes plus a margin."""
-    u0 = min(b[0] for b in boxes.values())
-    v0 = min(b[1] for b in boxes.values())
-    u1 = max(b[2] for b in boxes.values())
-    v1 = max(b[3] for b in boxes.values())
-    side = max(u1 - u0, v1 - v0) + 2 * margin_px
-    return int(min(math.ceil(side / CROP_STEP_PX) * CROP_STEP_PX, image[0], image[1]))
-
-
-def crop_offset(boxes: dict, size: tuple[int, int], image: tuple[int, int]) -> tuple[int, int]:
-    """Top-left pixel of a crop centred on the union of sticker boxes, kept inside the image."""
-    u0 = min(b[0] for b in boxes.values())
-    v0 = min(b[1] for b in boxes.values())
-    u1 = max(b[2] for b in boxes.values())
-    v1 = max(b[3] for b in boxes.values())
-    x0 = int(round((u0 + u1) / 2 - size[0] / 2))
-    y0 = int(round((v0 + v1) / 2 - size[1] / 2))
-    return min(max(x0, 0), image[0] - size[0]), min(max(y0, 0), image[1] - size[1])
-
-
-def config_seed(base: int, p: int, theta: float) -> int:
-    """Deterministic per-configuration render seed."""
-    return int(content_hash("seed", base, int(p), round(float(theta), 9))[:8], 16) & 0x7FFFFFFF
+        return {k: getattr(self, k) for k in RESULT_FIELDS}
 
 
 @dataclass(frozen=True)
@@ -96,134 +81,219 @@ class Frame:
         return imaging.paste(self.crop, self.offset, self.size)
 
 
-class Pipeline:
-    """Everything needed to turn one (p, theta) into a :class:`ConfigResult`, with caching."""
+def _union(boxes: dict) -> tuple[float, float, float, float]:
+    return (
+        min(b[0] for b in boxes.values()),
+        min(b[1] for b in boxes.values()),
+        max(b[2] for b in boxes.values()),
+        max(b[3] for b in boxes.values()),
+    )
 
-    def __init__(self, exp: Experiment, cache: Cache) -> None:
-        self.exp, self.cache = exp, cache
-        self.rig = exp.rig_model
-        self.ps, self.thetas, self.tags = exp.grid()
-        cam = self.rig.camera
+
+def crop_side(boxes: dict, margin_px: int, image: tuple[int, int]) -> int:
+    """Square crop side (px, multiple of :data:`CROP_STEP_PX`) holding the boxes plus a margin."""
+    u0, v0, u1, v1 = _union(boxes)
+    side = max(u1 - u0, v1 - v0) + 2 * margin_px
+    return int(min(math.ceil(side / CROP_STEP_PX) * CROP_STEP_PX, image[0], image[1]))
+
+
+def crop_offset(boxes: dict, size: tuple[int, int], image: tuple[int, int]) -> tuple[int, int]:
+    """Top-left pixel of a crop centred on the boxes, block-aligned and inside the image."""
+    u0, v0, u1, v1 = _union(boxes)
+    a = BLOCK_ALIGN_PX
+    x0 = int(round(((u0 + u1) / 2 - size[0] / 2) / a)) * a
+    y0 = int(round(((v0 + v1) / 2 - size[1] / 2) / a)) * a
+    return min(max(x0, 0), image[0] - size[0]), min(max(y0, 0), image[1] - size[1])
+
+
+def config_seed(base: int, p: int, theta: float, *extra) -> int:
+    """Deterministic per-configuration seed (31 bits)."""
+    return (
+        int(content_hash("seed", base, int(p), round(float(theta), 9), *extra)[:8], 16) & 0x7FFFFFFF
+    )
+
+
+_SCENES: dict[tuple[str, int], object] = {}
+
+
+class VariantPipeline:
+    """One variant's stages for any (p, theta), with caching."""
+
+    def __init__(
+        self, rig: Rig, state: VariantState, tags, margin_px: int, cache: Cache, assets: str
+    ):
+        self.rig, self.state, self.tags, self.cache = rig, state, tuple(tags), cache
+        self.margin_px = margin_px
+        cam = state.scene.camera
         self.image_size = (cam.width, cam.height)
-        assets = sorted(assets_dir().glob("*.ply")) + sorted(assets_dir().glob("tag_*.png"))
-        self.scene_key = content_hash(
-            "scene", self.rig, NOMINAL, exp.scene_spec, exp.render, file_hash(assets)
-        )
-        self.detector = Detector(exp.detector)
-        self._scenes: dict[int, object] = {}
+        self.scene_key = content_hash("scene", rig, state.scene, assets)
+        self.detector = Detector(state.estimation.detector)
 
     def scene(self, side: int):
-        """The Mitsuba scene with a ``side`` x ``side`` film, loaded on first use."""
-        if side not in self._scenes:
+        """The Mitsuba scene of this variant with a ``side`` x ``side`` film (one per process)."""
+        key = (self.scene_key, side)
+        if key not in _SCENES:
             from simgap.render.scene import FixtureScene
 
-            r = self.exp.render
-            spec = self.exp.scene_spec
-            self._scenes[side] = FixtureScene(self.rig, spec, (side, side), r.spp, r.sampler)
-        return self._scenes[side]
+            s = self.state.scene
+            spec = _scene_spec(s.overrides)
+            _SCENES[key] = FixtureScene(
+                self.rig,
+                spec,
+                (side, side),
+                s.quality.spp,
+                s.quality.sampler,
+                errors=s.errors,
+                camera=s.camera,
+                tag_scale=s.tag_scale,
+                lens=(s.aperture_radius_m, s.focus_distance_m),
+                max_depth=s.quality.max_depth,
+            )
+        return _SCENES[key]
 
     def crop(self, p: int, theta: float) -> tuple[int, tuple[int, int]] | None:
         """Crop side and offset (px) of one configuration; None when no sticker faces it."""
-        boxes = projected_sticker_boxes(self.rig, p, theta)
+        s = self.state.scene
+        boxes = projected_sticker_boxes(self.rig, p, theta, s.errors, s.camera, s.tag_scale)
         if not boxes:
             return None
-        side = crop_side(boxes, self.exp.render.crop_margin_px, self.image_size)
+        side = crop_side(boxes, self.margin_px, self.image_size)
         return side, crop_offset(boxes, (side, side), self.image_size)
 
-    def render_key(self, p: int, theta: float) -> str:
+    def render_key(self, p: int, theta: float, render_repeat: int) -> str:
         """Cache key of the linear render of one configuration."""
-        return content_hash(self.scene_key, int(p), round(float(theta), 9))
+        return content_hash(self.scene_key, int(p), round(float(theta), 9), render_repeat)
 
-    def hdr(self, p: int, theta: float) -> tuple[np.ndarray, tuple[int, int]] | None:
+    def hdr(self, p: int, theta: float, render_repeat: int):
         """The linear crop render and its offset, or None when no sticker faces the camera."""
         crop = self.crop(p, theta)
         if crop is None:
             return None
         side, offset = crop
-        path = self.cache.path("renders", self.render_key(p, theta), ".exr")
+        path = self.cache.path("renders", self.render_key(p, theta, render_repeat), ".exr")
         if path.is_file():
             return imaging.read_exr(path), offset
         scene = self.scene(side)
         scene.set_pose(p, theta)
-        seed = config_seed(self.exp.render.seed, p, theta)
+        seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
         hdr = imaging.quantise_half(scene.render(offset, seed))
         imaging.write_exr(path, hdr)
         return hdr, offset
 
-    def frame(self, p: int, theta: float) -> Frame | None:
-        """The 8-bit frame the camera delivers, or None when no sticker faces it.
+    def frame_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
+        """Cache key of the 8-bit frame (the repeat matters only for a stochastic pipeline)."""
+        noise = repeat if self.state.image.stochastic else 0
+        return content_hash(self.render_key(p, theta, render_repeat), self.state.image, noise)
 
-        Cached as the crop (PNG) plus its offset (JSON); the rest of the frame is fill.
-        """
-        key = content_hash(self.render_key(p, theta), self.exp.image)
+    def frame(self, p: int, theta: float, repeat: int, render_repeat: int) -> Frame | None:
+        """The 8-bit frame the camera delivers, or None when no sticker faces it."""
+        key = self.frame_key(p, theta, repeat, render_repeat)
         png = self.cache.path("frames", key, ".png")
         meta = png.with_suffix(".json")
         if png.is_file() and meta.is_file():
             offset = tuple(json.loads(meta.read_text())["offset"])
             crop8 = cv2.cvtColor(cv2.imread(str(png), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
             return Frame(crop8, offset, self.image_size)
-        rendered = self.hdr(p, theta)
+        rendered = self.hdr(p, theta, render_repeat)
         if rendered is None:
             return None
         hdr, offset = rendered
-        linear = hdr * self.exp.image.exposure
-        if self.exp.image.encoding == "srgb":
-            crop8 = imaging.encode_srgb8(linear)
-        else:
-            crop8 = np.clip(np.round(linear * 255.0), 0, 255).astype(np.uint8)
+        seed = config_seed(self.state.scene.render_seed, p, theta, "image", repeat)
+        ctx = ImageContext(offset, self.state.scene.camera, np.random.default_rng(seed))
+        crop8 = run_pipeline(hdr, self.state.image, ctx)
         write_text(meta, json.dumps({"offset": list(offset), "size": list(self.image_size)}))
         imaging.write_png(png, crop8)
         return Frame(crop8, offset, self.image_size)
 
-    def result_key(self, p: int, theta: float) -> str:
-        """Cache key of one configuration's detection and pose results."""
-        return content_hash(
-            self.render_key(p, theta),
-            self.exp.image,
-            self.exp.detector,
-            self.exp.pnp,
-            self.rig.camera,
-            self.rig.tags,
-            self.tags,
+    def run(self, p: int, theta: float, repeat: int, render_repeat: int) -> ConfigResult:
+        """Result of one configuration and repeat, from cache or computed (and then cached)."""
+        key = content_hash(
+            self.frame_key(p, theta, repeat, render_repeat), self.state.estimation, self.tags
         )
-
-    def run_config(self, p: int, theta: float) -> ConfigResult:
-        """Result of one configuration, from cache or computed (and then cached)."""
-        key = self.result_key(p, theta)
         cached = self.cache.load_arrays("results", key)
         if cached is not None:
             return ConfigResult(**cached)
-        frame = self.frame(p, theta)
+        frame = self.frame(p, theta, repeat, render_repeat)
         found = {} if frame is None else self.detector.detect(frame.gray())
-        result = self.estimate(found, p, theta)
+        result = estimate_tags(self.rig, self.state, self.tags, found, p, theta)
         self.cache.save_arrays("results", key, result.arrays())
         return result
 
-    def estimate(self, found: dict[int, np.ndarray], p: int, theta: float) -> ConfigResult:
-        """Pose and error of every experiment tag from detected corners (px)."""
-        n = len(self.tags)
-        out = ConfigResult(
-            detected=np.zeros(n, bool),
-            estimated=np.full((n, 6), np.nan),
-            error=np.full((n, 6), np.nan),
-            reproj_px=np.full(n, np.nan),
-            corners=np.full((n, 4, 2), np.nan),
+
+def estimate_tags(
+    rig: Rig, state: VariantState, tags, found: dict, p: int, theta: float
+) -> ConfigResult:
+    """Pose and error of every tag from detected corners (px), with the assumed calibration."""
+    n = len(tags)
+    out = ConfigResult(
+        detected=np.zeros(n, bool),
+        estimated=np.full((n, 6), np.nan),
+        error=np.full((n, 6), np.nan),
+        reproj_px=np.full(n, np.nan),
+        corners=np.full((n, 4, 2), np.nan),
+    )
+    cal = state.estimation.calibration
+    for i, tag in enumerate(tags):
+        if tag not in found:
+            continue
+        out.detected[i] = True
+        out.corners[i] = found[tag]
+        est = estimate_pose(
+            found[tag], rig.tags.size, cal.matrix, cal.dist_coeffs, state.estimation.pnp
         )
-        cam = self.rig.camera
-        for i, tag in enumerate(self.tags):
-            if tag not in found:
+        if est is None:
+            continue
+        out.estimated[i] = est.pose
+        out.error[i] = pose_error(est.pose, rig.expected_pose(tag, p, theta))
+        out.reproj_px[i] = est.reproj_px
+    return out
+
+
+def _scene_spec(overrides: dict):
+    from simgap.render.scene import load_scene_spec
+
+    return load_scene_spec(overrides)
+
+
+def _assets_hash() -> str:
+    return file_hash(sorted(assets_dir().glob("*.ply")) + sorted(assets_dir().glob("tag_*.png")))
+
+
+_PIPELINES: dict[str, list[VariantPipeline]] = {}
+
+
+def experiment_pipelines(exp: Experiment, cache_dir: Path) -> list[VariantPipeline]:
+    """One pipeline per variant (cached per process: Dask workers keep them between tasks)."""
+    key = content_hash("pipelines", exp.to_yaml(), str(cache_dir))
+    if key not in _PIPELINES:
+        _, _, tags = exp.configuration_axes()
+        assets = _assets_hash()
+        cache = Cache(cache_dir)
+        rig = exp.rig_model
+        margin = exp.render.crop_margin_px
+        _PIPELINES[key] = [
+            VariantPipeline(rig, state, tags, margin, cache, assets)
+            for _, state in exp.variant_states()
+        ]
+    return _PIPELINES[key]
+
+
+def run_task(exp: Experiment, cache_dir: str, p: int, theta: float) -> dict[str, np.ndarray]:
+    """All variants and repeats of one (p, theta): arrays shaped (V, R, T, ...)."""
+    pipes = experiment_pipelines(exp, Path(cache_dir))
+    reps = exp.repeats
+    out: dict[str, list] = {k: [] for k in RESULT_FIELDS}
+    for pipe in pipes:
+        rows = []
+        for r in range(reps):
+            render_repeat = r if exp.render.reseed_repeats else 0
+            if r > 0 and not pipe.state.image.stochastic and not exp.render.reseed_repeats:
+                rows.append(rows[0])  # deterministic pipeline: every repeat is the same frame
                 continue
-            out.detected[i] = True
-            out.corners[i] = found[tag]
-            est = estimate_pose(
-                found[tag], self.rig.tags.size, cam.matrix, cam.dist_coeffs, self.exp.pnp
-            )
-            if est is None:
-                continue
-            out.estimated[i] = est.pose
-            out.error[i] = pose_error(est.pose, self.rig.expected_pose(tag, p, theta))
-            out.reproj_px[i] = est.reproj_px
-        return out
+            rows.append(pipe.run(p, theta, r, render_repeat))
+        for k in RESULT_FIELDS:
+            out[k].append(np.stack([getattr(row, k) for row in rows]))
+    return {k: np.stack(v) for k, v in out.items()}
 
 
 def _progress() -> Progress:
@@ -233,16 +303,46 @@ def _progress() -> Progress:
         MofNCompleteColumn(),
         TextColumn("{task.fields[rate]}"),
         TimeRemainingColumn(),
-        transient=False,
     )
 
 
-def run_experiment(exp: Experiment, cache_dir: Path, show_progress: bool = True) -> xr.Dataset:
-    """Run every configuration of ``exp`` and return the result dataset (DESIGN §3)."""
-    pipe = Pipeline(exp, Cache(cache_dir))
-    ps, thetas, tags = pipe.ps, pipe.thetas, pipe.tags
-    rig = pipe.rig
-    shape = (1, 1, len(tags), len(ps), len(thetas))
+def _client(scheduler: str | None):
+    """A Dask client: an existing scheduler by address, or an in-process LocalCluster."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler), None
+    # One in-process worker thread: Mitsuba/Dr.Jit already use every core for each render.
+    cluster = LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+    )
+    return Client(cluster), cluster
+
+
+def run_experiment(
+    exp: Experiment,
+    cache_dir: Path,
+    show_progress: bool = True,
+    scheduler: str | None = None,
+) -> xr.Dataset:
+    """Run every configuration, variant and repeat of ``exp``; return the result dataset.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The experiment.
+    cache_dir : Path
+        Cache folder (must be reachable by the workers under the same path).
+    show_progress : bool
+        Show a progress bar with counts and rate.
+    scheduler : str, optional
+        Address of a Dask scheduler (``tcp://HOST:PORT``); default: an in-process LocalCluster.
+    """
+    from distributed import as_completed
+
+    ps, thetas, tags = exp.configuration_axes()
+    names = [name for name, _ in exp.variant_states()]
+    shape = (len(names), exp.repeats, len(tags), len(ps), len(thetas))
     res = {
         "detected": np.zeros(shape, bool),
         "estimated": np.full(shape + (6,), np.nan),
@@ -251,43 +351,73 @@ def run_experiment(exp: Experiment, cache_dir: Path, show_progress: bool = True)
         "corners": np.full(shape + (4, 2), np.nan),
     }
     configs = [(i, j) for i in range(len(ps)) for j in range(len(thetas))]
-    with _progress() as bar:
-        task = bar.add_task(exp.name, total=len(configs), rate="", visible=show_progress)
-        for n, (i, j) in enumerate(configs, 1):
-            r = pipe.run_config(ps[i], thetas[j])
-            for name, value in r.arrays().items():
-                res[name][0, 0, :, i, j] = value
-            elapsed = bar.tasks[0].elapsed or 1e-9
-            bar.update(task, advance=1, rate=f"{n / elapsed:.1f} cfg/s")
+    client, cluster = _client(scheduler)
+    try:
+        futures = {
+            client.submit(run_task, exp, str(cache_dir), ps[i], float(thetas[j]), pure=False): (
+                i,
+                j,
+            )
+            for i, j in configs
+        }
+        with _progress() as bar:
+            task = bar.add_task(exp.name, total=len(configs), rate="", visible=show_progress)
+            for n, fut in enumerate(as_completed(futures), 1):
+                i, j = futures[fut]
+                for k, v in fut.result().items():
+                    res[k][:, :, :, i, j] = v
+                elapsed = bar.tasks[0].elapsed or 1e-9
+                bar.update(task, advance=1, rate=f"{n / elapsed:.1f} cfg/s")
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    rig = exp.rig_model
     expected = np.array(
         [[[rig.expected_pose(t, p, th) for th in thetas] for p in ps] for t in tags]
     )
     visible = np.array([[[rig.is_visible(t, p, th) for th in thetas] for p in ps] for t in tags])
-    return build_dataset(tags, ps, thetas, expected, visible, res, attrs=dataset_attrs(exp, pipe))
+    return build_dataset(
+        tags,
+        ps,
+        thetas,
+        expected,
+        visible,
+        res,
+        variants=tuple(names),
+        repeats=tuple(range(exp.repeats)),
+        attrs=dataset_attrs(exp, scheduler),
+    )
 
 
-def dataset_attrs(exp: Experiment, pipe: Pipeline) -> dict[str, str]:
+def dataset_attrs(exp: Experiment, scheduler: str | None) -> dict[str, str]:
     """Provenance attributes: resolved config, seeds, versions, renderer, detector and PnP."""
+    import distributed
     import drjit
     import mitsuba
 
     from simgap.backend import choose_variant
 
+    states = exp.variant_states()
     return {
         "title": f"simgap result: {exp.name}",
         "experiment": exp.name,
         "experiment_yaml": exp.to_yaml(),
         "seed": str(exp.render.seed),
+        "repeats": str(exp.repeats),
+        "variant_effects": json.dumps({spec.name: spec.effects for spec in exp.variant_specs()}),
         "simgap_version": simgap.__version__,
         "mitsuba_version": mitsuba.__version__,
         "drjit_version": drjit.__version__,
         "opencv_version": cv2.__version__,
         "numpy_version": np.__version__,
         "xarray_version": xr.__version__,
+        "dask_distributed_version": distributed.__version__,
         "python_version": platform.python_version(),
         "renderer_variant": choose_variant(),
-        "render_crop": f"square crops around the facing tags, sides in steps of {CROP_STEP_PX} px",
-        "detector": f"{exp.detector}",
-        "pnp": f"{exp.pnp}",
+        "scheduler": scheduler or "in-process LocalCluster",
+        "render_crop": f"square crops around facing tags, sides in steps of {CROP_STEP_PX} px",
+        "detector": json.dumps({n: f"{s.estimation.detector}" for n, s in states}),
+        "pnp": json.dumps({n: f"{s.estimation.pnp}" for n, s in states}),
         "conventions": "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)",
     }

@@ -46,6 +46,7 @@ class OpenCVCamera(mi.Sensor):
         self.set_intrinsics(1000.0, 1000.0, 0.0, 0.0, (0.0,) * 5)
         self.set_pose(np.eye(4))
         self.set_crop_offset(0, 0)
+        self.set_lens(0.0, 1.0)
 
     def set_intrinsics(self, fx: float, fy: float, cx: float, cy: float, distortion) -> None:
         """Set focal lengths and principal point (px) and ``(k1, k2, p1, p2, k3)``."""
@@ -61,6 +62,11 @@ class OpenCVCamera(mi.Sensor):
     def set_crop_offset(self, x0: int, y0: int) -> None:
         """Set the full-image pixel of the film's top-left corner (px)."""
         self._offset = _opaque((x0, y0))
+
+    def set_lens(self, aperture_radius: float, focus_distance: float) -> None:
+        """Thin lens: aperture radius (m; 0 = pinhole) and in-focus distance along z (m)."""
+        self._thin_lens = aperture_radius > 0.0
+        self._lens = _opaque((aperture_radius, focus_distance))
 
     def _undistort(self, xd, yd):
         k1, k2, p1, p2, k3 = self._dist
@@ -83,13 +89,25 @@ class OpenCVCamera(mi.Sensor):
         x, y = (u - cx) / fx, (v - cy) / fy
         if self._has_distortion:
             x, y = self._undistort(x, y)
+        ox = oy = mi.Float(0.0)
+        dx, dy, dz = x, y, mi.Float(1.0)
+        if self._thin_lens:
+            # chief ray through the lens centre is the pinhole ray: blur is centred on it
+            radius, focus = self._lens
+            lens = mi.warp.square_to_uniform_disk_concentric(sample3) * radius
+            ox, oy = lens.x, lens.y
+            dx, dy, dz = x * focus - ox, y * focus - oy, focus
         m = self._m
         d = mi.Vector3f(
-            m[0][0] * x + m[0][1] * y + m[0][2],
-            m[1][0] * x + m[1][1] * y + m[1][2],
-            m[2][0] * x + m[2][1] * y + m[2][2],
+            m[0][0] * dx + m[0][1] * dy + m[0][2] * dz,
+            m[1][0] * dx + m[1][1] * dy + m[1][2] * dz,
+            m[2][0] * dx + m[2][1] * dy + m[2][2] * dz,
         )
-        origin = mi.Point3f(m[0][3], m[1][3], m[2][3])
+        origin = mi.Point3f(
+            m[0][0] * ox + m[0][1] * oy + m[0][3],
+            m[1][0] * ox + m[1][1] * oy + m[1][3],
+            m[2][0] * ox + m[2][1] * oy + m[2][3],
+        )
         return mi.Ray3f(origin, dr.normalize(d), time, []), mi.Spectrum(1.0)
 
     def sample_ray_differential(self, time, sample1, sample2, sample3, active=True):

@@ -20,7 +20,7 @@ from simgap.backend import mitsuba
 from simgap.config import ConfigError, deep_merge, from_mapping, read_yaml, require
 from simgap.paths import assets_dir, scenes_dir
 from simgap.render import camera as _camera  # registers the sensor plugin
-from simgap.rig import NOMINAL, FixtureErrors, Rig
+from simgap.rig import NOMINAL, CameraModel, FixtureErrors, Rig
 
 DEFAULT_TEMPLATE = "pass_fixture.yaml"
 Frame = Literal["rail", "carriage", "eyepoint", "turntable"]
@@ -164,6 +164,14 @@ class FixtureScene:
         Mitsuba sampler plugin (``multijitter``, ``ldsampler``, ``independent`` ...).
     errors : FixtureErrors
         The true fixture's differences from CAD, used for rendering (the ground truth stays CAD).
+    camera : CameraModel, optional
+        The true camera that takes the picture (default: the rig's).
+    tag_scale : float
+        Printed size of the stickers relative to nominal (dimensionless).
+    lens : tuple of float
+        Thin lens ``(aperture_radius_m, focus_distance_m)``; radius 0 is a pinhole.
+    max_depth : int, optional
+        Path tracer depth (default: the template integrator's).
     """
 
     def __init__(
@@ -174,13 +182,20 @@ class FixtureScene:
         spp: int = 16,
         sampler: str = "multijitter",
         errors: FixtureErrors = NOMINAL,
+        camera: CameraModel | None = None,
+        tag_scale: float = 1.0,
+        lens: tuple[float, float] = (0.0, 1.0),
+        max_depth: int | None = None,
     ) -> None:
         self.mi = mi = mitsuba()
-        self.rig, self.spec, self.errors = rig, spec, errors
+        self.rig, self.spec, self.errors, self.tag_scale = rig, spec, errors, float(tag_scale)
         self.film_size, self.spp = tuple(film_size), int(spp)
         scene_dict: dict[str, Any] = {
             "type": "scene",
-            "integrator": copy.deepcopy(spec.integrator),
+            "integrator": {
+                **copy.deepcopy(spec.integrator),
+                **({} if max_depth is None else {"max_depth": int(max_depth)}),
+            },
             "sensor": {
                 "type": _camera.PLUGIN_NAME,
                 "film": {
@@ -224,8 +239,9 @@ class FixtureScene:
             raise ConfigError(f"scene: Mitsuba could not build the scene: {exc}") from exc
         self.params = mi.traverse(self.scene)
         self.camera = self.scene.sensors()[0]
-        cam = rig.camera
+        cam = camera or rig.camera
         self.camera.set_intrinsics(cam.fx, cam.fy, cam.cx, cam.cy, cam.distortion)
+        self.camera.set_lens(*lens)
         self._base = {
             name: np.array(self.params[f"{name}.vertex_positions"]).reshape(-1, 3)
             for name, obj in spec.objects.items()
@@ -249,7 +265,7 @@ class FixtureScene:
         for name, base in self._base.items():
             moved = tf.apply(frames[self.spec.objects[name].frame], base)
             self.params[f"{name}.vertex_positions"] = mi.Float(moved.ravel().astype(np.float32))
-        half = rig.sticker_size() / 2
+        half = rig.sticker_size() * self.tag_scale / 2
         for face in rig.tags.faces:
             rail_from_tag = frames["turntable"] @ rig.turntable_from_tag(face.id, err)
             self.params[f"tag_{face.id}.to_world"] = mi.ScalarTransform4f(
@@ -274,12 +290,19 @@ class FixtureScene:
         return np.array(img, dtype=np.float32)
 
 
-def projected_sticker_boxes(rig: Rig, p: float, theta: float, errors: FixtureErrors = NOMINAL):
+def projected_sticker_boxes(
+    rig: Rig,
+    p: float,
+    theta: float,
+    errors: FixtureErrors = NOMINAL,
+    camera: CameraModel | None = None,
+    tag_scale: float = 1.0,
+):
     """Pixel bounding boxes ``(u0, v0, u1, v1)`` of the stickers facing the camera, by tag id."""
-    half = rig.sticker_size() / 2
+    half = rig.sticker_size() * tag_scale / 2
     corners = np.array([[-half, half, 0], [half, half, 0], [half, -half, 0], [-half, -half, 0]])
     cv_from_eye = tf.make(tf.GLOBAL_FROM_CV.T)
-    cam = rig.camera
+    cam = camera or rig.camera
     boxes = {}
     for face in rig.tags.faces:
         if rig.view_angle(face.id, p, theta, errors) <= 0:

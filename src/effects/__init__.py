@@ -1,0 +1,27 @@
+"""The effects catalogue: every physical or algorithmic effect as a small registered class.
+
+Each effect has a frozen, validated ``Params`` dataclass (units in the field names or docstring), a
+docstring saying what it models, and the ``stage`` at which it acts (DESIGN §2):
+
+==============  ==========================================================  =====================
+stage           what it changes                                              recompute
+==============  ==========================================================  =====================
+``scene``       the rendered world: lights, materials, optics, true camera  re-render
+``geometry``    the true fixture (the CAD ground truth is unchanged)         re-render
+``image``       the camera pipeline on the cached linear render              re-process the EXR
+``estimation``  what the estimator assumes: calibration, detector, PnP       re-detect / re-solve
+==============  ==========================================================  =====================
+
+An effect is applied to a :class:`~simgap.effects.state.VariantState` and returns a new one; the
+sweep derives each stage's cache key from that stage's part of the state only, so a variant reuses
+everything upstream of the first stage it changes.
+
+Use :func:`make_effect` to build one from YAML data and ``EFFECTS`` to list them.
+"""
+
+from __future__ import annotations
+
+from simgap.effects import estimation, geometry, image, scene  # noqa: F401,E402  (registration)
+from simgap.effects.base import EFFECTS, Effect, make_effect, register
+
+__all__ = ["EFFECTS", "Effect", "make_effect", "register"]

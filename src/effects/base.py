@@ -1,0 +1,60 @@
+"""Effect base class and the name-keyed registry."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, ClassVar, Literal
+
+from simgap.config import ConfigError, from_mapping, to_mapping
+from simgap.effects.state import VariantState
+
+Stage = Literal["scene", "geometry", "image", "estimation"]
+EFFECTS: dict[str, type[Effect]] = {}
+
+
+class Effect:
+    """Base class: subclasses set ``name``, ``stage``, a ``Params`` dataclass and ``apply``."""
+
+    name: ClassVar[str]
+    stage: ClassVar[Stage]
+    Params: ClassVar[type]
+
+    def __init__(self, params: Any) -> None:
+        self.params = params
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Return ``state`` with this effect applied (its own stage only)."""
+        raise NotImplementedError(f"effect {self.name!r} does not implement apply()")
+
+    def describe(self) -> dict[str, Any]:
+        """The effect's parameters as plain data."""
+        return to_mapping(self.params)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.describe()})"
+
+
+def register(cls: type[Effect]) -> type[Effect]:
+    """Class decorator adding an effect to :data:`EFFECTS` under ``cls.name``."""
+    if cls.name in EFFECTS:
+        raise ValueError(f"effect name {cls.name!r} registered twice")
+    EFFECTS[cls.name] = cls
+    return cls
+
+
+def make_effect(name: str, params: Mapping[str, Any] | None, where: str = "") -> Effect:
+    """Build a registered effect from a mapping of its parameters.
+
+    Raises
+    ------
+    simgap.config.ConfigError
+        If ``name`` is unknown (the message lists the known names) or the parameters are invalid.
+    """
+    if name not in EFFECTS:
+        raise ConfigError(
+            f"{where}{name}: unknown effect; expected one of {', '.join(sorted(EFFECTS))}"
+        )
+    cls = EFFECTS[name]
+    if params is not None and not isinstance(params, Mapping):
+        raise ConfigError(f"{where}{name}: expected a mapping of parameters, got {params!r}")
+    return cls(from_mapping(cls.Params, params or {}, where=f"{where}{name}"))

@@ -1,0 +1,225 @@
+"""Image-stage effects: the camera pipeline applied to the cached linear HDR render.
+
+Linear-domain operations run in ``order`` (blur, vignetting, exposure, noise), then the frame is
+encoded (``gamma`` effect: sRGB by default) and quantised to 8 bits, then post-quantisation
+operations run (JPEG). Each operation works on a crop of the frame; ``ImageContext`` says where the
+crop sits so that position-dependent effects (vignetting, JPEG blocks) are those of the full frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import ClassVar, Literal
+
+import cv2
+import numpy as np
+
+from simgap.config import require
+from simgap.effects.base import EFFECTS, Effect, register
+from simgap.effects.state import ImageState, VariantState
+from simgap.render import imaging
+from simgap.rig import CameraModel
+
+#: Crop offsets are multiples of this (px) so that JPEG's 8x8 blocks and 2x2 chroma subsampling of
+#: a crop align with those of the full frame.
+BLOCK_ALIGN_PX = 16
+
+
+@dataclass(frozen=True)
+class ImageContext:
+    """Where a crop sits and the random generator for this frame."""
+
+    offset: tuple[int, int]
+    camera: CameraModel
+    rng: np.random.Generator
+
+
+class ImageEffect(Effect):
+    """An image operation: ``order`` < 50 works on linear float RGB, >= 50 on 8-bit RGB."""
+
+    stage = "image"
+    order: ClassVar[int]
+    stochastic: ClassVar[bool] = False
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Append this operation to the camera pipeline."""
+        image = dataclasses.replace(state.image, ops=state.image.ops + ((self.name, self.params),))
+        return dataclasses.replace(state, image=image)
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Apply the operation to a crop."""
+        raise NotImplementedError
+
+
+@register
+class Blur(ImageEffect):
+    """Optical blur: isotropic Gaussian point spread function of standard deviation ``sigma_px``."""
+
+    name = "blur"
+    order = 10
+
+    @dataclass(frozen=True)
+    class Params:
+        """PSF width."""
+
+        sigma_px: float = 0.7
+
+        def __post_init__(self) -> None:
+            require(0 < self.sigma_px < 10, "sigma_px: expected 0 < sigma < 10 px")
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Convolve with the PSF."""
+        return cv2.GaussianBlur(img, (0, 0), self.params.sigma_px, borderType=cv2.BORDER_REFLECT)
+
+
+@register
+class Vignetting(ImageEffect):
+    """Radial illumination fall-off: gain ``1 - strength * (r / r_corner)^2`` about the principal point."""
+
+    name = "vignetting"
+    order = 20
+
+    @dataclass(frozen=True)
+    class Params:
+        """Fall-off at the image corner (0 = none)."""
+
+        strength: float = 0.3
+
+        def __post_init__(self) -> None:
+            require(0 <= self.strength < 1, "strength: expected 0 <= s < 1")
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Multiply by the fall-off."""
+        cam = ctx.camera
+        h, w = img.shape[:2]
+        v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+        du, dv = u + ctx.offset[0] - cam.cx, v + ctx.offset[1] - cam.cy
+        corner2 = max(cam.cx, cam.width - cam.cx) ** 2 + max(cam.cy, cam.height - cam.cy) ** 2
+        gain = 1.0 - self.params.strength * (du * du + dv * dv) / corner2
+        return img * gain[..., None]
+
+
+@register
+class Exposure(ImageEffect):
+    """Exposure error in stops (EV): the linear signal is multiplied by ``2 ** ev``."""
+
+    name = "exposure"
+    order = 30
+
+    @dataclass(frozen=True)
+    class Params:
+        """Exposure offset."""
+
+        ev: float = 0.0
+
+        def __post_init__(self) -> None:
+            require(-8 < self.ev < 8, "ev: expected -8 < ev < 8")
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Scale the linear signal."""
+        return img * np.float32(2.0**self.params.ev)
+
+
+@register
+class SensorNoise(ImageEffect):
+    """Shot (Poisson) and read (Gaussian) noise; linear 1.0 is ``full_well_e`` electrons."""
+
+    name = "sensor_noise"
+    order = 40
+    stochastic = True
+
+    @dataclass(frozen=True)
+    class Params:
+        """Sensor noise model."""
+
+        full_well_e: float = 6000.0
+        read_noise_e: float = 4.0
+
+        def __post_init__(self) -> None:
+            require(self.full_well_e >= 10, "full_well_e: expected >= 10 electrons")
+            require(self.read_noise_e >= 0, "read_noise_e: expected >= 0 electrons")
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Draw noisy electron counts and convert back to linear units."""
+        fw = self.params.full_well_e
+        electrons = ctx.rng.poisson(np.clip(img, 0, None) * fw).astype(np.float32)
+        electrons += ctx.rng.normal(0.0, self.params.read_noise_e, img.shape).astype(np.float32)
+        return electrons / np.float32(fw)
+
+
+@register
+class Gamma(ImageEffect):
+    """Transfer function of the 8-bit frame: ``srgb`` (IEC 61966-2-1), power ``gamma`` or ``linear``."""
+
+    name = "gamma"
+    order = 50
+
+    @dataclass(frozen=True)
+    class Params:
+        """Encoding."""
+
+        encoding: Literal["srgb", "gamma", "linear"] = "gamma"
+        gamma: float = 2.2
+
+        def __post_init__(self) -> None:
+            require(0.5 <= self.gamma <= 4, "gamma: expected 0.5..4")
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Set the pipeline's encoding."""
+        image = dataclasses.replace(
+            state.image, encoding=self.params.encoding, gamma=self.params.gamma
+        )
+        return dataclasses.replace(state, image=image)
+
+
+@register
+class Jpeg(ImageEffect):
+    """JPEG compression of the 8-bit frame at ``quality`` (0-100, OpenCV/libjpeg scale)."""
+
+    name = "jpeg"
+    order = 70
+
+    @dataclass(frozen=True)
+    class Params:
+        """JPEG quality."""
+
+        quality: int = 75
+
+        def __post_init__(self) -> None:
+            require(1 <= self.quality <= 100, "quality: expected 1..100")
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Compress and decompress (blocks aligned with the full frame)."""
+        ok, buf = cv2.imencode(
+            ".jpg",
+            cv2.cvtColor(img, cv2.COLOR_RGB2BGR),
+            [cv2.IMWRITE_JPEG_QUALITY, self.params.quality],
+        )
+        if not ok:
+            raise RuntimeError("JPEG encoding failed")
+        return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+
+
+def encode(linear: np.ndarray, state: ImageState) -> np.ndarray:
+    """Encode linear RGB to 8 bits with the pipeline's transfer function."""
+    if state.encoding == "srgb":
+        return imaging.encode_srgb8(linear)
+    x = np.clip(linear, 0.0, 1.0)
+    if state.encoding == "gamma":
+        x = x ** (1.0 / state.gamma)
+    return np.clip(np.round(x * 255.0), 0, 255).astype(np.uint8)
+
+
+def run_pipeline(hdr: np.ndarray, state: ImageState, ctx: ImageContext) -> np.ndarray:
+    """Turn a linear HDR crop into the camera's 8-bit RGB crop."""
+    ops = sorted((EFFECTS[name](params) for name, params in state.ops), key=lambda e: e.order)
+    img = hdr * np.float32(state.exposure)
+    for op in ops:
+        if op.order < 50:
+            img = op.process(img, ctx)
+    img = encode(img, state)
+    for op in ops:
+        if op.order > 50:
+            img = op.process(img, ctx)
+    return img
