@@ -46,7 +46,7 @@ def main() -> None:
     ap.add_argument("--subset", type=int, default=8, help="configurations timed the naive way")
     args = ap.parse_args()
     exp = load_experiment(args.experiment)
-    ps, thetas, _ = exp.grid()
+    ps, thetas, _ = exp.configuration_axes()
     n = len(ps) * len(thetas)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()

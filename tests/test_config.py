@@ -121,7 +121,7 @@ def test_valid_file_loads_and_grid(tmp_path):
     assert exp.render.sampler == "ldsampler"
     assert exp.detector.corner_refinement == "APRILTAG"
     assert exp.pnp.method == "SQPNP"
-    ps, thetas, tags = exp.grid()
+    ps, thetas, tags = exp.configuration_axes()
     assert ps == (0, 7, 14)
     assert tags == (1,)
     # 370 deg is the 10 deg stop (wrapped into [0, 360)).
@@ -135,7 +135,7 @@ def test_name_defaults_to_file_stem(tmp_path):
 
 def test_empty_configurations_mean_full_grid(tmp_path):
     exp = load_experiment(write(tmp_path, "name: full\n"))
-    ps, thetas, tags = exp.grid()
+    ps, thetas, tags = exp.configuration_axes()
     rig = exp.rig_model
     assert ps == rig.grid.p == tuple(range(15))
     assert tags == (0, 1)

@@ -19,7 +19,10 @@ def _estimation(state: VariantState, **changes) -> VariantState:
 
 @register
 class Calibration(Effect):
-    """The calibration the estimator believes in (px; Brown-Conrady); unset fields keep the rig's."""
+    """The calibration the estimator believes in (px, Brown-Conrady); unset fields keep the rig's.
+
+    Calibration errors move no pixel: they act on corners already detected.
+    """
 
     name = "calibration"
     stage = "estimation"

@@ -75,7 +75,7 @@ class Blur(ImageEffect):
 
 @register
 class Vignetting(ImageEffect):
-    """Radial illumination fall-off: gain ``1 - strength * (r / r_corner)^2`` about the principal point."""
+    """Radial fall-off: gain ``1 - strength * (r / r_corner)^2`` about the principal point."""
 
     name = "vignetting"
     order = 20
@@ -150,7 +150,7 @@ class SensorNoise(ImageEffect):
 
 @register
 class Gamma(ImageEffect):
-    """Transfer function of the 8-bit frame: ``srgb`` (IEC 61966-2-1), power ``gamma`` or ``linear``."""
+    """Transfer function of the 8-bit frame: ``srgb`` (IEC 61966-2-1), ``gamma`` or ``linear``."""
 
     name = "gamma"
     order = 50

@@ -43,7 +43,7 @@ def _override(state: VariantState, patch: dict) -> VariantState:
 class Lighting(Effect):
     """The key light: type, placement, power and colour temperature (rail frame, m).
 
-    ``power`` is radiance (W m^-2 sr^-1) for ``area`` and intensity (W sr^-1) for ``point``/``spot``.
+    ``power``: radiance (W m^-2 sr^-1) for ``area``, intensity (W sr^-1) for ``point``/``spot``.
     """
 
     name = "lighting"
