@@ -1,0 +1,198 @@
+"""Experiments with variants: inheritance, validation, stage reuse, Dask, distortion accuracy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+import simgap.sweep as sweep
+from simgap.config import ConfigError
+from simgap.experiment import load_experiment
+from simgap.pose.detect import Detector, DetectorSettings
+from simgap.pose.estimate import project_tag_corners
+from simgap.render import imaging
+from simgap.render.scene import FixtureScene, load_scene_spec, projected_sticker_boxes
+
+
+def _write(path, data):
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def test_inheritance_variants_and_grid(tmp_path):
+    _write(
+        tmp_path / "parent.yaml", {"name": "parent", "render": {"spp": 4, "seed": 3}, "repeats": 2}
+    )
+    child = _write(
+        tmp_path / "child.yaml",
+        {
+            "name": "child",
+            "inherit": "parent.yaml",
+            "render": {"spp": 8},
+            "variants": [{"name": "gloss", "effects": {"tag_gloss": {"alpha": 0.1}}}],
+            "grid": {"exposure.ev": [-1, 1], "blur.sigma_px": [0.5, 1.0, 2.0]},
+        },
+    )
+    exp = load_experiment(child)
+    assert exp.render.spp == 8 and exp.render.seed == 3 and exp.repeats == 2
+    names = [n for n, _ in exp.variant_states()]
+    assert names[:2] == ["baseline", "gloss"] and len(names) == 2 + 6
+    assert "exposure.ev=-1,blur.sigma_px=2.0" in names
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        (
+            {"variants": [{"name": "a", "effects": {"tag_gloss": {"alpha": 5}}}]},
+            "variants[0].effects.tag_gloss.alpha",
+        ),
+        (
+            {"variants": [{"name": "a", "effects": {"glossy": {}}}]},
+            "variants[0].effects.glossy: unknown effect",
+        ),
+        ({"variants": [{"name": "a"}, {"name": "a"}]}, "variants: duplicate variant name 'a'"),
+        ({"variants": [{"effects": {}}]}, "variants[0].name: required key is missing"),
+        ({"grid": {"exposure": [1]}}, "grid.exposure: expected a key of the form effect.parameter"),
+        ({"grid": {"exposure.evv": [1]}}, "grid: exposure.evv: unknown key"),
+        ({"effects": {"blur": {"sigma_px": -1}}}, "effects.blur.sigma_px: expected 0 < sigma"),
+        ({"repeats": 0}, "repeats: expected an integer >= 1"),
+        ({"inherit": "missing.yaml"}, "inherit:"),
+    ],
+)
+def test_variant_errors_name_file_and_key_path(tmp_path, data, message):
+    path = _write(tmp_path / "bad.yaml", {"name": "bad", **data})
+    with pytest.raises(ConfigError) as exc:
+        load_experiment(path)
+    assert str(path) in str(exc.value) and message in str(exc.value)
+
+
+def test_circular_inheritance_is_an_error(tmp_path):
+    _write(tmp_path / "a.yaml", {"name": "a", "inherit": "b.yaml"})
+    _write(tmp_path / "b.yaml", {"name": "b", "inherit": "a.yaml"})
+    with pytest.raises(ConfigError, match="circular inheritance"):
+        load_experiment(tmp_path / "a.yaml")
+
+
+@pytest.fixture
+def spies(monkeypatch):
+    calls = {"render": 0, "pipeline": 0}
+    render, pipeline = FixtureScene.render, sweep.run_pipeline
+
+    def spy_render(self, *a, **k):
+        calls["render"] += 1
+        return render(self, *a, **k)
+
+    def spy_pipeline(*a, **k):
+        calls["pipeline"] += 1
+        return pipeline(*a, **k)
+
+    monkeypatch.setattr(FixtureScene, "render", spy_render)
+    monkeypatch.setattr(sweep, "run_pipeline", spy_pipeline)
+    return calls
+
+
+def test_variants_reuse_upstream_stages(tmp_path, spies):
+    path = _write(
+        tmp_path / "reuse.yaml",
+        {
+            "name": "reuse",
+            "configurations": {"p": [0], "theta_deg": [0, 180]},
+            "render": {"spp": 4},
+            "repeats": 2,
+            "variants": [
+                {"name": "blur", "effects": {"blur": {"sigma_px": 1.0}}},
+                {"name": "refine_none", "effects": {"detector_refinement": {"method": "NONE"}}},
+                {"name": "gloss", "effects": {"tag_gloss": {"alpha": 0.1}}},
+                {"name": "noise", "effects": {"sensor_noise": {}}},
+            ],
+        },
+    )
+    exp = load_experiment(path)
+    ds = sweep.run_experiment(exp, tmp_path / "cache", show_progress=False)
+    assert list(ds.variant.values) == ["baseline", "blur", "refine_none", "gloss", "noise"]
+    # 2 configurations: renders only for the 2 distinct scenes (baseline, gloss)
+    assert spies["render"] == 2 * 2
+    # frames: baseline, blur, gloss once each; noise once per repeat; refine_none reuses baseline
+    assert spies["pipeline"] == 2 * (3 + 2)
+    det = ds.detected.sel(variant="baseline").values
+    assert det.sum() == 2 * 2  # each configuration's facing tag, in both repeats
+    err = ds.error.values
+    # deterministic variants: repeats identical; noisy variant: repeats differ
+    np.testing.assert_array_equal(err[0, 0], err[0, 1])
+    noise = ds.error.sel(variant="noise").values
+    assert not np.array_equal(noise[0][np.isfinite(noise[0])], noise[1][np.isfinite(noise[1])])
+    assert "variant_effects" in ds.attrs and "tag_gloss" in ds.attrs["variant_effects"]
+
+
+def test_dask_scheduler_over_tcp_gives_the_same_result(tmp_path):
+    """A real scheduler and worker process on loopback reproduce the default run exactly."""
+    from distributed import LocalCluster
+
+    path = _write(
+        tmp_path / "dask.yaml",
+        {
+            "name": "dask",
+            "configurations": {"p": [0, 14], "theta_deg": [0, 180]},
+            "render": {"spp": 4},
+            "variants": [{"name": "blur", "effects": {"blur": {"sigma_px": 0.8}}}],
+        },
+    )
+    exp = load_experiment(path)
+    local = sweep.run_experiment(exp, tmp_path / "cache-local", show_progress=False)
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        address = cluster.scheduler_address
+        assert address.startswith("tcp://127.0.0.1:")
+        remote = sweep.run_experiment(
+            exp, tmp_path / "cache-remote", show_progress=False, scheduler=address
+        )
+    assert remote.attrs["scheduler"] == address
+    for name in ("detected", "error", "corners", "reproj_px"):
+        np.testing.assert_array_equal(remote[name].values, local[name].values)
+
+
+@pytest.mark.parametrize("tag, p, theta_deg", [(0, 0, 40), (1, 0, 140), (0, 3, 50)])
+def test_distorted_render_corners_match_projectpoints(rig, tag, p, theta_deg):
+    """Corners of a Brown-Conrady render against cv2.projectPoints with the same coefficients.
+
+    Rendered at 4x resolution (same field of view and normalised distortion), so the ArUco
+    detector's own pixel-locking bias (about 0.2-0.4 px, present without distortion too) shrinks
+    to a quarter in the original pixels; what remains measures the distortion model.
+    """
+    s = 4
+    dist = (0.13, -0.26, 0.0, 0.0, 0.10)  # D435-like magnitudes; 5-9 px displacement here
+    cam = rig.camera
+    hi = cam.replace(
+        width=cam.width * s,
+        height=cam.height * s,
+        fx=cam.fx * s,
+        fy=cam.fy * s,
+        cx=(cam.cx + 0.5) * s - 0.5,
+        cy=(cam.cy + 0.5) * s - 0.5,
+        distortion=dist,
+    )
+    theta = np.deg2rad(theta_deg)
+    boxes = projected_sticker_boxes(rig, p, theta, camera=hi)
+    side = sweep.crop_side(boxes, 96, (hi.width, hi.height))
+    off = sweep.crop_offset(boxes, (side, side), (hi.width, hi.height))
+    scene = FixtureScene(rig, load_scene_spec(), (side, side), spp=8, camera=hi)
+    scene.set_pose(p, theta)
+    crop = imaging.encode_srgb8(imaging.quantise_half(scene.render(off, seed=2)))
+    found = Detector(DetectorSettings()).detect(
+        imaging.paste(imaging.to_gray(crop), off, (hi.width, hi.height))
+    )
+    lo_dist = cam.replace(distortion=dist)
+    truth = project_tag_corners(
+        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, lo_dist.matrix, lo_dist.dist_coeffs
+    )
+    undistorted = project_tag_corners(
+        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cam.matrix, cam.dist_coeffs
+    )
+    assert np.linalg.norm(truth - undistorted, axis=1).max() > 1.5  # distortion matters here
+    detected = (found[tag] + 0.5) / s - 0.5  # back to the original pixel grid
+    err = np.linalg.norm(detected - truth, axis=1)
+    # issue 3 asks mean < 0.15 px, max < 0.3 px; measured mean 0.09-0.12, max <= 0.16 px
+    assert err.mean() < 0.15 and err.max() < 0.3, err
