@@ -1,4 +1,4 @@
-"""Command line: ``simgap run``, ``simgap report``, ``simgap assets``."""
+"""Command line: ``simgap run``, ``simgap report``, ``simgap compare``, ``simgap assets``."""
 
 from __future__ import annotations
 
@@ -11,6 +11,10 @@ from simgap.config import ConfigError
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
 
 CACHE_HELP = "Cache folder for renders and results (default: $SIMGAP_CACHE or ~/.cache/simgap)."
+SCHEDULER_HELP = (
+    "Dask scheduler address (tcp://HOST:PORT); default: an in-process LocalCluster. "
+    "Workers must see the cache folder under the same path."
+)
 
 
 def _fail(message: str) -> None:
@@ -24,6 +28,7 @@ def run(
     output: Path = typer.Option(..., "-o", "--output", help="Result dataset to write (netCDF)."),
     cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+    scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
 ) -> None:
     """Run an experiment and write its result dataset."""
     from simgap.analysis.dataset import write_netcdf
@@ -35,12 +40,13 @@ def run(
         exp = load_experiment(experiment)
     except ConfigError as exc:
         _fail(str(exc))
-    ds = run_experiment(exp, cache or default_cache_dir(), show_progress=progress)
+    ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
     write_netcdf(ds, output)
     vis = ds.visible.values
     det = ds.detected.values[0, 0]
     typer.echo(
-        f"wrote {output}: {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
+        f"wrote {output}: {ds.sizes['variant']} variant(s) x {ds.sizes['repeat']} repeat(s); "
+        f"baseline: {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
     )
 
 
@@ -49,7 +55,7 @@ def report(
     result: Path = typer.Argument(..., help="Result dataset (netCDF) from `simgap run`."),
     output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
 ) -> None:
-    """Write figures and the paper-style Table 2 for a result dataset."""
+    """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
     from simgap.analysis.dataset import read_netcdf
     from simgap.analysis.report import write_report
 
@@ -61,6 +67,36 @@ def report(
         _fail(f"{result}: cannot read result dataset: {exc}")
     try:
         paths = write_report(ds, output)
+        if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
+            from simgap.analysis.compare import write_comparison
+
+            paths += write_comparison(ds, output)
+    except ValueError as exc:
+        _fail(f"{result}: {exc}")
+    for p in paths:
+        typer.echo(str(p))
+
+
+@app.command()
+def compare(
+    result: Path = typer.Argument(..., help="Result dataset (netCDF) with several variants."),
+    output: Path = typer.Option(..., "-o", "--output", help="Comparison folder to write."),
+    baseline: str | None = typer.Option(
+        None, "--baseline", help="Reference variant (default: 'baseline', else the first)."
+    ),
+) -> None:
+    """Compare each variant of a result dataset with the reference variant."""
+    from simgap.analysis.compare import write_comparison
+    from simgap.analysis.dataset import read_netcdf
+
+    try:
+        ds = read_netcdf(result)
+    except FileNotFoundError as exc:
+        _fail(str(exc))
+    except (OSError, ValueError) as exc:
+        _fail(f"{result}: cannot read result dataset: {exc}")
+    try:
+        paths = write_comparison(ds, output, baseline)
     except ValueError as exc:
         _fail(f"{result}: {exc}")
     for p in paths:
@@ -81,6 +117,7 @@ def study(
     experiment: Path = typer.Argument(Path("experiments/baseline.yaml"), help="Experiment YAML."),
     output: Path = typer.Option(Path("results"), "-o", "--output", help="Output folder."),
     cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+    scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
 ) -> None:
     """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
     from simgap.experiment import load_experiment
@@ -90,7 +127,7 @@ def study(
     except ConfigError as exc:
         _fail(str(exc))
     nc = output / f"{name}.nc"
-    run(experiment, nc, cache, True)
+    run(experiment, nc, cache, True, scheduler)
     report(nc, output / f"{name}-report")
 
 

@@ -699,6 +699,7 @@ def _draw_change_heatmap(
     ax.set_title(f"tag {tag}, {axis}: signed change [{unit}]")
     ax.set_xlabel("view angle from facing [deg]")
     ax.set_ylabel("pin hole p")
+    ax.set_yticks(signed["p"].values)
 
 
 def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = None) -> Figure:
