@@ -278,16 +278,16 @@ def _python3_kernel_manager(tmp_path: Path):
     return KernelManager(kernel_name="python3", kernel_spec_manager=specs)
 
 
-def test_notebook_runs(data, tmp_path, monkeypatch):
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    pytest.importorskip("ipykernel")
+def test_notebook_runs_on_smoke_variants(smoke_variants_nc, tmp_path, monkeypatch):
+    """The notebook executes on the real `experiments/smoke_variants.yaml` dataset."""
+    import nbclient
+    import nbformat
+
     nb = nbformat.read(NOTEBOOK, as_version=4)
     for cell in nb.cells:
         if cell.cell_type == "code":
             assert not cell.outputs and cell.execution_count is None, "commit with outputs cleared"
-    nc = write_netcdf(data[0], tmp_path / "variants.nc")
-    monkeypatch.setenv("SIMGAP_VARIANTS_NC", str(nc))
+    monkeypatch.setenv("SIMGAP_VARIANTS_NC", str(smoke_variants_nc))
     client = nbclient.NotebookClient(
         nb,
         km=_python3_kernel_manager(tmp_path),

@@ -196,3 +196,17 @@ def test_distorted_render_corners_match_projectpoints(rig, tag, p, theta_deg):
     err = np.linalg.norm(detected - truth, axis=1)
     # issue 3 asks mean < 0.15 px, max < 0.3 px; measured mean 0.09-0.12, max <= 0.16 px
     assert err.mean() < 0.15 and err.max() < 0.3, err
+
+
+def test_smoke_variants_dataset(smoke_variants_nc):
+    """`experiments/smoke_variants.yaml` gives one dataset with the five named variants."""
+    from simgap.analysis.dataset import read_netcdf
+
+    ds = read_netcdf(smoke_variants_nc)
+    assert list(ds.variant.values) == ["baseline", "distortion", "glossy_tags", "defocus", "noise"]
+    assert ds.sizes["repeat"] == 2
+    vis = ds.visible.values
+    det = ds.detected.values
+    # every variant detects the tags at p=0 (tag 0 at theta=0 and tag 1 at theta=180)
+    assert det[:, :, 0, 0, 0].all() and det[:, :, 1, 0, 2].all()
+    assert det[0, 0][vis].all()
