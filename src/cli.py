@@ -40,7 +40,10 @@ def run(
         exp = load_experiment(experiment)
     except ConfigError as exc:
         _fail(str(exc))
-    ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
+    try:
+        ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
+    except ConfigError as exc:
+        _fail(f"{experiment}: {exc}")
     write_netcdf(ds, output)
     vis = ds.visible.values
     det = ds.detected.values[0, 0]

@@ -296,6 +296,29 @@ def run_task(exp: Experiment, cache_dir: str, p: int, theta: float) -> dict[str,
     return {k: np.stack(v) for k, v in out.items()}
 
 
+def preflight(exp: Experiment) -> None:
+    """Build every distinct variant scene once (tiny film) so bad scene settings fail up front.
+
+    Raises
+    ------
+    simgap.config.ConfigError
+        Naming the variant whose scene Mitsuba cannot build.
+    """
+    from simgap.config import ConfigError
+    from simgap.render.scene import FixtureScene
+
+    seen = set()
+    for name, state in exp.variant_states():
+        key = content_hash(state.scene.overrides)
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            FixtureScene(exp.rig_model, _scene_spec(state.scene.overrides), (8, 8), 1)
+        except ConfigError as exc:
+            raise ConfigError(f"variant {name!r}: {exc}") from exc
+
+
 def _progress() -> Progress:
     return Progress(
         TextColumn("[bold]{task.description}"),
@@ -351,6 +374,7 @@ def run_experiment(
         "corners": np.full(shape + (4, 2), np.nan),
     }
     configs = [(i, j) for i in range(len(ps)) for j in range(len(thetas))]
+    preflight(exp)
     client, cluster = _client(scheduler)
     try:
         futures = {

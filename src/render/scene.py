@@ -124,10 +124,32 @@ class SceneSpec:
         require("tag" in self.materials, "materials.tag: required (the tag sticker material)")
 
 
+def apply_overrides(template: dict, overrides: dict) -> dict:
+    """Merge scene overrides into a template.
+
+    Mappings merge recursively, except that a material or light override naming a ``type``
+    replaces the template's entry (a BSDF's parameters belong to its type); the tag material
+    keeps its ``ink`` and ``paper`` albedo across a type change.
+    """
+    data = dict(template)
+    for section in ("materials", "lights"):
+        entries = dict(data.get(section, {}))
+        for name, entry in (overrides.get(section) or {}).items():
+            old = entries.get(name, {})
+            if isinstance(entry, dict) and "type" in entry and entry["type"] != old.get("type"):
+                keep = {k: old[k] for k in ("ink", "paper") if k in old} if name == "tag" else {}
+                entries[name] = {**keep, **entry}
+            else:
+                entries[name] = deep_merge(old, entry) if isinstance(entry, dict) else entry
+        data[section] = entries
+    rest = {k: v for k, v in overrides.items() if k not in ("materials", "lights")}
+    return deep_merge(data, rest)
+
+
 def load_scene_spec(overrides: dict | None = None, template: str | Path | None = None) -> SceneSpec:
     """Read a scene template (default ``mitsuba_scenes/pass_fixture.yaml``) with overrides."""
     path = Path(template) if template else scenes_dir() / DEFAULT_TEMPLATE
-    data = deep_merge(read_yaml(path), overrides or {})
+    data = apply_overrides(read_yaml(path), overrides or {})
     return from_mapping(SceneSpec, data, where=f"{path}: ")
 
 
