@@ -1,0 +1,192 @@
+"""The diagnosis report: where the gap lies, the effect ranking, before/after, figures, JSON.
+
+The gap figures reuse :mod:`simgap.analysis.compare`: the simulation and the real data are put
+into one dataset as two variants, so a variant's signed shift against ``simulation`` is the gap.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from simgap.analysis import compare
+from simgap.analysis.diagnose import AXES, Diagnosis, write_json
+from simgap.analysis.gap import align
+from simgap.analysis.report import _save_figure, _save_text
+
+
+def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
+    """The simulation and the real data as variants ``simulation`` and ``real`` of one dataset."""
+    real, sim = align(real, sim)
+    sim = sim.isel(variant=[0]).assign_coords(variant=["simulation"])
+    real = real.isel(variant=[0]).assign_coords(variant=["real"])
+    keep = ["error", "estimated", "detected", "reproj_px", "corners"]
+    both = xr.concat([sim[keep], real[keep]], dim="variant", join="outer", fill_value=np.nan)
+    both["detected"] = both.detected.fillna(False).astype(bool)
+    visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
+    both["visible"] = visible
+    both["expected"] = real.expected
+    return both
+
+
+def _unit(axis: str) -> tuple[str, float]:
+    return ("mm", 1e3) if axis.startswith("t") else ("mrad", 1e3)
+
+
+def where_markdown(where: dict[str, Any]) -> list[str]:
+    """Markdown lines for the 'where' part."""
+    lines = [
+        "## Where",
+        "",
+        f"Comparable configurations (visible, detected in both): "
+        f"{where['comparable_configurations']}. "
+        f"Significant gap: **{'yes' if where['significant'] else 'no'}**.",
+        "",
+        "| axis | n | mean gap | RMS gap | trend per pin hole | noise | z (mean) | z (trend) "
+        "| significant |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for axis in AXES:
+        a = where["axes"][axis]
+        if not a.get("n"):
+            lines.append(f"| {axis} | 0 | | | | | | | no |")
+            continue
+        unit, k = _unit(axis)
+        lines.append(
+            f"| {axis} | {a['n']} | {a['mean'] * k:+.3f} {unit} | {a['rms'] * k:.3f} {unit} | "
+            f"{a['slope_per_pin'] * k:+.4f} {unit} | {a['noise'] * k:.3f} {unit} | "
+            f"{a['z_mean']:+.1f} | {a['z_slope']:+.1f} | "
+            f"{'**yes**' if a['significant'] else 'no'} |"
+        )
+    det = where["detection"]
+    lines += [
+        "",
+        f"Detection rate over visible configurations: real {det['real']:.1%}, "
+        f"simulation {det['sim']:.1%} ({det['visible_configurations']} configurations).",
+        "",
+    ]
+    if where["regions"]:
+        lines += ["Significant regions (mean gap, z-score):", ""]
+        for r in where["regions"]:
+            unit, k = _unit(r["axis"])
+            lines.append(
+                f"- {r['axis']}, {r['region']}: {r['mean'] * k:+.3f} {unit} "
+                f"(z = {r['z']:+.1f}, n = {r['n']})"
+            )
+        lines.append("")
+    return lines
+
+
+def which_markdown(result: dict[str, Any]) -> list[str]:
+    """Markdown lines for the ranking, the selection and the before/after."""
+    lines = [
+        "## Which",
+        "",
+        "Each effect fitted on the training configurations, scored on the held-out ones "
+        f"({result['split']['train']} / {result['split']['heldout']}). Held-out gap = RMS of "
+        "(real - predicted error) / noise over configurations and axes (1 = noise level).",
+        "",
+        "| rank | effect | fitted parameters | held-out gap before | after | reduction |",
+        "|---|---|---|---|---|---|",
+    ]
+    for i, r in enumerate(result["ranking"], 1):
+        params = ", ".join(f"{k}={_fmt(v)}" for k, v in r["params"].items())
+        lines.append(
+            f"| {i} | {r['effect']} | {params} | {r['heldout_gap_before']:.2f} | "
+            f"{r['heldout_gap_after']:.2f} | {r['reduction']:+.0%} |"
+        )
+    lines.append("")
+    if not result["where"]["significant"]:
+        lines.append("**No significant gap**: nothing is selected.")
+    elif result["unexplained"]:
+        lines.append("**Unexplained**: no effect of the catalogue reduces the held-out gap enough.")
+    else:
+        lines.append(f"**Selected**: {', '.join(result['selected'])}.")
+    lines.append("")
+    if "combined" in result:
+        c = result["combined"]
+        lines += [
+            "## How far it shrinks",
+            "",
+            f"Held-out gap {c['heldout_gap_before']:.2f} -> {c['heldout_gap_after']:.2f} "
+            f"({c['reduction']:.0%} reduction) with the fitted effects (fast model).",
+        ]
+        if "confirmed" in result:
+            f = result["confirmed"]
+            lines.append(
+                f"Confirmed by a full re-run of the pipeline with the fitted effects: "
+                f"{f['heldout_gap_after']:.2f} ({f['reduction']:.0%} reduction, "
+                f"{f['configurations']} held-out configurations, {f['seconds']:.0f} s)."
+            )
+        lines += [
+            "",
+            "| axis | RMS gap before | after (fast) | after (confirmed) |",
+            "|---|---|---|---|",
+        ]
+        for axis in AXES:
+            unit, k = _unit(axis)
+            conf = result.get("confirmed", {}).get("heldout_gap_after_per_axis", {}).get(axis)
+            lines.append(
+                f"| {axis} | {c['heldout_gap_before_per_axis'][axis] * k:.3f} {unit} | "
+                f"{c['heldout_gap_after_per_axis'][axis] * k:.3f} {unit} | "
+                + (f"{conf * k:.3f} {unit} |" if conf is not None else "|")
+            )
+        lines.append("")
+    return lines
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(_fmt(x) for x in v) + ")"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def plot_ranking(result: dict[str, Any]) -> Figure:
+    """Bar chart of the held-out gap after each candidate, with the 'before' level."""
+    fig = Figure(figsize=(8, 4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ranking = result["ranking"]
+    names = [r["effect"] for r in ranking]
+    after = [r["heldout_gap_after"] for r in ranking]
+    ax.barh(names[::-1], after[::-1], color="tab:blue")
+    if ranking:
+        ax.axvline(ranking[0]["heldout_gap_before"], color="k", ls="--", label="before (no effect)")
+    ax.axvline(1.0, color="tab:green", ls=":", label="noise level")
+    ax.set_xlabel("held-out gap (RMS of gap / noise)")
+    ax.set_title("Which effect explains the gap")
+    ax.legend(loc="lower right")
+    return fig
+
+
+def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) -> list[Path]:
+    """Write ``diagnosis.md``, figures (gap heatmap, by distance, ranking) and ``result.json``."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    both = gap_dataset(d.real, d.sim)
+    paths = [_save_figure(plot_ranking(result), out_dir / "ranking.png")]
+    paths.append(
+        _save_figure(
+            compare.plot_change_by_distance(both, "simulation"), out_dir / "gap_by_distance.png"
+        )
+    )
+    paths.append(
+        _save_figure(
+            compare.plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png"
+        )
+    )
+    lines = ["# Sim-to-real gap diagnosis", ""]
+    lines += where_markdown(result["where"])
+    lines += which_markdown(result)
+    lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]
+    lines.append(f"Diagnosis time: {result['seconds']:.0f} s.")
+    paths.append(_save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))
+    paths.append(write_json(result, out_dir / "result.json"))
+    return paths

@@ -1,0 +1,271 @@
+"""Fit catalogue effects to a sim-to-real gap, each at the cheapest stage that models it.
+
+Two kinds of candidate:
+
+:class:`ProjectionCandidate`
+    Effects that only move where the tag's corners project: the true camera (``focal_length``,
+    ``principal_point``, ``lens_distortion``) and the true geometry (``camera_mount``,
+    ``turntable_offset``, ``carriage_pitch``, ``tag_scale``, ``tag_offset``). The simulated
+    detected corners are moved by the exact change of the projected corners and the pose is solved
+    again, so the simulated detector's own bias is kept. Parameters are fitted by robust least
+    squares on the *real* detected corners (px), then scored in pose space.
+:class:`SimulationCandidate`
+    Everything else (``defocus``, ``tag_gloss``, ``lighting``, ``exposure``, ``sensor_noise``,
+    ``jpeg``, ``blur``, ``detector_refinement``): each value of a small grid is run through the real
+    pipeline (cached renders are reused; only the stages the effect touches are recomputed) on a
+    subsample of the training configurations; the best value is kept.
+
+Every candidate predicts the simulated error *with* the effect as the baseline simulated error
+plus the effect's change, so candidates compose additively in the greedy search.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from simgap import transforms as tf
+from simgap.effects import make_effect
+from simgap.effects.state import VariantState
+from simgap.pose.estimate import estimate_pose, marker_object_points, pose_error
+from simgap.rig import Rig
+
+
+@dataclass
+class Items:
+    """Comparable (tag, p, theta) items: index arrays and the data a fit needs.
+
+    Attributes
+    ----------
+    tag, p : ndarray of int (N,)
+    theta : ndarray of float (N,), rad
+    real_err, sim_err : ndarray (N, 6)
+        Repeat-mean errors (m, rad).
+    real_corners, sim_corners : ndarray (N, 4, 2)
+        Repeat-mean detected corners (px).
+    scale : ndarray (6,)
+        Per-axis normalisation of residuals (m, rad): noise or practical floor, the larger.
+    """
+
+    tag: np.ndarray
+    p: np.ndarray
+    theta: np.ndarray
+    real_err: np.ndarray
+    sim_err: np.ndarray
+    real_corners: np.ndarray
+    sim_corners: np.ndarray
+    scale: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.tag)
+
+    def subset(self, index: np.ndarray) -> Items:
+        """Items at ``index``."""
+        return Items(
+            **{
+                f.name: getattr(self, f.name)[index] if f.name != "scale" else self.scale
+                for f in dataclasses.fields(self)
+            }
+        )
+
+
+def gap_score(real: np.ndarray, pred: np.ndarray, scale: np.ndarray) -> float:
+    """RMS of the normalised gap ``(real - pred) / scale`` over items and axes (dimensionless)."""
+    r = (real - pred) / scale
+    return float(np.sqrt(np.nanmean(r**2)))
+
+
+def gap_rms_per_axis(real: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """RMS gap per axis (m, rad), shape (6,)."""
+    return np.sqrt(np.nanmean((real - pred) ** 2, axis=0))
+
+
+@dataclass
+class Fit:
+    """A fitted candidate: its effect parameters and predictions on the training items."""
+
+    effect: str
+    params: dict[str, Any]
+    seconds: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _project(
+    rig: Rig, camera, errors, tag_scale: float, tag: int, p: int, theta: float
+) -> np.ndarray:
+    """Image corners (4, 2) of a tag with the given true camera, geometry and print scale (px)."""
+    m = rig.eyepoint_from_tag(int(tag), float(p), float(theta), errors)
+    cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ m
+    pts = tf.apply(cv_from_tag, marker_object_points(rig.tags.size * tag_scale))
+    uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs)
+    return uv.reshape(4, 2)
+
+
+class ProjectionCandidate:
+    """An effect that only changes the projection of the tag corners (see module docstring).
+
+    Parameters
+    ----------
+    effect : str
+        Catalogue name.
+    params : list of (name, initial, scale)
+        Fitted parameters: effect parameter name (``name[i]`` for an element of a vector
+        parameter), start value and typical magnitude (for conditioning).
+    """
+
+    kind = "projection"
+
+    def __init__(self, effect: str, params: list[tuple[str, float, float]]) -> None:
+        self.effect = effect
+        self.names = [n for n, _, _ in params]
+        self.x0 = np.array([x for _, x, _ in params], float)
+        self.x_scale = np.array([s for _, _, s in params], float)
+
+    def effect_params(self, x: np.ndarray) -> dict[str, Any]:
+        """Effect parameter mapping for a parameter vector."""
+        out: dict[str, Any] = {}
+        for name, value in zip(self.names, x, strict=True):
+            if "[" in name:
+                base, idx = name[:-1].split("[")
+                vec = list(out.get(base, (0.0, 0.0, 0.0)))
+                vec[int(idx)] = float(value)
+                out[base] = tuple(vec)
+            else:
+                out[name] = float(value)
+        return out
+
+    def _state(self, base: VariantState, x: np.ndarray) -> VariantState:
+        return make_effect(self.effect, self.effect_params(x)).apply(base)
+
+    def corner_shift(self, rig: Rig, base: VariantState, x: np.ndarray, items: Items) -> np.ndarray:
+        """Change of the projected corners (N, 4, 2) caused by the effect (px)."""
+        state = self._state(base, x)
+        s0, s1 = base.scene, state.scene
+        out = np.empty((len(items), 4, 2))
+        for i in range(len(items)):
+            args = (items.tag[i], items.p[i], items.theta[i])
+            out[i] = _project(rig, s1.camera, s1.errors, s1.tag_scale, *args) - _project(
+                rig, s0.camera, s0.errors, s0.tag_scale, *args
+            )
+        return out
+
+    def fit(
+        self, rig: Rig, base: VariantState, items: Items, target: np.ndarray | None = None
+    ) -> Fit:
+        """Robust least squares on corners: real = sim + shift(x) (px)."""
+        t0 = time.perf_counter()
+        target = items.real_corners if target is None else target
+        ok = np.isfinite(target).all(axis=(1, 2)) & np.isfinite(items.sim_corners).all(axis=(1, 2))
+        sub = items.subset(np.flatnonzero(ok))
+        goal = (target[ok] - sub.sim_corners).ravel()
+
+        def residual(x):
+            return self.corner_shift(rig, base, x * self.x_scale, sub).ravel() - goal
+
+        sol = least_squares(
+            residual, self.x0 / self.x_scale, loss="soft_l1", f_scale=0.5, max_nfev=200
+        )
+        x = sol.x * self.x_scale
+        rms = float(np.sqrt(np.mean(sol.fun**2))) if sol.fun.size else float("nan")
+        return Fit(
+            self.effect,
+            self.effect_params(x),
+            time.perf_counter() - t0,
+            {"x": x, "corner_rms_px": rms},
+        )
+
+    def delta(self, rig: Rig, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
+        """Change of the simulated error (N, 6) when the fitted effect is added (m, rad)."""
+        x = fit.extra["x"]
+        shift = self.corner_shift(rig, base, x, items)
+        cal = base.estimation.calibration
+        out = np.full((len(items), 6), np.nan)
+        for i in range(len(items)):
+            c = items.sim_corners[i]
+            if not np.isfinite(c).all():
+                continue
+            exp = rig.expected_pose(int(items.tag[i]), float(items.p[i]), float(items.theta[i]))
+            a = estimate_pose(c, rig.tags.size, cal.matrix, cal.dist_coeffs, base.estimation.pnp)
+            b = estimate_pose(
+                c + shift[i], rig.tags.size, cal.matrix, cal.dist_coeffs, base.estimation.pnp
+            )
+            if a is not None and b is not None:
+                out[i] = pose_error(b.pose, exp) - pose_error(a.pose, exp)
+        return out
+
+
+class SimulationCandidate:
+    """An effect fitted by running the pipeline on a grid of parameter values.
+
+    Parameters
+    ----------
+    effect : str
+        Catalogue name.
+    grid : list of dict
+        Effect parameter mappings to try.
+    """
+
+    kind = "simulation"
+
+    def __init__(self, effect: str, grid: list[dict[str, Any]]) -> None:
+        self.effect = effect
+        self.grid = grid
+
+    def fit(self, runner, base: VariantState, items: Items, target: np.ndarray) -> Fit:
+        """Pick the grid value whose simulated errors best match ``target`` on ``items``."""
+        t0 = time.perf_counter()
+        sim0 = runner(base, items)
+        best = None
+        for params in self.grid:
+            pred = items.sim_err + (
+                runner(make_effect(self.effect, params).apply(base), items) - sim0
+            )
+            score = gap_score(target, pred, items.scale)
+            if best is None or score < best[0]:
+                best = (score, params)
+        return Fit(self.effect, dict(best[1]), time.perf_counter() - t0, {"train_score": best[0]})
+
+    def delta(self, runner, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
+        """Change of the simulated error (N, 6) with the fitted effect (m, rad)."""
+        state = make_effect(self.effect, fit.params).apply(base)
+        return runner(state, items) - runner(base, items)
+
+
+def default_candidates() -> list:
+    """The diagnosis catalogue with its fitted parameters or grids."""
+    return [
+        ProjectionCandidate("focal_length", [("scale", 0.0, 0.01)]),
+        ProjectionCandidate("principal_point", [("dx_px", 0.0, 5.0), ("dy_px", 0.0, 5.0)]),
+        ProjectionCandidate("lens_distortion", [("k1", 0.0, 0.05), ("k2", 0.0, 0.1)]),
+        ProjectionCandidate(
+            "camera_mount",
+            [(f"translation_m[{i}]", 0.0, 0.002) for i in range(3)]
+            + [(f"rotation_rad[{i}]", 0.0, 0.01) for i in range(3)],
+        ),
+        ProjectionCandidate("turntable_offset", [("angle_rad", 0.0, 0.01)]),
+        ProjectionCandidate("carriage_pitch", [("scale", 0.0, 0.01)]),
+        ProjectionCandidate("tag_scale", [("scale", 0.0, 0.01)]),
+        ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.0, 0.001) for i in range(3)]),
+        SimulationCandidate(
+            "detector_refinement", [{"method": m} for m in ("NONE", "CONTOUR", "APRILTAG")]
+        ),
+        SimulationCandidate("exposure", [{"ev": v} for v in (-2.0, -1.0, 1.0)]),
+        SimulationCandidate("sensor_noise", [{"full_well_e": v} for v in (1000.0, 4000.0)]),
+        SimulationCandidate("jpeg", [{"quality": q} for q in (30, 60)]),
+        SimulationCandidate("defocus", [{"aperture_radius_m": a} for a in (0.0005, 0.001)]),
+        SimulationCandidate("tag_gloss", [{"alpha": a} for a in (0.05, 0.2)]),
+        SimulationCandidate(
+            "lighting",
+            [
+                {"power": 3.0},
+                {"power": 20.0},
+                {"type": "point", "position": [-0.2, 0.1, 0.45], "power": 1.5},
+            ],
+        ),
+    ]

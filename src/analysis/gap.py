@@ -1,0 +1,203 @@
+"""Where the sim-to-real gap lies: the gap field, its noise, and its significant regions.
+
+The gap field is ``real error - simulated error`` per tag, configuration and axis (DESIGN §5), on
+configurations where the tag is visible and both the real and the simulated estimator returned a
+pose. Its noise is taken from repeats when there are any (the spread of the repeat means) and
+otherwise from the roughness of each error field along the carriage axis (a robust scale of its
+second differences), which is what a single-repeat capture offers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
+#: Smallest gap worth reporting, per axis unit: 0.3 mm and 3 mrad (a tenth of a pixel-level change
+#: at the rig's distances; about a twentieth of the high-precision thresholds).
+PRACTICAL_FLOOR = {"m": 3e-4, "rad": 3e-3}
+#: Noise floor used when a field is too short to estimate its own roughness (m, rad).
+DEFAULT_NOISE = {"m": 2e-4, "rad": 4e-3}
+Z_SIGNIFICANT = 4.0
+
+
+def axis_unit(axis: str) -> str:
+    """``"m"`` for translation axes, ``"rad"`` for rotation axes."""
+    return "m" if axis.startswith("t") else "rad"
+
+
+def mean_error(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
+    """Error averaged over repeats (tag, p, theta, axis), NaN where never detected."""
+    err = ds.error.sel(variant=variant) if variant else ds.error.isel(variant=0)
+    return err.mean("repeat", skipna=True)
+
+
+def _roughness(field: np.ndarray) -> float:
+    """Robust noise scale of a (..., p) field from second differences along p."""
+    d2 = np.diff(field, n=2, axis=-1)
+    d2 = d2[np.isfinite(d2)]
+    if d2.size < 8:
+        return np.nan
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+
+
+def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
+    """Per-axis noise (m, rad) of one dataset's repeat-mean error at a single configuration."""
+    err = ds.error.sel(variant=variant) if variant else ds.error.isel(variant=0)
+    out = []
+    for axis in AXES:
+        e = err.sel(axis=axis).values  # (repeat, tag, p, theta)
+        if e.shape[0] > 1:
+            sd = np.nanstd(e, axis=0, ddof=1)
+            s = float(np.nanmedian(sd) / np.sqrt(e.shape[0])) if np.isfinite(sd).any() else np.nan
+        else:
+            s = _roughness(np.moveaxis(np.nanmean(e, axis=0), 1, -1))  # p last
+        out.append(s if np.isfinite(s) else DEFAULT_NOISE[axis_unit(axis)])
+    return xr.DataArray(out, coords={"axis": list(AXES)}, dims="axis", attrs={"units": "m or rad"})
+
+
+@dataclass(frozen=True)
+class GapField:
+    """The gap field and what it is computed on.
+
+    Attributes
+    ----------
+    gap : xarray.DataArray
+        real - simulated error (tag, p, theta, axis); NaN where not comparable (m, rad).
+    sigma : xarray.DataArray
+        Noise of one gap value per axis (m, rad).
+    comparable : xarray.DataArray
+        Tag visible and detected in both (tag, p, theta).
+    real_detection, sim_detection : xarray.DataArray
+        Detection rate over repeats (tag, p, theta), NaN where not visible.
+    """
+
+    gap: xr.DataArray
+    sigma: xr.DataArray
+    comparable: xr.DataArray
+    real_detection: xr.DataArray
+    sim_detection: xr.DataArray
+
+
+def align(real: xr.Dataset, sim: xr.Dataset) -> tuple[xr.Dataset, xr.Dataset]:
+    """Select the simulated configurations that the real dataset has (p, theta matched to 1e-6)."""
+    thetas = []
+    for t in real.theta.values:
+        hit = np.flatnonzero(np.isclose(sim.theta.values, t, atol=1e-6))
+        if hit.size == 0:
+            raise ValueError(f"simulation lacks the turntable angle {np.rad2deg(t):.1f} deg")
+        thetas.append(sim.theta.values[hit[0]])
+    missing = sorted(set(real.p.values.tolist()) - set(sim.p.values.tolist()))
+    if missing:
+        raise ValueError(f"simulation lacks pin holes {missing} of the real data")
+    sim = sim.sel(p=real.p.values, theta=thetas, tag=real.tag.values)
+    return real, sim.assign_coords(theta=real.theta.values)
+
+
+def gap_field(real: xr.Dataset, sim: xr.Dataset, sim_variant: str | None = None) -> GapField:
+    """Compute the gap field of ``real`` against ``sim`` (aligned to the real configurations)."""
+    real, sim = align(real, sim)
+    visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
+    real_err, sim_err = mean_error(real), mean_error(sim, sim_variant)
+    comparable = visible & real_err.notnull().all("axis") & sim_err.notnull().all("axis")
+    gap = (real_err - sim_err).where(comparable)
+    sigma = np.sqrt(noise_scale(real) ** 2 + noise_scale(sim, sim_variant) ** 2)
+    det_r = real.detected.isel(variant=0).mean("repeat").where(visible)
+    sim_det = sim.detected.sel(variant=sim_variant) if sim_variant else sim.detected.isel(variant=0)
+    det_s = sim_det.mean("repeat").where(visible)
+    return GapField(gap, sigma, comparable, det_r, det_s)
+
+
+def axis_summary(field: GapField) -> dict[str, dict]:
+    """Per axis: count, mean and RMS gap, slope with distance, z-scores, and significance.
+
+    The gap on an axis is significant when its mean or its trend with the eyepoint distance is
+    more than :data:`Z_SIGNIFICANT` standard errors from zero *and* its systematic part exceeds
+    :data:`PRACTICAL_FLOOR`.
+    """
+    out = {}
+    ps = field.gap.p.values.astype(float)
+    for axis in AXES:
+        g = field.gap.sel(axis=axis).values  # tag, p, theta
+        dist = np.broadcast_to(ps[None, :, None], g.shape)
+        ok = np.isfinite(g)
+        n = int(ok.sum())
+        sigma = float(field.sigma.sel(axis=axis))
+        unit = axis_unit(axis)
+        if n == 0:
+            out[axis] = {"n": 0, "significant": False, "unit": unit}
+            continue
+        x, y = dist[ok], g[ok]
+        mean = float(y.mean())
+        scatter = max(float(1.4826 * np.median(np.abs(y - np.median(y)))), sigma)
+        z_mean = mean / (scatter / np.sqrt(n))
+        slope = z_slope = 0.0
+        if n >= 3 and np.ptp(x) > 0:
+            a = np.column_stack([np.ones(n), x - x.mean()])
+            coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+            slope = float(coef[1])
+            resid = y - a @ coef
+            s = max(float(1.4826 * np.median(np.abs(resid - np.median(resid)))), sigma)
+            z_slope = slope / (s / np.sqrt(np.sum((x - x.mean()) ** 2)))
+        systematic = float(np.sqrt(mean**2 + (slope * x.std()) ** 2))
+        significant = (abs(z_mean) > Z_SIGNIFICANT or abs(z_slope) > Z_SIGNIFICANT) and (
+            systematic > PRACTICAL_FLOOR[unit]
+        )
+        out[axis] = {
+            "n": n,
+            "unit": unit,
+            "mean": mean,
+            "rms": float(np.sqrt(np.mean(y**2))),
+            "slope_per_pin": slope,
+            "z_mean": float(z_mean),
+            "z_slope": float(z_slope),
+            "noise": sigma,
+            "systematic": systematic,
+            "significant": bool(significant),
+        }
+    return out
+
+
+def region_summary(field: GapField) -> list[dict]:
+    """Mean gap per axis in distance (near/mid/far pin holes) and view-angle bins, with z-scores."""
+    p = field.gap.p.values
+    thirds = np.array_split(np.arange(p.size), 3)
+    dist_bins = {
+        name: p[idx] for name, idx in zip(("near", "mid", "far"), thirds, strict=True) if idx.size
+    }
+    rows = []
+    for axis in AXES:
+        g = field.gap.sel(axis=axis)
+        sigma = float(field.sigma.sel(axis=axis))
+        for name, members in dist_bins.items():
+            vals = g.sel(p=members).values
+            vals = vals[np.isfinite(vals)]
+            if vals.size == 0:
+                continue
+            z = float(vals.mean() / (sigma / np.sqrt(vals.size)))
+            rows.append(
+                {
+                    "axis": axis,
+                    "region": f"{name} (p {members.min()}-{members.max()})",
+                    "n": int(vals.size),
+                    "mean": float(vals.mean()),
+                    "z": z,
+                    "significant": abs(z) > Z_SIGNIFICANT
+                    and abs(vals.mean()) > PRACTICAL_FLOOR[axis_unit(axis)],
+                }
+            )
+    return rows
+
+
+def detection_summary(field: GapField) -> dict[str, float]:
+    """Detection rate of the real data and of the simulation over visible configurations."""
+    r = field.real_detection.values
+    s = field.sim_detection.values
+    ok = np.isfinite(r) & np.isfinite(s)
+    return {
+        "real": float(np.mean(r[ok])) if ok.any() else float("nan"),
+        "sim": float(np.mean(s[ok])) if ok.any() else float("nan"),
+        "visible_configurations": int(ok.sum()),
+    }
