@@ -107,6 +107,41 @@ def compare(
 
 
 @app.command()
+def ingest(
+    capture: Path = typer.Argument(..., help="Capture folder (camera.yaml, manifest.csv, images)."),
+    output: Path = typer.Option(..., "-o", "--output", help="Result dataset to write (netCDF)."),
+    experiment: Path | None = typer.Option(
+        None, "--experiment", help="Take rig, detector and PnP settings from this experiment YAML."
+    ),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+) -> None:
+    """Detect markers and estimate poses in a real capture; write its result dataset."""
+    from simgap.analysis.dataset import write_netcdf
+    from simgap.capture import ingest as ingest_capture
+
+    kwargs = {}
+    if experiment is not None:
+        from simgap.experiment import load_experiment
+
+        try:
+            exp = load_experiment(experiment)
+        except ConfigError as exc:
+            _fail(str(exc))
+        kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
+    try:
+        ds = ingest_capture(capture, show_progress=progress, **kwargs)
+    except ConfigError as exc:
+        _fail(str(exc))
+    write_netcdf(ds, output)
+    vis = ds.visible.values
+    det = ds.detected.values[0].any(axis=0)
+    typer.echo(
+        f"wrote {output}: {ds.attrs['frames']} frame(s), {ds.attrs['frames_unreadable']} "
+        f"unreadable; {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
+    )
+
+
+@app.command()
 def assets() -> None:
     """Regenerate fixture meshes and tag textures in assets/."""
     from simgap.render.assets import write_assets

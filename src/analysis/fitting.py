@@ -114,9 +114,10 @@ class ProjectionCandidate:
     ----------
     effect : str
         Catalogue name.
-    params : list of (name, initial, scale)
+    params : list of (name, scale, bound)
         Fitted parameters: effect parameter name (``name[i]`` for an element of a vector
-        parameter), start value and typical magnitude (for conditioning).
+        parameter), typical magnitude (for conditioning) and the largest magnitude searched
+        (inside the effect's valid range). Fits start from zero (no effect).
     """
 
     kind = "projection"
@@ -124,8 +125,9 @@ class ProjectionCandidate:
     def __init__(self, effect: str, params: list[tuple[str, float, float]]) -> None:
         self.effect = effect
         self.names = [n for n, _, _ in params]
-        self.x0 = np.array([x for _, x, _ in params], float)
-        self.x_scale = np.array([s for _, _, s in params], float)
+        self.x_scale = np.array([s for _, s, _ in params], float)
+        self.bound = np.array([b for _, _, b in params], float)
+        self.x0 = np.zeros(len(params))
 
     def effect_params(self, x: np.ndarray) -> dict[str, Any]:
         """Effect parameter mapping for a parameter vector."""
@@ -168,8 +170,9 @@ class ProjectionCandidate:
         def residual(x):
             return self.corner_shift(rig, base, x * self.x_scale, sub).ravel() - goal
 
+        lim = self.bound / self.x_scale
         sol = least_squares(
-            residual, self.x0 / self.x_scale, loss="soft_l1", f_scale=0.5, max_nfev=200
+            residual, self.x0, bounds=(-lim, lim), loss="soft_l1", f_scale=0.5, max_nfev=200
         )
         x = sol.x * self.x_scale
         rms = float(np.sqrt(np.mean(sol.fun**2))) if sol.fun.size else float("nan")
@@ -240,18 +243,18 @@ class SimulationCandidate:
 def default_candidates() -> list:
     """The diagnosis catalogue with its fitted parameters or grids."""
     return [
-        ProjectionCandidate("focal_length", [("scale", 0.0, 0.01)]),
-        ProjectionCandidate("principal_point", [("dx_px", 0.0, 5.0), ("dy_px", 0.0, 5.0)]),
-        ProjectionCandidate("lens_distortion", [("k1", 0.0, 0.05), ("k2", 0.0, 0.1)]),
+        ProjectionCandidate("focal_length", [("scale", 0.01, 0.25)]),
+        ProjectionCandidate("principal_point", [("dx_px", 5.0, 150.0), ("dy_px", 5.0, 150.0)]),
+        ProjectionCandidate("lens_distortion", [("k1", 0.05, 1.5), ("k2", 0.1, 1.5)]),
         ProjectionCandidate(
             "camera_mount",
-            [(f"translation_m[{i}]", 0.0, 0.002) for i in range(3)]
-            + [(f"rotation_rad[{i}]", 0.0, 0.01) for i in range(3)],
+            [(f"translation_m[{i}]", 0.002, 0.04) for i in range(3)]
+            + [(f"rotation_rad[{i}]", 0.01, 0.25) for i in range(3)],
         ),
-        ProjectionCandidate("turntable_offset", [("angle_rad", 0.0, 0.01)]),
-        ProjectionCandidate("carriage_pitch", [("scale", 0.0, 0.01)]),
-        ProjectionCandidate("tag_scale", [("scale", 0.0, 0.01)]),
-        ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.0, 0.001) for i in range(3)]),
+        ProjectionCandidate("turntable_offset", [("angle_rad", 0.01, 0.4)]),
+        ProjectionCandidate("carriage_pitch", [("scale", 0.01, 0.15)]),
+        ProjectionCandidate("tag_scale", [("scale", 0.01, 0.25)]),
+        ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.001, 0.015) for i in range(3)]),
         SimulationCandidate(
             "detector_refinement", [{"method": m} for m in ("NONE", "CONTOUR", "APRILTAG")]
         ),
