@@ -1,4 +1,7 @@
-"""Command line: ``simgap run``, ``simgap report``, ``simgap compare``, ``simgap assets``."""
+"""simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
+
+Commands: run, report, compare, study, ingest, diagnose, validate, assets.
+"""
 
 from __future__ import annotations
 
@@ -138,6 +141,91 @@ def ingest(
     typer.echo(
         f"wrote {output}: {ds.attrs['frames']} frame(s), {ds.attrs['frames_unreadable']} "
         f"unreadable; {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
+    )
+
+
+def _load_sim(sim: Path):
+    """An experiment from YAML, or the experiment a result dataset was made with."""
+    from simgap.experiment import experiment_from_yaml, load_experiment
+
+    if sim.suffix in (".yaml", ".yml"):
+        return load_experiment(sim)
+    from simgap.analysis.dataset import read_netcdf
+
+    ds = read_netcdf(sim)
+    if "experiment_yaml" not in ds.attrs:
+        raise ConfigError(f"{sim}: not a simgap result dataset (no experiment_yaml attribute)")
+    return experiment_from_yaml(ds.attrs["experiment_yaml"], source=str(sim))
+
+
+@app.command()
+def diagnose(
+    real: Path = typer.Argument(..., help="Real dataset (netCDF) from `simgap ingest`."),
+    sim: Path = typer.Option(..., "--sim", help="Simulation: experiment YAML or result .nc."),
+    output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
+    json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
+    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+    seed: int = typer.Option(0, "--seed", help="Seed of the train/held-out split."),
+    scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
+) -> None:
+    """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
+    from simgap.analysis.dataset import read_netcdf
+    from simgap.analysis.diagnose import DiagnoseSettings, write_json
+    from simgap.analysis.diagnose import diagnose as run_diagnosis
+    from simgap.analysis.diagnosis_report import write_diagnosis_report
+    from simgap.paths import default_cache_dir
+
+    try:
+        exp = _load_sim(sim)
+        data = read_netcdf(real)
+    except (ConfigError, FileNotFoundError) as exc:
+        _fail(str(exc))
+    try:
+        settings = DiagnoseSettings(seed=seed)
+        result, state = run_diagnosis(
+            data, exp, cache or default_cache_dir(), settings, None, scheduler
+        )
+    except (ConfigError, ValueError) as exc:
+        _fail(f"{real}: {exc}")
+    for p in write_diagnosis_report(result, state, output):
+        typer.echo(str(p))
+    if json_path:
+        typer.echo(str(write_json(result, json_path)))
+    verdict = (
+        "no significant gap"
+        if not result["where"]["significant"]
+        else (
+            "unexplained" if result["unexplained"] else "selected: " + ", ".join(result["selected"])
+        )
+    )
+    typer.echo(f"diagnosis: {verdict}")
+
+
+@app.command()
+def validate(
+    trials: int = typer.Option(30, "--trials", help="Number of blind trials."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the hidden draws."),
+    output: Path = typer.Option(Path("validation"), "-o", "--output", help="Report folder."),
+    experiment: Path = typer.Option(
+        Path("experiments/baseline.yaml"), "--experiment", help="Simulation experiment."
+    ),
+    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+) -> None:
+    """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores."""
+    from simgap.experiment import load_experiment
+    from simgap.paths import default_cache_dir
+    from simgap.validate import ValidateSettings, run_validation
+
+    try:
+        exp = load_experiment(experiment)
+    except ConfigError as exc:
+        _fail(str(exc))
+    settings = ValidateSettings(trials=trials, seed=seed)
+    summary = run_validation(exp, output, cache or default_cache_dir(), settings, log=typer.echo)
+    typer.echo((output / "validation.md").read_text())
+    typer.echo(
+        f"top-1 accuracy {summary['top1_accuracy']}, "
+        f"no-effect correct {summary['no_effect_correct']}"
     )
 
 

@@ -287,6 +287,13 @@ def _read_with_parents(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any
     return deep_merge(base, data)
 
 
+def experiment_from_yaml(text: str, source: str = "<dataset>") -> Experiment:
+    """Rebuild an experiment from its resolved YAML (as stored in a dataset's attrs)."""
+    data = yaml.safe_load(text)
+    data.pop("inherit", None)
+    return from_mapping(Experiment, {**data, "source": source}, where=f"{source}: ")
+
+
 def load_experiment(path: str | Path) -> Experiment:
     """Load and validate an experiment YAML file (and the files it inherits from).
 

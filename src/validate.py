@@ -264,7 +264,7 @@ def validation_markdown(summary: dict[str, Any], trials: list[Trial]) -> str:
         f"| top-1 accuracy (trials with an effect) | {pct(summary['top1_accuracy'])} |",
         f"| top-1 accuracy (single effect) | {pct(summary['top1_accuracy_single'])} |",
         f"| recall for pairs | {pct(summary['pair_recall'])} |",
-        f"| no-effect trials reported as no significant gap | {pct(summary['no_effect_correct'])} |",
+        f"| no-effect trials: no significant gap | {pct(summary['no_effect_correct'])} |",
         f"| fitted magnitude within 20 % | {pct(summary['magnitude_within_20pct'])} |",
         f"| held-out gap reduction, median (correct trials) | {pct(summary['reduction_median'])} |",
         f"| held-out gap reduced >= 70 % | {pct(summary['reduction_at_least_70pct'])} |",
@@ -287,7 +287,8 @@ def validation_markdown(summary: dict[str, Any], trials: list[Trial]) -> str:
     for t in trials:
         s = t.score()
         lines.append(
-            f"| {t.index} | {', '.join(s['hidden']) or 'none'} | {', '.join(s['selected']) or '-'} | "
-            f"{'yes' if s['correct'] else 'no'} | {t.seconds:.0f} |"
+            f"| {t.index} | {', '.join(s['hidden']) or 'none'} | "
+            f"{', '.join(s['selected']) or '-'} | {'yes' if s['correct'] else 'no'} | "
+            f"{t.seconds:.0f} |"
         )
     return "\n".join(lines) + "\n"

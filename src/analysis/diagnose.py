@@ -30,6 +30,7 @@ from simgap.analysis.fitting import (
     Fit,
     Items,
     ProjectionCandidate,
+    corner_score,
     default_candidates,
     gap_rms_per_axis,
     gap_score,
@@ -40,6 +41,8 @@ from simgap.effects.state import VariantState
 from simgap.experiment import Experiment
 
 AXES = gapmod.AXES
+#: Held-out gap score at which the remaining gap is taken as noise (pure noise scores ~0.67).
+NOISE_LEVEL = 1.0
 
 
 @dataclass(frozen=True)
@@ -148,21 +151,29 @@ class SimRunner:
             )
         return self._pipes[key]
 
-    def __call__(self, state: VariantState, items: Items) -> np.ndarray:
-        """Repeat-mean simulated errors (N, 6) of ``items`` under ``state`` (m, rad)."""
+    def _results(self, state: VariantState, items: Items, field: str) -> np.ndarray:
         pipe = self.pipeline(state)
-        out = np.full((len(items), 6), np.nan)
         reps = self.exp.repeats if state.image.stochastic else 1
+        shape = (6,) if field == "error" else (4, 2)
+        out = np.full((len(items),) + shape, np.nan)
         for i in range(len(items)):
             key = (pipe.scene_key, content_hash(state), int(items.p[i]), float(items.theta[i]))
             if key not in self._memo:
-                errs = [
-                    pipe.run(int(items.p[i]), float(items.theta[i]), r, 0).error
-                    for r in range(reps)
-                ]
-                self._memo[key] = np.nanmean(np.stack(errs), axis=0) if reps > 1 else errs[0]
-            out[i] = self._memo[key][self.tags.index(int(items.tag[i]))]
+                runs = [pipe.run(int(items.p[i]), float(items.theta[i]), r, 0) for r in range(reps)]
+                self._memo[key] = {
+                    f: np.nanmean(np.stack([getattr(x, f) for x in runs]), axis=0)
+                    for f in ("error", "corners")
+                }
+            out[i] = self._memo[key][field][self.tags.index(int(items.tag[i]))]
         return out
+
+    def __call__(self, state: VariantState, items: Items) -> np.ndarray:
+        """Repeat-mean simulated errors (N, 6) of ``items`` under ``state`` (m, rad)."""
+        return self._results(state, items, "error")
+
+    def corners(self, state: VariantState, items: Items) -> np.ndarray:
+        """Repeat-mean detected corners (N, 4, 2) of ``items`` under ``state`` (px)."""
+        return self._results(state, items, "corners")
 
 
 def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -187,6 +198,10 @@ class Scored:
     after: float
     before_axes: np.ndarray
     after_axes: np.ndarray
+    before_all: float = float("nan")
+    after_all: float = float("nan")
+    corner_before: float = float("nan")
+    corner_after: float = float("nan")
 
     @property
     def reduction(self) -> float:
@@ -201,6 +216,10 @@ class Scored:
             "heldout_gap_before": self.before,
             "heldout_gap_after": self.after,
             "reduction": self.reduction,
+            "heldout_gap_all_axes_before": self.before_all,
+            "heldout_gap_all_axes_after": self.after_all,
+            "heldout_corner_gap_before_px": self.corner_before,
+            "heldout_corner_gap_after_px": self.corner_after,
             "heldout_gap_before_per_axis": dict(
                 zip(AXES, map(float, self.before_axes), strict=True)
             ),
@@ -246,6 +265,9 @@ class Diagnosis:
         self.train = train
         self.held = _subsample(held, settings.max_heldout_items, settings.seed)
         self.sim_train = _subsample(train, settings.max_sim_items, settings.seed)
+        self.where = gapmod.axis_summary(self.field)
+        #: axes where the gap is significant: the held-out gap is scored on them
+        self.axes = np.array([self.where[a]["significant"] for a in AXES])
 
     # ------------------------------------------------------------------ which
 
@@ -254,6 +276,12 @@ class Diagnosis:
             return cand.delta(self.rig, self.base, fit, items)
         return cand.delta(self.runner, self.base, fit, items)
 
+    def _corner_delta(self, cand, fit: Fit, items: Items) -> np.ndarray:
+        if isinstance(cand, ProjectionCandidate):
+            return cand.corner_shift(self.rig, self.base, fit.extra["x"], items)
+        state = make_effect(cand.effect, fit.params).apply(self.base)
+        return self.runner.corners(state, items) - self.runner.corners(self.base, items)
+
     def _fit(self, cand, offset_train: np.ndarray, corner_offset: np.ndarray) -> Fit:
         items = self.items
         if isinstance(cand, ProjectionCandidate):
@@ -261,20 +289,26 @@ class Diagnosis:
             return cand.fit(self.rig, self.base, tr, target=tr.real_corners - corner_offset)
         sub = items.subset(self.sim_train)
         pos = np.searchsorted(self.train, self.sim_train)
-        return cand.fit(self.runner, self.base, sub, target=sub.real_err - offset_train[pos])
+        return cand.fit(self.runner, self.base, sub, sub.real_err - offset_train[pos], self.axes)
 
-    def score(self, cand, fit: Fit, offset_held: np.ndarray) -> Scored:
-        """Held-out gap before and after adding ``fit`` on top of ``offset_held`` (m, rad)."""
+    def score(self, cand, fit: Fit, offset_held: np.ndarray, corner_held=0.0) -> Scored:
+        """Held-out gap before and after adding ``fit`` on top of the offsets (m, rad; px)."""
         h = self.items.subset(self.held)
         pred0 = h.sim_err + offset_held
         pred1 = pred0 + np.nan_to_num(self._delta(cand, fit, h))
+        c0 = h.sim_corners + corner_held
+        c1 = c0 + np.nan_to_num(self._corner_delta(cand, fit, h))
         return Scored(
             cand,
             fit,
-            gap_score(h.real_err, pred0, h.scale),
-            gap_score(h.real_err, pred1, h.scale),
+            gap_score(h.real_err, pred0, h.scale, self.axes),
+            gap_score(h.real_err, pred1, h.scale, self.axes),
             gap_rms_per_axis(h.real_err, pred0),
             gap_rms_per_axis(h.real_err, pred1),
+            gap_score(h.real_err, pred0, h.scale),
+            gap_score(h.real_err, pred1, h.scale),
+            corner_score(h.real_corners, c0),
+            corner_score(h.real_corners, c1),
         )
 
     def rank(self, candidates, significant: bool) -> list[Scored]:
@@ -287,7 +321,9 @@ class Diagnosis:
             if not significant and not isinstance(cand, ProjectionCandidate):
                 continue
             out.append(self.score(cand, self._fit(cand, zero_t, zero_c), zero_h))
-        return sorted(out, key=lambda s: s.after)
+        # ranked on the held-out detected corners: the most direct evidence, in one unit (px),
+        # free of the planar pose ambiguity; an effect must move the corners the way reality does
+        return sorted(out, key=lambda s: s.corner_after)
 
     def greedy(self, ranking: list[Scored], max_effects: int = 3) -> list[Scored]:
         """Add effects one at a time while the held-out gap falls by ``min_gain`` or more."""
@@ -298,6 +334,10 @@ class Diagnosis:
         for _ in range(max_effects - 1):
             off_t = sum(
                 np.nan_to_num(self._delta(s.candidate, s.fit, items.subset(self.train)))
+                for s in chosen
+            )
+            corner_h = sum(
+                np.nan_to_num(self._corner_delta(s.candidate, s.fit, items.subset(self.held)))
                 for s in chosen
             )
             off_h = sum(
@@ -312,16 +352,18 @@ class Diagnosis:
                             self.rig, self.base, s.fit.extra["x"], items.subset(self.train)
                         )
                     )
-            current = chosen[-1].after
+            if chosen[-1].after < NOISE_LEVEL:
+                break  # what is left of the gap is noise
+            current = chosen[-1].corner_after
             best = None
             for s in ranking[1:]:
                 if s.fit.effect in {c.fit.effect for c in chosen}:
                     continue
                 fit = self._fit(s.candidate, off_t, corner)
-                scored = self.score(s.candidate, fit, off_h)
-                if best is None or scored.after < best.after:
+                scored = self.score(s.candidate, fit, off_h, corner_h)
+                if best is None or scored.corner_after < best.corner_after:
                     best = scored
-            if best is None or best.after > current * (1.0 - self.settings.min_gain):
+            if best is None or best.corner_after > current * (1.0 - self.settings.min_gain):
                 break
             chosen.append(best)
         return chosen
@@ -337,7 +379,7 @@ class Diagnosis:
         t0 = time.perf_counter()
         pred = self.runner(state, h)
         return {
-            "heldout_gap_after": gap_score(h.real_err, pred, h.scale),
+            "heldout_gap_after": gap_score(h.real_err, pred, h.scale, self.axes),
             "heldout_gap_after_per_axis": dict(
                 zip(AXES, map(float, gap_rms_per_axis(h.real_err, pred)), strict=True)
             ),
@@ -372,7 +414,7 @@ def diagnose(
     """Run the whole diagnosis; return the ``result.json`` mapping and the diagnosis state."""
     t0 = time.perf_counter()
     d = Diagnosis(real, exp, cache_dir, settings, scheduler)
-    axes = gapmod.axis_summary(d.field)
+    axes = d.where
     significant = any(a["significant"] for a in axes.values())
     det = gapmod.detection_summary(d.field)
     where = {
