@@ -337,7 +337,7 @@ def _client(scheduler: str | None):
         return Client(scheduler), None
     # One in-process worker thread: Mitsuba/Dr.Jit already use every core for each render.
     cluster = LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
     )
     return Client(cluster), cluster
 
