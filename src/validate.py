@@ -75,8 +75,8 @@ class ValidateSettings:
 
     trials: int = 30
     seed: int = 0
-    p: tuple[int, ...] = (0, 2, 4, 6, 8, 10, 12, 14)
-    theta_deg: tuple[float, ...] = (0, 20, 40, 320, 340, 140, 160, 180, 200, 220)
+    p: tuple[int, ...] = (0, 3, 6, 9, 12, 14)
+    theta_deg: tuple[float, ...] = (0, 20, 40, 320, 340, 160, 180, 200)
     p_none: float = 0.2
     p_pair: float = 0.2
     effects: tuple[str, ...] = tuple(HIDDEN)
