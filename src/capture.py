@@ -593,7 +593,7 @@ def ingest(
     """
     import cv2
 
-    from simgap.analysis.dataset import build_dataset
+    from simgap.analysis.dataset import build_dataset, empty_results
     from simgap.effects.state import EstimationState, VariantState
     from simgap.pose.detect import Detector
     from simgap.sweep import estimate_tags
@@ -608,13 +608,7 @@ def ingest(
     thetas = sorted({f.theta for f in cap.frames})
     repeats = sorted({f.repeat for f in cap.frames})
     shape = (1, len(repeats), len(tags), len(ps), len(thetas))
-    res = {
-        "detected": np.zeros(shape, bool),
-        "estimated": np.full(shape + (6,), np.nan),
-        "error": np.full(shape + (6,), np.nan),
-        "reproj_px": np.full(shape, np.nan),
-        "corners": np.full(shape + (4, 2), np.nan),
-    }
+    res = empty_results(shape)
     failed: list[str] = []
     with _progress(show_progress) as bar:
         task = bar.add_task(f"ingest {cap.folder.name}", total=len(cap.frames))

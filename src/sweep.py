@@ -32,7 +32,7 @@ import xarray as xr
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 import simgap
-from simgap.analysis.dataset import build_dataset
+from simgap.analysis.dataset import build_dataset, empty_results
 from simgap.cache import Cache, content_hash, file_hash, write_text
 from simgap.effects.image import BLOCK_ALIGN_PX, ImageContext, run_pipeline
 from simgap.effects.state import VariantState
@@ -224,14 +224,7 @@ def estimate_tags(
     rig: Rig, state: VariantState, tags, found: dict, p: int, theta: float
 ) -> ConfigResult:
     """Pose and error of every tag from detected corners (px), with the assumed calibration."""
-    n = len(tags)
-    out = ConfigResult(
-        detected=np.zeros(n, bool),
-        estimated=np.full((n, 6), np.nan),
-        error=np.full((n, 6), np.nan),
-        reproj_px=np.full(n, np.nan),
-        corners=np.full((n, 4, 2), np.nan),
-    )
+    out = ConfigResult(**empty_results((len(tags),)))
     cal = state.estimation.calibration
     for i, tag in enumerate(tags):
         if tag not in found:
@@ -366,13 +359,7 @@ def run_experiment(
     ps, thetas, tags = exp.configuration_axes()
     names = [name for name, _ in exp.variant_states()]
     shape = (len(names), exp.repeats, len(tags), len(ps), len(thetas))
-    res = {
-        "detected": np.zeros(shape, bool),
-        "estimated": np.full(shape + (6,), np.nan),
-        "error": np.full(shape + (6,), np.nan),
-        "reproj_px": np.full(shape, np.nan),
-        "corners": np.full(shape + (4, 2), np.nan),
-    }
+    res = empty_results(shape)
     configs = [(i, j) for i in range(len(ps)) for j in range(len(thetas))]
     preflight(exp)
     client, cluster = _client(scheduler)

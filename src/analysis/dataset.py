@@ -17,6 +17,17 @@ AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 ERROR_UNITS = "m (tx, ty, tz); rad (rx, ry, rz)"
 
 
+def empty_results(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
+    """Result arrays of ``shape`` (variant, repeat, tag, p, theta): none detected, NaN poses."""
+    return {
+        "detected": np.zeros(shape, bool),
+        "estimated": np.full(shape + (6,), np.nan),
+        "error": np.full(shape + (6,), np.nan),
+        "reproj_px": np.full(shape, np.nan),
+        "corners": np.full(shape + (4, 2), np.nan),
+    }
+
+
 def build_dataset(
     tags: tuple[int, ...],
     ps: tuple[int, ...],

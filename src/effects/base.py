@@ -3,12 +3,25 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
-from simgap.config import ConfigError, from_mapping, to_mapping
+from simgap.config import ConfigError, from_mapping, require, to_mapping
 from simgap.effects.state import VariantState
 
 Stage = Literal["scene", "geometry", "image", "estimation"]
+
+
+@dataclass(frozen=True)
+class RelativeScale:
+    """A relative scale error (dimensionless; 0.02 = +2 %)."""
+
+    scale: float = 0.0
+
+    def __post_init__(self) -> None:
+        require(-0.3 < self.scale < 0.3, "scale: expected -0.3 < scale < 0.3")
+
+
 EFFECTS: dict[str, type[Effect]] = {}
 
 

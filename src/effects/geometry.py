@@ -6,7 +6,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from simgap.config import require
-from simgap.effects.base import Effect, register
+from simgap.effects.base import Effect, RelativeScale, register
 from simgap.effects.state import VariantState
 
 Vec3 = tuple[float, float, float]
@@ -77,14 +77,7 @@ class CarriagePitch(Effect):
     name = "carriage_pitch"
     stage = "geometry"
 
-    @dataclass(frozen=True)
-    class Params:
-        """Relative pitch error."""
-
-        scale: float = 0.0
-
-        def __post_init__(self) -> None:
-            require(abs(self.scale) < 0.2, "scale: expected |s| < 0.2")
+    Params = RelativeScale
 
     def apply(self, state: VariantState) -> VariantState:
         """Scale the carriage pitch."""

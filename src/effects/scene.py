@@ -10,7 +10,7 @@ import colour
 import numpy as np
 
 from simgap.config import deep_merge, require
-from simgap.effects.base import Effect, register
+from simgap.effects.base import Effect, RelativeScale, register
 from simgap.effects.state import RenderQuality, VariantState
 
 Vec3 = tuple[float, float, float]
@@ -254,14 +254,7 @@ class TagScale(Effect):
     name = "tag_scale"
     stage = "scene"
 
-    @dataclass(frozen=True)
-    class Params:
-        """Relative print scale error."""
-
-        scale: float = 0.0
-
-        def __post_init__(self) -> None:
-            require(-0.3 < self.scale < 0.3, "scale: expected -0.3 < scale < 0.3")
+    Params = RelativeScale
 
     def apply(self, state: VariantState) -> VariantState:
         """Scale the printed stickers."""
@@ -342,14 +335,7 @@ class FocalLength(Effect):
     name = "focal_length"
     stage = "scene"
 
-    @dataclass(frozen=True)
-    class Params:
-        """Relative focal length error."""
-
-        scale: float = 0.0
-
-        def __post_init__(self) -> None:
-            require(-0.3 < self.scale < 0.3, "scale: expected -0.3 < scale < 0.3")
+    Params = RelativeScale
 
     def apply(self, state: VariantState) -> VariantState:
         """Scale the true camera's fx, fy."""
