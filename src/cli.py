@@ -1,6 +1,6 @@
 """simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
 
-Commands: run, report, compare, study, ingest, diagnose, validate, assets.
+Commands: run, report, compare, study, ingest, diagnose, validate, effects, assets.
 """
 
 from __future__ import annotations
@@ -227,6 +227,23 @@ def validate(
         f"top-1 accuracy {summary['top1_accuracy']}, "
         f"no-effect correct {summary['no_effect_correct']}"
     )
+
+
+@app.command()
+def effects() -> None:
+    """List the effects catalogue: name, stage, what it models, parameters and defaults."""
+    import dataclasses
+
+    from simgap.effects import EFFECTS
+
+    for name in sorted(EFFECTS, key=lambda n: (EFFECTS[n].stage, n)):
+        cls = EFFECTS[name]
+        doc = " ".join((cls.__doc__ or "").split("\n\n")[0].split())
+        defaults = cls.Params()
+        params = ", ".join(
+            f"{f.name}={getattr(defaults, f.name)!r}" for f in dataclasses.fields(cls.Params)
+        )
+        typer.echo(f"{name:20s} [{cls.stage}] {doc}\n{'':21s} {params}")
 
 
 @app.command()
