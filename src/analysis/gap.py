@@ -9,6 +9,7 @@ second differences), which is what a single-repeat capture offers.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,7 +55,8 @@ def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
             sd = np.nanstd(e, axis=0, ddof=1)
             s = float(np.nanmedian(sd) / np.sqrt(e.shape[0])) if np.isfinite(sd).any() else np.nan
         else:
-            with np.errstate(invalid="ignore"):
+            with warnings.catch_warnings():  # configurations never detected are all-NaN
+                warnings.simplefilter("ignore", RuntimeWarning)
                 s = _roughness(np.moveaxis(np.nanmean(e, axis=0), 1, -1))  # p last
         out.append(s if np.isfinite(s) else DEFAULT_NOISE[axis_unit(axis)])
     return xr.DataArray(out, coords={"axis": list(AXES)}, dims="axis", attrs={"units": "m or rad"})
