@@ -210,3 +210,14 @@ def test_smoke_variants_dataset(smoke_variants_nc):
     # every variant detects the tags at p=0 (tag 0 at theta=0 and tag 1 at theta=180)
     assert det[:, :, 0, 0, 0].all() and det[:, :, 1, 0, 2].all()
     assert det[0, 0][vis].all()
+
+
+def test_experiment_round_trips_through_its_dataset_yaml():
+    """`diagnose --sim result.nc` rebuilds the experiment from the dataset's experiment_yaml."""
+    from simgap.experiment import experiment_from_yaml
+
+    exp = load_experiment("experiments/smoke_variants.yaml")
+    again = experiment_from_yaml(exp.to_yaml(), source="v.nc")
+    assert [n for n, _ in again.variant_states()] == [n for n, _ in exp.variant_states()]
+    assert again.variant_states()[1][1] == exp.variant_states()[1][1]
+    assert again.configuration_axes()[0] == exp.configuration_axes()[0]
