@@ -381,6 +381,7 @@ def test_missing_image(tmp_path, rig):
         read_capture(folder, rig)
 
 
+@needs_sample
 def test_calibration_size_differs_from_images(tmp_path, rig):
     camera = (SAMPLE / "camera.yaml").read_text().replace("image_width: 1920", "image_width: 1280")
     folder = make_capture(tmp_path, camera=camera)
@@ -402,6 +403,7 @@ def test_duplicate_rows(tmp_path, rig):
         read_capture(folder, rig)
 
 
+@needs_sample
 def test_bad_camera_matrix_length(tmp_path, rig):
     text = (SAMPLE / "camera.yaml").read_text()
     camera = text.replace("  - 1.0\ndistortion_model", "distortion_model")
