@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import abc
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
@@ -25,7 +26,7 @@ class RelativeScale:
 EFFECTS: dict[str, type[Effect]] = {}
 
 
-class Effect:
+class Effect(abc.ABC):
     """Base class: subclasses set ``name``, ``stage``, a ``Params`` dataclass and ``apply``."""
 
     name: ClassVar[str]
@@ -35,9 +36,9 @@ class Effect:
     def __init__(self, params: Any) -> None:
         self.params = params
 
+    @abc.abstractmethod
     def apply(self, state: VariantState) -> VariantState:
         """Return ``state`` with this effect applied (its own stage only)."""
-        raise NotImplementedError(f"effect {self.name!r} does not implement apply()")
 
     def describe(self) -> dict[str, Any]:
         """The effect's parameters as plain data."""

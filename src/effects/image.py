@@ -8,6 +8,7 @@ crop sits so that position-dependent effects (vignetting, JPEG blocks) are those
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 from dataclasses import dataclass
 from typing import ClassVar, Literal
@@ -47,9 +48,9 @@ class ImageEffect(Effect):
         image = dataclasses.replace(state.image, ops=state.image.ops + ((self.name, self.params),))
         return dataclasses.replace(state, image=image)
 
+    @abc.abstractmethod
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Apply the operation to a crop."""
-        raise NotImplementedError
 
 
 @register
@@ -149,11 +150,11 @@ class SensorNoise(ImageEffect):
 
 
 @register
-class Gamma(ImageEffect):
+class Gamma(Effect):
     """Transfer function of the 8-bit frame: ``srgb`` (IEC 61966-2-1), ``gamma`` or ``linear``."""
 
     name = "gamma"
-    order = 50
+    stage = "image"
 
     @dataclass(frozen=True)
     class Params:
