@@ -91,18 +91,21 @@ def calibration_from_attrs(real: xr.Dataset):
     return CameraModel(**{k: (tuple(data[k]) if k == "distortion" else data[k]) for k in keys})
 
 
-def _replace_experiment(exp: Experiment, rig: dict, conf: dict) -> Experiment:
+def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
+    """``exp`` restricted to the real dataset's configurations, imaging with its calibration."""
+    from simgap.config import to_mapping
     from simgap.experiment import Configurations
 
-    return dataclasses.replace(
-        exp,
-        rig=rig,
-        configurations=Configurations(
-            tuple(conf["p"]), tuple(conf["theta_deg"]), tuple(conf["tags"])
-        ),
-        variants=(),
-        grid={},
+    rig = dict(exp.rig)
+    cal = calibration_from_attrs(real)
+    if cal is not None:
+        rig["camera"] = to_mapping(cal)
+    conf = Configurations(
+        tuple(int(p) for p in real.p.values),
+        tuple(round(float(np.rad2deg(t)), 6) for t in real.theta.values),
+        tuple(int(t) for t in real.tag.values),
     )
+    return dataclasses.replace(exp, rig=rig, configurations=conf, variants=(), grid={})
 
 
 def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> Items:
@@ -257,7 +260,7 @@ class Diagnosis:
 
         self.settings = settings
         self.real = real
-        self.exp = _replace_experiment(exp, *_sim_rig_and_conf(real, exp))
+        self.exp = simulation_experiment(real, exp)
         self.sim = run_experiment(self.exp, cache_dir, show_progress=True, scheduler=scheduler)
         self.field = gapmod.gap_field(real, self.sim)
         self.items = build_items(real, self.sim, self.field)
@@ -389,21 +392,6 @@ class Diagnosis:
             "seconds": time.perf_counter() - t0,
             "configurations": len(h),
         }
-
-
-def _sim_rig_and_conf(real: xr.Dataset, exp: Experiment) -> tuple[dict, dict]:
-    from simgap.config import to_mapping
-
-    rig = dict(exp.rig)
-    cal = calibration_from_attrs(real)
-    if cal is not None:
-        rig["camera"] = to_mapping(cal)
-    conf = {
-        "p": [int(p) for p in real.p.values],
-        "theta_deg": [round(float(np.rad2deg(t)), 6) for t in real.theta.values],
-        "tags": [int(t) for t in real.tag.values],
-    }
-    return rig, conf
 
 
 def diagnose(
