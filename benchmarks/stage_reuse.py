@@ -32,14 +32,11 @@ def timed(exp, cache: Path) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--experiment", default="experiments/baseline.yaml")
-    ap.add_argument(
-        "--cache", default=None, help="reuse a warm cache (default: a fresh temporary one)"
-    )
     args = ap.parse_args()
     base = load_experiment(args.experiment)
     n = len(base.configuration_axes()[0]) * len(base.configuration_axes()[1])
     with tempfile.TemporaryDirectory() as tmp:
-        cache = Path(args.cache or tmp)
+        cache = Path(tmp)
         t_base = timed(base, cache)
         t_cached = timed(base, cache)
         rows = []
