@@ -25,6 +25,16 @@ def _fail(message: str) -> None:
     raise typer.Exit(code=2)
 
 
+def _experiment(path: Path):
+    """Load an experiment file, or exit with code 2 and the message naming file and key."""
+    from simgap.experiment import load_experiment
+
+    try:
+        return load_experiment(path)
+    except ConfigError as exc:
+        _fail(str(exc))
+
+
 @app.command()
 def run(
     experiment: Path = typer.Argument(..., help="Experiment YAML (e.g. experiments/smoke.yaml)."),
@@ -35,14 +45,10 @@ def run(
 ) -> None:
     """Run an experiment and write its result dataset."""
     from simgap.analysis.dataset import write_netcdf
-    from simgap.experiment import load_experiment
     from simgap.paths import default_cache_dir
     from simgap.sweep import run_experiment
 
-    try:
-        exp = load_experiment(experiment)
-    except ConfigError as exc:
-        _fail(str(exc))
+    exp = _experiment(experiment)
     try:
         ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
     except ConfigError as exc:
@@ -124,12 +130,7 @@ def ingest(
 
     kwargs = {}
     if experiment is not None:
-        from simgap.experiment import load_experiment
-
-        try:
-            exp = load_experiment(experiment)
-        except ConfigError as exc:
-            _fail(str(exc))
+        exp = _experiment(experiment)
         kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
     try:
         ds = ingest_capture(capture, show_progress=progress, **kwargs)
@@ -146,10 +147,10 @@ def ingest(
 
 def _load_sim(sim: Path):
     """An experiment from YAML, or the experiment a result dataset was made with."""
-    from simgap.experiment import experiment_from_yaml, load_experiment
+    from simgap.experiment import experiment_from_yaml
 
     if sim.suffix in (".yaml", ".yml"):
-        return load_experiment(sim)
+        return _experiment(sim)
     from simgap.analysis.dataset import read_netcdf
 
     ds = read_netcdf(sim)
@@ -212,14 +213,10 @@ def validate(
     cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores."""
-    from simgap.experiment import load_experiment
     from simgap.paths import default_cache_dir
     from simgap.validate import ValidateSettings, run_validation
 
-    try:
-        exp = load_experiment(experiment)
-    except ConfigError as exc:
-        _fail(str(exc))
+    exp = _experiment(experiment)
     settings = ValidateSettings(trials=trials, seed=seed)
     summary = run_validation(exp, output, cache or default_cache_dir(), settings, log=typer.echo)
     typer.echo((output / "validation.md").read_text())
@@ -263,12 +260,7 @@ def study(
     scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
 ) -> None:
     """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
-    from simgap.experiment import load_experiment
-
-    try:
-        name = load_experiment(experiment).name
-    except ConfigError as exc:
-        _fail(str(exc))
+    name = _experiment(experiment).name
     nc = output / f"{name}.nc"
     run(experiment, nc, cache, True, scheduler)
     report(nc, output / f"{name}-report")

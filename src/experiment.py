@@ -47,7 +47,7 @@ from simgap.effects.state import (
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.render.scene import SceneSpec, load_scene_spec
-from simgap.rig import Rig
+from simgap.rig import Rig, load_rig
 
 
 @dataclass(frozen=True)
@@ -215,10 +215,7 @@ class Experiment:
     @cached_property
     def rig_model(self) -> Rig:
         """The rig with this experiment's overrides."""
-        from simgap.rig import DEFAULT_RIG_FILE
-
-        data = deep_merge(read_yaml(DEFAULT_RIG_FILE), self.rig)
-        return from_mapping(Rig, data, where=f"{self.source}: rig")
+        return load_rig(overrides=self.rig, where=f"{self.source}: rig")
 
     @cached_property
     def scene_spec(self) -> SceneSpec:

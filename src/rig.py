@@ -272,8 +272,13 @@ def _marker_cells(dictionary: str) -> int:
     return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)).markerSize) + 2
 
 
-def load_rig(path: str | Path | None = None, overrides: dict | None = None) -> Rig:
+def load_rig(
+    path: str | Path | None = None, overrides: dict | None = None, where: str | None = None
+) -> Rig:
     """Load a rig from YAML (default: the packaged ``rig.yaml``), with optional overrides.
+
+    ``where`` prefixes error messages (default: the rig file's path), e.g. the experiment file
+    whose ``rig:`` section holds the overrides.
 
     Raises
     ------
@@ -282,4 +287,4 @@ def load_rig(path: str | Path | None = None, overrides: dict | None = None) -> R
     """
     path = Path(path) if path else DEFAULT_RIG_FILE
     data = deep_merge(read_yaml(path), overrides or {})
-    return from_mapping(Rig, data, where=f"{path}: ")
+    return from_mapping(Rig, data, where=where if where is not None else f"{path}: ")
