@@ -233,6 +233,35 @@ class Rig:
         rail_from_tag = self.rail_from_turntable(theta, err) @ self.turntable_from_tag(tag, err)
         return tf.invert(self.rail_from_eyepoint(p, err)) @ rail_from_tag
 
+    def eyepoints_from_tags(
+        self, tags: np.ndarray, ps: np.ndarray, thetas: np.ndarray, err: FixtureErrors = NOMINAL
+    ) -> np.ndarray:
+        """:meth:`eyepoint_from_tag` for many configurations at once, shape (N, 4, 4).
+
+        Parameters
+        ----------
+        tags, ps, thetas : array_like (N,)
+            Tag ids, pin holes and turntable angles (rad).
+        err : FixtureErrors
+            Fixture errors.
+        """
+        tags = np.asarray(tags, dtype=int)
+        ps, thetas = np.asarray(ps, dtype=float), np.asarray(thetas, dtype=float)
+        eye_from_carriage = tf.invert(self.carriage_from_eyepoint(err))
+        pitch = self.links.pin_pitch * (1.0 + err.pitch_scale)
+        eye_from_rail = np.repeat(eye_from_carriage[None], len(ps), axis=0)
+        # rail -> carriage at pin hole p is a translation by +pitch * p along y
+        eye_from_rail[:, :3, 3] += np.outer(pitch * ps, eye_from_carriage[:3, 1])
+        angle = thetas + err.turntable_zero
+        c, s = np.cos(angle), np.sin(angle)
+        rail_from_turntable = np.repeat(np.eye(4)[None], len(ps), axis=0)
+        rail_from_turntable[:, 0, 0], rail_from_turntable[:, 0, 1] = c, -s
+        rail_from_turntable[:, 1, 0], rail_from_turntable[:, 1, 1] = s, c
+        rail_from_turntable[:, :3, 3] = self.links.carriage_to_turntable
+        ids, inverse = np.unique(tags, return_inverse=True)
+        turntable_from_tag = np.stack([self.turntable_from_tag(int(t), err) for t in ids])
+        return eye_from_rail @ rail_from_turntable @ turntable_from_tag[inverse]
+
     def expected_pose(self, tag: int, p: float, theta: float) -> np.ndarray:
         """Expected pose ``(tx, ty, tz, rx, ry, rz)``: translation (m) and rotation vector (rad).
 

@@ -28,22 +28,18 @@ import xarray as xr
 
 from simgap.analysis import gap as gapmod
 from simgap.analysis.fitting import (
-    Fit,
     Items,
-    ProjectionCandidate,
-    corner_score,
     default_candidates,
     gap_rms_per_axis,
     gap_score,
 )
+from simgap.analysis.selection import ModelSearch, Scored
 from simgap.cache import Cache, content_hash
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
 from simgap.experiment import Experiment
 
 AXES = gapmod.AXES
-#: Held-out gap score at which the remaining gap is taken as noise (pure noise scores ~0.67).
-NOISE_LEVEL = 1.0
 
 
 @dataclass(frozen=True)
@@ -194,47 +190,6 @@ def _subsample(index: np.ndarray, k: int, seed: int) -> np.ndarray:
     return np.sort(np.random.default_rng(seed + 1).choice(index, k, replace=False))
 
 
-@dataclass
-class Scored:
-    """A candidate's fit and its held-out scores."""
-
-    candidate: Any
-    fit: Fit
-    before: float
-    after: float
-    before_axes: np.ndarray
-    after_axes: np.ndarray
-    before_all: float = float("nan")
-    after_all: float = float("nan")
-    corner_before: float = float("nan")
-    corner_after: float = float("nan")
-
-    @property
-    def reduction(self) -> float:
-        """Relative fall of the held-out gap."""
-        return 1.0 - self.after / self.before if self.before > 0 else 0.0
-
-    def record(self) -> dict[str, Any]:
-        """JSON record (ranking entry)."""
-        return {
-            "effect": self.fit.effect,
-            "params": _jsonable(self.fit.params),
-            "heldout_gap_before": self.before,
-            "heldout_gap_after": self.after,
-            "reduction": self.reduction,
-            "heldout_gap_all_axes_before": self.before_all,
-            "heldout_gap_all_axes_after": self.after_all,
-            "heldout_corner_gap_before_px": self.corner_before,
-            "heldout_corner_gap_after_px": self.corner_after,
-            "heldout_gap_before_per_axis": dict(
-                zip(AXES, map(float, self.before_axes), strict=True)
-            ),
-            "heldout_gap_after_per_axis": dict(zip(AXES, map(float, self.after_axes), strict=True)),
-            "fit_seconds": self.fit.seconds,
-            "stage": self.candidate.kind,
-        }
-
-
 def _jsonable(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {k: _jsonable(v) for k, v in obj.items()}
@@ -274,113 +229,27 @@ class Diagnosis:
         self.where = gapmod.axis_summary(self.field)
         #: axes where the gap is significant: the held-out gap is scored on them
         self.axes = np.array([self.where[a]["significant"] for a in AXES])
+        self.search = ModelSearch(
+            self.rig,
+            self.base,
+            self.items,
+            self.train,
+            self.held,
+            self.sim_train,
+            self.axes,
+            self.runner,
+            settings.min_gain,
+        )
 
     # ------------------------------------------------------------------ which
 
-    def _delta(self, cand, fit: Fit, items: Items) -> np.ndarray:
-        if isinstance(cand, ProjectionCandidate):
-            return cand.delta(self.rig, self.base, fit, items)
-        return cand.delta(self.runner, self.base, fit, items)
-
-    def _corner_delta(self, cand, fit: Fit, items: Items) -> np.ndarray:
-        if isinstance(cand, ProjectionCandidate):
-            return cand.corner_shift(self.rig, self.base, fit.extra["x"], items)
-        state = make_effect(cand.effect, fit.params).apply(self.base)
-        return self.runner.corners(state, items) - self.runner.corners(self.base, items)
-
-    def _fit(self, cand, offset_train: np.ndarray, corner_offset: np.ndarray) -> Fit:
-        items = self.items
-        if isinstance(cand, ProjectionCandidate):
-            tr = items.subset(self.train)
-            return cand.fit(self.rig, self.base, tr, target=tr.real_corners - corner_offset)
-        sub = items.subset(self.sim_train)
-        pos = np.searchsorted(self.train, self.sim_train)
-        return cand.fit(self.runner, self.base, sub, sub.real_err - offset_train[pos], self.axes)
-
-    def score(self, cand, fit: Fit, offset_held: np.ndarray, corner_held=0.0) -> Scored:
-        """Held-out gap before and after adding ``fit`` on top of the offsets (m, rad; px)."""
-        h = self.items.subset(self.held)
-        pred0 = h.sim_err + offset_held
-        pred1 = pred0 + np.nan_to_num(self._delta(cand, fit, h))
-        c0 = h.sim_corners + corner_held
-        c1 = c0 + np.nan_to_num(self._corner_delta(cand, fit, h))
-        return Scored(
-            cand,
-            fit,
-            gap_score(h.real_err, pred0, h.scale, self.axes),
-            gap_score(h.real_err, pred1, h.scale, self.axes),
-            gap_rms_per_axis(h.real_err, pred0),
-            gap_rms_per_axis(h.real_err, pred1),
-            gap_score(h.real_err, pred0, h.scale),
-            gap_score(h.real_err, pred1, h.scale),
-            corner_score(h.real_corners, c0),
-            corner_score(h.real_corners, c1),
-        )
-
-    def rank(self, candidates, significant: bool) -> list[Scored]:
-        """Fit and score every candidate alone; projection ones only when no gap is significant."""
-        zero_t = np.zeros((len(self.train), 6))
-        zero_h = np.zeros((len(self.held), 6))
-        zero_c = np.zeros((len(self.train), 4, 2))
-        out = []
-        for cand in candidates:
-            if not significant and not isinstance(cand, ProjectionCandidate):
-                continue
-            out.append(self.score(cand, self._fit(cand, zero_t, zero_c), zero_h))
-        # ranked on the held-out detected corners: the most direct evidence, in one unit (px),
-        # free of the planar pose ambiguity; an effect must move the corners the way reality does
-        return sorted(out, key=lambda s: s.corner_after)
-
-    def greedy(self, ranking: list[Scored], max_effects: int = 3) -> list[Scored]:
-        """Add effects one at a time while the held-out gap falls by ``min_gain`` or more."""
-        if not ranking:
-            return []
-        chosen = [ranking[0]]
-        items = self.items
-        for _ in range(max_effects - 1):
-            off_t = sum(
-                np.nan_to_num(self._delta(s.candidate, s.fit, items.subset(self.train)))
-                for s in chosen
-            )
-            corner_h = sum(
-                np.nan_to_num(self._corner_delta(s.candidate, s.fit, items.subset(self.held)))
-                for s in chosen
-            )
-            off_h = sum(
-                np.nan_to_num(self._delta(s.candidate, s.fit, items.subset(self.held)))
-                for s in chosen
-            )
-            corner = np.zeros((len(self.train), 4, 2))
-            for s in chosen:
-                if isinstance(s.candidate, ProjectionCandidate):
-                    corner += np.nan_to_num(
-                        s.candidate.corner_shift(
-                            self.rig, self.base, s.fit.extra["x"], items.subset(self.train)
-                        )
-                    )
-            if chosen[-1].after < NOISE_LEVEL:
-                break  # what is left of the gap is noise
-            current = chosen[-1].corner_after
-            best = None
-            for s in ranking[1:]:
-                if s.fit.effect in {c.fit.effect for c in chosen}:
-                    continue
-                fit = self._fit(s.candidate, off_t, corner)
-                scored = self.score(s.candidate, fit, off_h, corner_h)
-                if best is None or scored.corner_after < best.corner_after:
-                    best = scored
-            if best is None or best.corner_after > current * (1.0 - self.settings.min_gain):
-                break
-            chosen.append(best)
-        return chosen
-
     # ------------------------------------------------------------------ how far
 
-    def confirm(self, chosen: list[Scored]) -> dict[str, Any]:
+    def confirm(self, chosen: Scored) -> dict[str, Any]:
         """Re-run the pipeline (re-render) with all selected effects; held-out gap after."""
         state = self.base
-        for s in chosen:
-            state = make_effect(s.fit.effect, s.fit.params).apply(state)
+        for _, fit in chosen.fits:
+            state = make_effect(fit.effect, fit.params).apply(state)
         h = self.items.subset(self.held)
         t0 = time.perf_counter()
         pred = self.runner(state, h)
@@ -415,37 +284,40 @@ def diagnose(
         "significant": significant,
         "comparable_configurations": len(d.items),
     }
-    ranking = d.rank(candidates or default_candidates(), significant) if len(d.items) >= 2 else []
-    chosen = d.greedy(ranking) if significant else []
-    explained = (
-        bool(chosen) and (1.0 - chosen[-1].after / chosen[0].before) >= settings.explained_reduction
+    ranking = (
+        d.search.rank(candidates or default_candidates(), significant) if len(d.items) >= 2 else []
     )
+    chosen = d.search.select(ranking) if significant else None
+    explained = chosen is not None and chosen.reduction >= settings.explained_reduction
     result: dict[str, Any] = {
         "ranking": [s.record() for s in ranking],
-        "selected": [s.fit.effect for s in chosen] if explained else [],
+        "selected": chosen.effects if explained else [],
         "unexplained": bool(significant and not explained),
         "where": _jsonable(where),
         "split": {"train": int(len(d.train)), "heldout": int(len(d.held)), "seed": settings.seed},
     }
-    if chosen and explained:
-        before = chosen[0].before
+    if chosen is not None and explained:
         result["combined"] = {
             "effects": [
-                {"effect": s.fit.effect, "params": _jsonable(s.fit.params)} for s in chosen
+                {"effect": fit.effect, "params": _jsonable(fit.params)} for _, fit in chosen.fits
             ],
-            "heldout_gap_before": before,
-            "heldout_gap_after": chosen[-1].after,
-            "reduction": 1.0 - chosen[-1].after / before,
+            "n_params": chosen.n_params,
+            "heldout_gap_before": chosen.before,
+            "heldout_gap_after": chosen.after,
+            "reduction": chosen.reduction,
+            "heldout_corner_gap_before_px": chosen.corner_before,
+            "heldout_corner_gap_after_px": chosen.corner_after,
             "heldout_gap_before_per_axis": dict(
-                zip(AXES, map(float, chosen[0].before_axes), strict=True)
+                zip(AXES, map(float, chosen.before_axes), strict=True)
             ),
             "heldout_gap_after_per_axis": dict(
-                zip(AXES, map(float, chosen[-1].after_axes), strict=True)
+                zip(AXES, map(float, chosen.after_axes), strict=True)
             ),
+            "equivalent_models": d.search.alternatives(chosen),
         }
         if settings.confirm:
             conf = d.confirm(chosen)
-            conf["reduction"] = 1.0 - conf["heldout_gap_after"] / before
+            conf["reduction"] = 1.0 - conf["heldout_gap_after"] / chosen.before
             result["confirmed"] = conf
     result["seconds"] = time.perf_counter() - t0
     return result, d

@@ -18,6 +18,7 @@ from simgap.analysis import compare
 from simgap.analysis.diagnose import AXES, Diagnosis, write_json
 from simgap.analysis.gap import align
 from simgap.analysis.report import _save_figure, _save_text
+from simgap.analysis.selection import EQUIVALENT_PX, EQUIVALENT_REL
 
 
 def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
@@ -93,14 +94,15 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
         "((real - predicted error) / noise)^2, averaged over the axes where the gap is "
         "significant, square-rooted (pure noise ~0.7).",
         "",
-        "| rank | effect | fitted parameters | corners before [px] | after [px] "
+        "| rank | effect | parameters | fitted values | corners before [px] | after [px] "
         "| pose gap before | after | reduction |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for i, r in enumerate(result["ranking"], 1):
         params = ", ".join(f"{k}={_fmt(v)}" for k, v in r["params"].items())
         lines.append(
-            f"| {i} | {r['effect']} | {params} | {r['heldout_corner_gap_before_px']:.2f} | "
+            f"| {i} | {r['effect']} | {r['n_params']} | {params} | "
+            f"{r['heldout_corner_gap_before_px']:.2f} | "
             f"{r['heldout_corner_gap_after_px']:.2f} | {r['heldout_gap_before']:.2f} | "
             f"{r['heldout_gap_after']:.2f} | {r['reduction']:+.0%} |"
         )
@@ -111,6 +113,20 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
         lines.append("**Unexplained**: no effect of the catalogue reduces the held-out gap enough.")
     else:
         lines.append(f"**Selected**: {', '.join(result['selected'])}.")
+        alternatives = result.get("combined", {}).get("equivalent_models", [])
+        if alternatives:
+            lines += [
+                "",
+                "Other models tried explain the held-out corners as well (residuals within "
+                f"{EQUIVALENT_PX} px or {EQUIVALENT_REL:.0%}); the data cannot tell them apart, "
+                "the one with the fewest parameters is reported:",
+                "",
+            ]
+            lines += [
+                f"- {' + '.join(a['effects'])} ({a['n_params']} parameters, "
+                f"{a['heldout_corner_gap_after_px']:.2f} px)"
+                for a in alternatives
+            ]
     lines.append("")
     if "combined" in result:
         c = result["combined"]

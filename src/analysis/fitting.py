@@ -116,15 +116,35 @@ class Fit:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-def _project(
-    rig: Rig, camera, errors, tag_scale: float, tag: int, p: int, theta: float
-) -> np.ndarray:
-    """Image corners (4, 2) of a tag with the given true camera, geometry and print scale (px)."""
-    m = rig.eyepoint_from_tag(int(tag), float(p), float(theta), errors)
-    cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ m
-    pts = tf.apply(cv_from_tag, marker_object_points(rig.tags.size * tag_scale))
-    uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs)
-    return uv.reshape(4, 2)
+def project_items(rig: Rig, camera, errors, tag_scale: float, items: Items) -> np.ndarray:
+    """Image corners (N, 4, 2) of the items' tags with a true camera, geometry and print scale.
+
+    Parameters
+    ----------
+    rig : Rig
+        The fixture.
+    camera : CameraModel
+        The true camera (intrinsics and distortion).
+    errors : FixtureErrors
+        The true geometry.
+    tag_scale : float
+        Printed size over nominal size.
+    items : Items
+        Configurations (tag, p, theta).
+
+    Returns
+    -------
+    ndarray (N, 4, 2)
+        Corners TL, TR, BR, BL (px).
+    """
+    eye_from_tag = rig.eyepoints_from_tags(items.tag, items.p, items.theta, errors)
+    cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T)[None] @ eye_from_tag
+    obj = marker_object_points(rig.tags.size * tag_scale)
+    pts = np.einsum("nij,kj->nki", cv_from_tag[:, :3, :3], obj) + cv_from_tag[:, None, :3, 3]
+    uv, _ = cv2.projectPoints(
+        pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs
+    )
+    return uv.reshape(len(items), 4, 2)
 
 
 class ProjectionCandidate:
@@ -149,6 +169,11 @@ class ProjectionCandidate:
         self.bound = np.array([b for _, _, b in params], float)
         self.x0 = np.zeros(len(params))
 
+    @property
+    def n_params(self) -> int:
+        """Number of fitted parameters (model complexity)."""
+        return len(self.names)
+
     def effect_params(self, x: np.ndarray) -> dict[str, Any]:
         """Effect parameter mapping for a parameter vector."""
         out: dict[str, Any] = {}
@@ -167,15 +192,10 @@ class ProjectionCandidate:
 
     def corner_shift(self, rig: Rig, base: VariantState, x: np.ndarray, items: Items) -> np.ndarray:
         """Change of the projected corners (N, 4, 2) caused by the effect (px)."""
-        state = self._state(base, x)
-        s0, s1 = base.scene, state.scene
-        out = np.empty((len(items), 4, 2))
-        for i in range(len(items)):
-            args = (items.tag[i], items.p[i], items.theta[i])
-            out[i] = _project(rig, s1.camera, s1.errors, s1.tag_scale, *args) - _project(
-                rig, s0.camera, s0.errors, s0.tag_scale, *args
-            )
-        return out
+        s0, s1 = base.scene, self._state(base, x).scene
+        return project_items(rig, s1.camera, s1.errors, s1.tag_scale, items) - project_items(
+            rig, s0.camera, s0.errors, s0.tag_scale, items
+        )
 
     def fit(
         self, rig: Rig, base: VariantState, items: Items, target: np.ndarray | None = None
@@ -223,6 +243,49 @@ class ProjectionCandidate:
         return out
 
 
+class ProjectionSet(ProjectionCandidate):
+    """Several projection effects fitted jointly (their parameters at once, on the same corners).
+
+    Effects that move the corners in similar ways (a principal-point shift and a small camera
+    rotation, a focal change and a camera moved along its axis) cannot be told apart when fitted
+    one after the other: the first absorbs part of the second. Fitting them together lets each
+    take its own share.
+
+    Parameters
+    ----------
+    members : list of ProjectionCandidate
+        The effects, applied in this order.
+    """
+
+    def __init__(self, members: list[ProjectionCandidate]) -> None:
+        self.members = list(members)
+        self.effect = "+".join(m.effect for m in self.members)
+        self.names = [f"{m.effect}.{n}" for m in self.members for n in m.names]
+        self.x_scale = np.concatenate([m.x_scale for m in self.members])
+        self.bound = np.concatenate([m.bound for m in self.members])
+        self.x0 = np.zeros(len(self.names))
+        self._cuts = np.cumsum([m.n_params for m in self.members])[:-1]
+
+    def effect_params(self, x: np.ndarray) -> dict[str, Any]:
+        """Effect parameter mappings, one per member effect."""
+        return {
+            m.effect: m.effect_params(xm)
+            for m, xm in zip(self.members, np.split(x, self._cuts), strict=True)
+        }
+
+    def _state(self, base: VariantState, x: np.ndarray) -> VariantState:
+        for m, xm in zip(self.members, np.split(x, self._cuts), strict=True):
+            base = m._state(base, xm)
+        return base
+
+    def member_fits(self, fit: Fit) -> list[Fit]:
+        """The joint fit split into one :class:`Fit` per member (same order)."""
+        return [
+            Fit(m.effect, m.effect_params(xm), fit.seconds, {"x": xm})
+            for m, xm in zip(self.members, np.split(fit.extra["x"], self._cuts), strict=True)
+        ]
+
+
 class SimulationCandidate:
     """An effect fitted by running the pipeline on a grid of parameter values.
 
@@ -235,6 +298,8 @@ class SimulationCandidate:
     """
 
     kind = "simulation"
+    #: one choice among the grid values
+    n_params = 1
 
     def __init__(self, effect: str, grid: list[dict[str, Any]]) -> None:
         self.effect = effect
