@@ -297,9 +297,15 @@ def diagnose(
         "split": {"train": int(len(d.train)), "heldout": int(len(d.held)), "seed": settings.seed},
     }
     if chosen is not None and explained:
+        weight = d.search.contributions(chosen)
         result["combined"] = {
             "effects": [
-                {"effect": fit.effect, "params": _jsonable(fit.params)} for _, fit in chosen.fits
+                {
+                    "effect": fit.effect,
+                    "params": _jsonable(fit.params),
+                    "pose_contribution": weight[fit.effect],
+                }
+                for _, fit in chosen.fits
             ],
             "n_params": chosen.n_params,
             "heldout_gap_before": chosen.before,
