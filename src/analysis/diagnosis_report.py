@@ -117,9 +117,9 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
         if alternatives:
             lines += [
                 "",
-                "Other models tried explain the held-out corners as well (residuals within "
-                f"{EQUIVALENT_PX} px or {EQUIVALENT_REL:.0%}); the data cannot tell them apart, "
-                "the one with the fewest parameters is reported:",
+                "Other models tried explain the held-out corners about as well (residuals "
+                f"within {EQUIVALENT_PX} px or {EQUIVALENT_REL:.0%}); this data cannot tell them "
+                "apart (where one is simpler, the simpler is selected):",
                 "",
             ]
             lines += [
@@ -144,6 +144,20 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
                 f"{f['configurations']} held-out configurations, {f['seconds']:.0f} s)."
             )
         lines += [
+            "",
+            "| selected effect | fitted values | pose contribution |",
+            "|---|---|---|",
+        ]
+        lines += [
+            f"| {e['effect']} | {', '.join(f'{k}={_fmt(v)}' for k, v in e['params'].items())} "
+            f"| {e['pose_contribution']:.1f} |"
+            for e in c["effects"]
+        ]
+        lines += [
+            "",
+            "Pose contribution: how far the effect moves the held-out pose predictions (median "
+            "|change| over the noise or practical floor, largest significant axis); effects "
+            "below 1 are not selected.",
             "",
             "| axis | RMS gap before | after (fast) | after (confirmed) |",
             "|---|---|---|---|",
