@@ -238,12 +238,17 @@ def summarize(trials: list[Trial]) -> dict[str, Any]:
 
 
 def confusion(scores: list[dict]) -> dict[str, dict[str, int]]:
-    """Counts of (hidden effect -> top-1 answer); pairs count under each hidden effect."""
+    """Counts of (hidden effect -> answer), one count per hidden effect of each trial.
+
+    The answer is the hidden effect itself when the diagnosis selected it (a hit, on the
+    diagonal), else the diagnosis' top-1 (or ``none``).
+    """
     table: dict[str, dict[str, int]] = {}
     for s in scores:
         for h in s["hidden"] or ["none"]:
+            answer = h if h in s["selected"] or (h == "none" and not s["selected"]) else s["top1"]
             row = table.setdefault(h, {})
-            row[s["top1"]] = row.get(s["top1"], 0) + 1
+            row[answer] = row.get(answer, 0) + 1
     return table
 
 
@@ -269,7 +274,10 @@ def validation_markdown(summary: dict[str, Any], trials: list[Trial]) -> str:
         f"| held-out gap reduction, median (correct trials) | {pct(summary['reduction_median'])} |",
         f"| held-out gap reduced >= 70 % | {pct(summary['reduction_at_least_70pct'])} |",
         "",
-        "## Confusion table (hidden -> top-1 answer)",
+        "## Confusion table (hidden -> answer)",
+        "",
+        "One count per hidden effect of each trial: on the diagonal when the diagnosis selected "
+        "it, otherwise under the diagnosis' top-1 answer.",
         "",
     ]
     answers = sorted({a for row in summary["confusion"].values() for a in row})
@@ -281,14 +289,15 @@ def validation_markdown(summary: dict[str, Any], trials: list[Trial]) -> str:
         "",
         "## Trials",
         "",
-        "| # | hidden | selected | correct | seconds |",
-        "|---|---|---|---|---|",
+        "| # | hidden | selected | correct | magnitude error | seconds |",
+        "|---|---|---|---|---|---|",
     ]
     for t in trials:
         s = t.score()
+        mags = ", ".join(f"{k} {v:.1%}" for k, v in s.get("magnitude_error", {}).items())
         lines.append(
             f"| {t.index} | {', '.join(s['hidden']) or 'none'} | "
             f"{', '.join(s['selected']) or '-'} | {'yes' if s['correct'] else 'no'} | "
-            f"{t.seconds:.0f} |"
+            f"{mags or '-'} | {t.seconds:.0f} |"
         )
     return "\n".join(lines) + "\n"

@@ -257,3 +257,22 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         else:
             expected = not t["selected"] and not significant
         assert t["correct"] == expected
+
+
+def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
+    from simgap.validate import confusion
+
+    scores = [
+        {
+            "hidden": ["focal_length", "principal_point"],
+            "selected": ["principal_point"],
+            "top1": "principal_point",
+        },
+        {"hidden": ["principal_point"], "selected": ["camera_mount"], "top1": "camera_mount"},
+        {"hidden": [], "selected": [], "top1": "none"},
+    ]
+    assert confusion(scores) == {
+        "focal_length": {"principal_point": 1},  # missed: counted under the top-1 answer
+        "principal_point": {"principal_point": 1, "camera_mount": 1},
+        "none": {"none": 1},
+    }
