@@ -202,7 +202,9 @@ def run_validation(
     write_json(
         {
             "summary": summary,
-            "trials": [dict(t.score(), params=t.hidden, result=t.result) for t in trials],
+            "trials": [
+                dict(t.score(), params=t.hidden, result=t.result, seconds=t.seconds) for t in trials
+            ],
         },
         out_dir / "validation.json",
     )
