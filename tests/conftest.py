@@ -1,10 +1,26 @@
-"""Shared fixtures: a temporary cache per test session, the default rig and scene."""
+"""Shared fixtures: a temporary cache per test session, the default rig, the shared sample."""
 
 from __future__ import annotations
+
+import os
+from pathlib import Path
 
 import pytest
 
 from simgap.rig import load_rig
+
+REPO = Path(__file__).resolve().parents[1]
+#: The public sample capture (made by an independent generator), in ``shared/`` beside the
+#: checkout (the project's layout) or where ``SIMGAP_SHARED`` points.
+SAMPLE = Path(os.environ.get("SIMGAP_SHARED", REPO.parent / "shared")) / "captures" / "sample-focal"
+
+
+@pytest.fixture(scope="session")
+def sample() -> Path:
+    """The shared sample capture folder; the tests about it skip where it is not present."""
+    if not (SAMPLE / "manifest.csv").is_file():
+        pytest.skip(f"shared sample capture not found at {SAMPLE} (set SIMGAP_SHARED)")
+    return SAMPLE
 
 
 @pytest.fixture(scope="session")

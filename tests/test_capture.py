@@ -1,12 +1,12 @@
 """Tests of real captures (simgap.capture): reading and validating capture folders, ingesting the
 shared sample capture (whose camera has a 2 % longer focal length than its calibration says),
-writing captures, and ``simgap ingest``. No rendering: the sample's frames and copies of them."""
+writing captures, and ``simgap ingest``. No rendering: the sample's frames, copies of them, and
+blank frames for the bad-folder checks."""
 
 from __future__ import annotations
 
 import csv
 import math
-import os
 from pathlib import Path
 
 import cv2
@@ -30,14 +30,9 @@ from simgap.config import ConfigError
 from simgap.pose.estimate import project_tag_corners
 from simgap.rig import CameraModel
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("SIMGAP_SHARED", REPO.parent / "shared"))
-SAMPLE = SHARED / "captures" / "sample-focal"
 TRUE_FOCAL_PX = 1413.72  # the sample's README: the camera's true fx = fy (2 % over camera.yaml)
-
-needs_sample = pytest.mark.skipif(
-    not (SAMPLE / "manifest.csv").is_file(), reason=f"sample capture not found at {SAMPLE}"
-)
+#: the sample's configurations (p, theta in deg): the synthetic bad-folder captures use them too
+SAMPLE_GRID = [(p, deg) for p in (0, 7, 14) for deg in (0, 30, 200)]
 
 
 def slope(x: np.ndarray, y: np.ndarray) -> float:
@@ -54,42 +49,39 @@ def visible_ty(ds):
 
 
 @pytest.fixture(scope="module")
-def sample_ds():
-    if not SAMPLE.is_dir():
-        pytest.skip(f"sample capture not found at {SAMPLE}")
-    return ingest(SAMPLE)
+def sample_ds(sample):
+    return ingest(sample)
 
 
 @pytest.fixture(scope="module")
-def sample_rgb():
+def sample_rgb(sample):
     """Three sample frames (p, theta, 8-bit RGB) read with OpenCV."""
-    if not SAMPLE.is_dir():
-        pytest.skip(f"sample capture not found at {SAMPLE}")
     out = []
     for name, p, deg in (("p00_t000", 0, 0), ("p07_t030", 7, 30), ("p14_t200", 14, 200)):
-        bgr = cv2.imread(str(SAMPLE / "images" / f"{name}.png"), cv2.IMREAD_COLOR)
+        bgr = cv2.imread(str(sample / "images" / f"{name}.png"), cv2.IMREAD_COLOR)
         out.append((p, math.radians(deg), cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)))
     return out
 
 
-def make_capture(tmp_path: Path, manifest: str | None = None, camera: str | None = None) -> Path:
-    """A capture folder: the sample's manifest and camera.yaml (or the given texts), its images
-    linked file by file (so a test can replace one)."""
-    if not SAMPLE.is_dir():
-        pytest.skip(f"sample capture not found at {SAMPLE}")
+def make_capture(
+    tmp_path: Path, rig, manifest: str | None = None, camera: str | None = None
+) -> Path:
+    """A capture folder of blank frames of the nominal camera at the sample's configurations,
+    written by ``write_capture``; its manifest or camera.yaml replaced by the given texts."""
+    black = np.zeros((rig.camera.height, rig.camera.width, 3), np.uint8)
+    frames = [(p, math.radians(deg), 0, black) for p, deg in SAMPLE_GRID]
     folder = tmp_path / "capture"
-    (folder / "images").mkdir(parents=True)
-    for img in (SAMPLE / "images").iterdir():
-        (folder / "images" / img.name).symlink_to(img)
-    (folder / "manifest.csv").write_text(manifest or (SAMPLE / "manifest.csv").read_text())
-    (folder / "camera.yaml").write_text(camera or (SAMPLE / "camera.yaml").read_text())
+    write_capture(folder, frames, rig.camera)
+    if manifest is not None:
+        (folder / "manifest.csv").write_text(manifest)
+    if camera is not None:
+        (folder / "camera.yaml").write_text(camera)
     return folder
 
 
 # --- the sample capture -------------------------------------------------------------------------
 
 
-@needs_sample
 def test_sample_every_visible_tag_detected(sample_ds):
     ds = sample_ds
     assert ds.attrs["source"] == "capture"
@@ -110,11 +102,10 @@ def test_sample_every_visible_tag_detected(sample_ds):
     assert "SUBPIX" in ds.attrs["detector"] and "IPPE_SQUARE" in ds.attrs["pnp"]
 
 
-@needs_sample
-def test_sample_images_are_magnified_by_the_focal_length_error(sample_ds, rig):
+def test_sample_images_are_magnified_by_the_focal_length_error(sample_ds, rig, sample):
     """The images are 2 % larger about the principal point than camera.yaml predicts: the tag
     centres, measured from the principal point, scale by the focal-length ratio 1.02."""
-    ds, cal = sample_ds, read_calibration(SAMPLE / "camera.yaml")
+    ds, cal = sample_ds, read_calibration(sample / "camera.yaml")
     centre = np.array([cal.cx, cal.cy])
     measured, predicted = [], []
     for tag in ds.tag.values:
@@ -138,8 +129,7 @@ def test_sample_images_are_magnified_by_the_focal_length_error(sample_ds, rig):
     assert magnification == pytest.approx(TRUE_FOCAL_PX / 1386.0, abs=0.003)
 
 
-@needs_sample
-def test_sample_focal_error_shortens_the_estimated_distance(sample_ds):
+def test_sample_focal_error_shortens_the_estimated_distance(sample_ds, sample):
     """The focal-length effect on ty: the calibration's focal length is 1.96 % short, so every
     estimated distance is 1.96 % short (pinhole model: -0.02 / 1.02 = -0.0196).
 
@@ -154,7 +144,7 @@ def test_sample_focal_error_shortens_the_estimated_distance(sample_ds):
     asks, several times the 0.0007 seen.
     """
     x, raw = visible_ty(sample_ds)
-    true_ds = ingest(SAMPLE, calibration=CameraModel(fx=TRUE_FOCAL_PX, fy=TRUE_FOCAL_PX))
+    true_ds = ingest(sample, calibration=CameraModel(fx=TRUE_FOCAL_PX, fy=TRUE_FOCAL_PX))
     assert true_ds.attrs["calibration_source"] == "override"
     x_true, err_true = visible_ty(true_ds)
     np.testing.assert_array_equal(x, x_true)
@@ -168,10 +158,9 @@ def test_sample_focal_error_shortens_the_estimated_distance(sample_ds):
 # --- writing and reading back ------------------------------------------------------------------
 
 
-@needs_sample
 @pytest.mark.parametrize("fmt", ["ros", "opencv"])
-def test_write_read_round_trip(tmp_path, sample_rgb, rig, fmt):
-    cal = read_calibration(SAMPLE / "camera.yaml")
+def test_write_read_round_trip(tmp_path, sample_rgb, rig, fmt, sample):
+    cal = read_calibration(sample / "camera.yaml")
     frames = [(p, theta, 0, rgb) for p, theta, rgb in sample_rgb]
     frames.append((0, 0.0, 1, sample_rgb[0][2], "second repeat"))  # a repeat with a note
     folder = tmp_path / fmt
@@ -205,9 +194,8 @@ def test_write_read_round_trip(tmp_path, sample_rgb, rig, fmt):
     assert not list(folder.rglob("*.tmp"))  # atomic writes leave no temporaries
 
 
-@needs_sample
-def test_written_capture_ingests_like_the_original(tmp_path, sample_rgb, sample_ds):
-    cal = read_calibration(SAMPLE / "camera.yaml")
+def test_written_capture_ingests_like_the_original(tmp_path, sample_rgb, sample_ds, sample):
+    cal = read_calibration(sample / "camera.yaml")
     folder = tmp_path / "copy"
     write_capture(folder, ((p, t, 0, rgb) for p, t, rgb in sample_rgb), cal)
     ds = ingest(folder)
@@ -220,10 +208,9 @@ def test_written_capture_ingests_like_the_original(tmp_path, sample_rgb, sample_
         np.testing.assert_array_equal(got.corners.values, ref.corners.values)
 
 
-@needs_sample
-def test_write_jpeg(tmp_path, sample_rgb, rig):
+def test_write_jpeg(tmp_path, sample_rgb, rig, sample):
     p, theta, rgb = sample_rgb[0]
-    cal = read_calibration(SAMPLE / "camera.yaml")
+    cal = read_calibration(sample / "camera.yaml")
     folder = tmp_path / "jpg"
     write_capture(folder, [(p, theta, 0, rgb)], cal, image_format="jpg", jpeg_quality=90)
     (frame,) = read_capture(folder, rig).frames
@@ -308,8 +295,8 @@ def test_opencv_calibration_bad_matrix(tmp_path):
         ("  - 0.0\n  - 959.5", "  - 0.0\n  - oops", r"camera_matrix.data\[2\]: expected a finite"),
     ],
 )
-def test_ros_calibration_errors(tmp_path, old, new, message):
-    text = (SAMPLE / "camera.yaml").read_text() if SAMPLE.is_dir() else pytest.skip("no sample")
+def test_ros_calibration_errors(tmp_path, old, new, message, rig):
+    text = calibration_to_yaml(rig.camera)  # ROS camera_info, as the sample's camera.yaml
     assert old in text
     path = tmp_path / "camera.yaml"
     path.write_text(text.replace(old, new, 1))
@@ -329,14 +316,14 @@ def test_missing_folder(tmp_path, rig):
 
 @pytest.mark.parametrize("name", ["camera.yaml", "manifest.csv"])
 def test_missing_calibration_or_manifest(tmp_path, rig, name):
-    folder = make_capture(tmp_path)
+    folder = make_capture(tmp_path, rig)
     (folder / name).unlink()
     with pytest.raises(ConfigError, match=rf"{folder / name}: \w+ file not found"):
         read_capture(folder, rig)
 
 
 def test_unknown_column(tmp_path, rig):
-    folder = make_capture(tmp_path, f"{HEADER},exposure\nimages/p00_t000.png,0,0.0,1.0\n")
+    folder = make_capture(tmp_path, rig, f"{HEADER},exposure\nimages/p00_t000.png,0,0.0,1.0\n")
     with pytest.raises(
         ConfigError,
         match=r"manifest.csv: column 'exposure': unknown; allowed columns: "
@@ -346,14 +333,14 @@ def test_unknown_column(tmp_path, rig):
 
 
 def test_missing_column(tmp_path, rig):
-    folder = make_capture(tmp_path, "image,p\nimages/p00_t000.png,0\n")
+    folder = make_capture(tmp_path, rig, "image,p\nimages/p00_t000.png,0\n")
     with pytest.raises(ConfigError, match=r"manifest.csv: header: missing column 'theta_rad'"):
         read_capture(folder, rig)
 
 
 def test_off_grid_p(tmp_path, rig):
     folder = make_capture(
-        tmp_path, f"{HEADER}\nimages/p00_t000.png,0,0.0\nimages/p07_t000.png,15,0.0\n"
+        tmp_path, rig, f"{HEADER}\nimages/p00_t000.png,0,0.0\nimages/p07_t000.png,15,0.0\n"
     )
     with pytest.raises(
         ConfigError,
@@ -363,7 +350,7 @@ def test_off_grid_p(tmp_path, rig):
 
 
 def test_off_grid_theta(tmp_path, rig):
-    folder = make_capture(tmp_path, f"{HEADER}\nimages/p00_t000.png,0,0.6\n")
+    folder = make_capture(tmp_path, rig, f"{HEADER}\nimages/p00_t000.png,0,0.6\n")
     with pytest.raises(
         ConfigError, match=r"row 1 \(line 2\): theta_rad: expected a turntable stop .* got '0.6'"
     ):
@@ -372,7 +359,7 @@ def test_off_grid_theta(tmp_path, rig):
 
 def test_missing_image(tmp_path, rig):
     folder = make_capture(
-        tmp_path, f"{HEADER}\nimages/p00_t000.png,0,0.0\nimages/p09_t000.png,9,0.0\n"
+        tmp_path, rig, f"{HEADER}\nimages/p00_t000.png,0,0.0\nimages/p09_t000.png,9,0.0\n"
     )
     with pytest.raises(
         ConfigError,
@@ -381,10 +368,9 @@ def test_missing_image(tmp_path, rig):
         read_capture(folder, rig)
 
 
-@needs_sample
 def test_calibration_size_differs_from_images(tmp_path, rig):
-    camera = (SAMPLE / "camera.yaml").read_text().replace("image_width: 1920", "image_width: 1280")
-    folder = make_capture(tmp_path, camera=camera)
+    camera = calibration_to_yaml(rig.camera).replace("image_width: 1920", "image_width: 1280")
+    folder = make_capture(tmp_path, rig, camera=camera)
     with pytest.raises(
         ConfigError, match=r"camera.yaml: image size 1280x1080 differs from the images' 1920x1080"
     ):
@@ -394,6 +380,7 @@ def test_calibration_size_differs_from_images(tmp_path, rig):
 def test_duplicate_rows(tmp_path, rig):
     folder = make_capture(
         tmp_path,
+        rig,
         f"{HEADER}\nimages/p00_t000.png,0,0.0\nimages/p07_t000.png,7,0\n"
         "images/p00_t030.png,0,6.283185\n",  # 2 pi is the stop 0
     )
@@ -403,11 +390,10 @@ def test_duplicate_rows(tmp_path, rig):
         read_capture(folder, rig)
 
 
-@needs_sample
 def test_bad_camera_matrix_length(tmp_path, rig):
-    text = (SAMPLE / "camera.yaml").read_text()
+    text = calibration_to_yaml(rig.camera)
     camera = text.replace("  - 1.0\ndistortion_model", "distortion_model")
-    folder = make_capture(tmp_path, camera=camera)
+    folder = make_capture(tmp_path, rig, camera=camera)
     with pytest.raises(
         ConfigError,
         match=rf"{folder / 'camera.yaml'}: camera_matrix.data: expected 9 numbers, got 8",
@@ -418,6 +404,7 @@ def test_bad_camera_matrix_length(tmp_path, rig):
 def test_repeats_in_manifest(tmp_path, rig):
     folder = make_capture(
         tmp_path,
+        rig,
         f"{HEADER},repeat,note\nimages/p00_t000.png,0,0.0,0,first\n"
         'images/p00_t030.png,0,0.0,1,"second, with a comma"\n',
     )
@@ -428,8 +415,13 @@ def test_repeats_in_manifest(tmp_path, rig):
         read_capture(folder, rig)
 
 
-def test_unreadable_frame_is_a_recorded_failure(tmp_path, rig):
-    folder = make_capture(tmp_path)
+def test_unreadable_frame_is_a_recorded_failure(tmp_path, rig, sample):
+    folder = tmp_path / "capture"  # the sample's real frames (linked): the other 8 detect
+    (folder / "images").mkdir(parents=True)
+    for img in (sample / "images").iterdir():
+        (folder / "images" / img.name).symlink_to(img)
+    for name in ("manifest.csv", "camera.yaml"):
+        (folder / name).write_text((sample / name).read_text())
     bad = folder / "images" / "p00_t000.png"  # the first frame: the size check uses the next one
     bad.unlink()
     bad.write_bytes(b"\x89PNG\r\n\x1a\n" + b"not really a png" * 10)
@@ -447,20 +439,19 @@ def test_unreadable_frame_is_a_recorded_failure(tmp_path, rig):
 # --- command line -----------------------------------------------------------------------------
 
 
-@needs_sample
-def test_cli_ingest(tmp_path):
+def test_cli_ingest(tmp_path, sample):
     out = tmp_path / "real.nc"
-    res = CliRunner().invoke(app, ["ingest", str(SAMPLE), "-o", str(out), "--no-progress"])
+    res = CliRunner().invoke(app, ["ingest", str(sample), "-o", str(out), "--no-progress"])
     assert res.exit_code == 0, res.output
     assert "9 frame(s), 0 unreadable; 9 visible tag configurations, 9 detected" in res.output
     ds = read_netcdf(out)
-    assert ds.attrs["source"] == "capture" and ds.attrs["capture_dir"] == str(SAMPLE.resolve())
+    assert ds.attrs["source"] == "capture" and ds.attrs["capture_dir"] == str(sample.resolve())
     assert ds.detected.dtype == bool and int(ds.detected.sum()) == 9
     assert list(ds.variant.values) == ["real"]
 
 
-def test_cli_ingest_bad_folder(tmp_path):
-    folder = make_capture(tmp_path, f"{HEADER}\nimages/p00_t000.png,0,0.6\n")
+def test_cli_ingest_bad_folder(tmp_path, rig):
+    folder = make_capture(tmp_path, rig, f"{HEADER}\nimages/p00_t000.png,0,0.6\n")
     out = tmp_path / "real.nc"
     res = CliRunner().invoke(app, ["ingest", str(folder), "-o", str(out)])
     assert res.exit_code == 2, res.output
@@ -468,8 +459,8 @@ def test_cli_ingest_bad_folder(tmp_path):
     assert not out.exists()
 
 
-def test_cli_ingest_bad_experiment(tmp_path):
-    folder = make_capture(tmp_path)
+def test_cli_ingest_bad_experiment(tmp_path, rig):
+    folder = make_capture(tmp_path, rig)
     res = CliRunner().invoke(
         app, ["ingest", str(folder), "-o", str(tmp_path / "r.nc"), "--experiment", "nope.yaml"]
     )

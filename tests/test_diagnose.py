@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,9 +23,6 @@ from simgap.effects import make_effect
 from simgap.effects.state import VariantState
 from simgap.pose.estimate import estimate_pose, pose_error
 from simgap.rig import load_rig
-
-REPO = Path(__file__).resolve().parents[1]
-SAMPLE = Path(os.environ.get("SIMGAP_SHARED", REPO.parent / "shared")) / "captures" / "sample-focal"
 
 
 def _items(
@@ -183,12 +178,11 @@ def test_gap_significance_noise_versus_trend():
     assert not gapmod.axis_summary(_field(small))["ty"]["significant"]
 
 
-@pytest.mark.skipif(not SAMPLE.is_dir(), reason="shared sample capture not found")
-def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache):
+def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sample):
     """`simgap ingest` + `simgap diagnose` on the shared sample-focal capture: focal ~+2 %."""
     runner = CliRunner()
     real = tmp_path / "real.nc"
-    res = runner.invoke(app, ["ingest", str(SAMPLE), "-o", str(real)])
+    res = runner.invoke(app, ["ingest", str(sample), "-o", str(real)])
     assert res.exit_code == 0, res.output
     out, js = tmp_path / "diag", tmp_path / "result.json"
     res = runner.invoke(
