@@ -16,7 +16,8 @@ Two kinds of candidate:
     subsample of the training configurations; the best value is kept.
 
 Every candidate predicts the simulated error *with* the effect as the baseline simulated error
-plus the effect's change, so candidates compose additively in the greedy search.
+plus the effect's change. Several projection effects are fitted jointly (:class:`ProjectionSet`);
+simulation effects add their changes on top (``simgap.analysis.selection``).
 """
 
 from __future__ import annotations
@@ -197,12 +198,10 @@ class ProjectionCandidate:
             rig, s0.camera, s0.errors, s0.tag_scale, items
         )
 
-    def fit(
-        self, rig: Rig, base: VariantState, items: Items, target: np.ndarray | None = None
-    ) -> Fit:
+    def fit(self, rig: Rig, base: VariantState, items: Items) -> Fit:
         """Robust least squares on corners: real = sim + shift(x) (px)."""
         t0 = time.perf_counter()
-        target = items.real_corners if target is None else target
+        target = items.real_corners
         ok = np.isfinite(target).all(axis=(1, 2)) & np.isfinite(items.sim_corners).all(axis=(1, 2))
         sub = items.subset(np.flatnonzero(ok))
         goal = (target[ok] - sub.sim_corners).ravel()
