@@ -554,7 +554,7 @@ def ingest(
     coords ``p``, ``theta`` and ``repeat`` are the sorted unique values of the manifest,
     ``tag`` the rig's tag ids; configurations absent from the manifest are not detected (NaN).
     Poses are estimated with the capture's calibration, exactly as
-    :func:`simgap.sweep.estimate_tags` does for renders.
+    :func:`simgap.sweep.measure_tags` does for renders (image evidence included).
 
     Parameters
     ----------
@@ -596,7 +596,7 @@ def ingest(
     from simgap.analysis.dataset import build_dataset, empty_results
     from simgap.effects.state import EstimationState, VariantState
     from simgap.pose.detect import Detector
-    from simgap.sweep import estimate_tags
+    from simgap.sweep import measure_tags
 
     rig = rig or load_rig()
     cap = read_capture(folder, rig)
@@ -628,8 +628,11 @@ def ingest(
                 )
                 failed.append(str(frame.image))
                 continue
-            found = det.detect(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY))
-            out = estimate_tags(rig, state, tags, found, frame.p, frame.theta)
+            gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+            found, rejected = det.detect_with_rejected(gray)
+            out = measure_tags(
+                rig, state, tags, gray, (0, 0), found, rejected, frame.p, frame.theta
+            )
             idx = (0, repeats.index(frame.repeat), slice(None), ps.index(frame.p))
             idx = idx + (thetas.index(frame.theta),)
             for k, v in out.arrays().items():

@@ -288,9 +288,13 @@ class Rig:
         h = self.tags.size / 2
         return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
 
+    def marker_cells(self) -> int:
+        """Cells across a marker of the rig's dictionary, including its one-cell black border."""
+        return _marker_cells(self.tags.dictionary)
+
     def sticker_size(self) -> float:
         """Side of the white sticker including the quiet zone (m)."""
-        cells = _marker_cells(self.tags.dictionary)
+        cells = self.marker_cells()
         return self.tags.size * (cells + 2 * self.tags.quiet_zone_cells) / cells
 
 

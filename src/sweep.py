@@ -39,14 +39,17 @@ from simgap.effects.state import VariantState
 from simgap.experiment import Experiment
 from simgap.paths import assets_dir
 from simgap.pose.detect import Detector
-from simgap.pose.estimate import estimate_pose, pose_error
+from simgap.pose.estimate import estimate_pose, pose_error, project_tag_corners
+from simgap.pose.image_stats import MarkerLayout, tag_stats
 from simgap.render import imaging
 from simgap.render.scene import projected_sticker_boxes
 from simgap.rig import Rig
 
 #: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
 CROP_STEP_PX = 32
-RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners")
+RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners", "image_stats")
+#: Part of every result key: bump when what a result holds changes (not the render or frame).
+RESULT_VERSION = "image-stats-1"
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,7 @@ class ConfigResult:
     error: np.ndarray  # (T, 6)
     reproj_px: np.ndarray  # (T,)
     corners: np.ndarray  # (T, 4, 2) px
+    image_stats: np.ndarray  # (T, S) image evidence, see simgap.pose.image_stats.STATS
 
     def arrays(self) -> dict[str, np.ndarray]:
         """As a mapping for storage."""
@@ -208,14 +212,24 @@ class VariantPipeline:
     def run(self, p: int, theta: float, repeat: int, render_repeat: int) -> ConfigResult:
         """Result of one configuration and repeat, from cache or computed (and then cached)."""
         key = content_hash(
-            self.frame_key(p, theta, repeat, render_repeat), self.state.estimation, self.tags
+            self.frame_key(p, theta, repeat, render_repeat),
+            self.state.estimation,
+            self.tags,
+            RESULT_VERSION,
         )
         cached = self.cache.load_arrays("results", key)
         if cached is not None:
             return ConfigResult(**cached)
         frame = self.frame(p, theta, repeat, render_repeat)
-        found = {} if frame is None else self.detector.detect(frame.gray())
-        result = estimate_tags(self.rig, self.state, self.tags, found, p, theta)
+        if frame is None:
+            result = estimate_tags(self.rig, self.state, self.tags, {}, p, theta)
+        else:
+            crop_gray = imaging.to_gray(frame.crop)
+            full = imaging.paste(crop_gray, frame.offset, frame.size)
+            found, rejected = self.detector.detect_with_rejected(full)
+            result = measure_tags(
+                self.rig, self.state, self.tags, crop_gray, frame.offset, found, rejected, p, theta
+            )
         self.cache.save_arrays("results", key, result.arrays())
         return result
 
@@ -239,6 +253,53 @@ def estimate_tags(
         out.estimated[i] = est.pose
         out.error[i] = pose_error(est.pose, rig.expected_pose(tag, p, theta))
         out.reproj_px[i] = est.reproj_px
+    return out
+
+
+def measure_tags(
+    rig: Rig,
+    state: VariantState,
+    tags,
+    gray: np.ndarray,
+    offset: tuple[int, int],
+    found: dict,
+    rejected: list,
+    p: int,
+    theta: float,
+) -> ConfigResult:
+    """:func:`estimate_tags` plus the image evidence of every visible tag.
+
+    The evidence is measured around the detected corners, or around the corners expected from
+    the nominal rig and the assumed calibration when the tag was not detected (then without the
+    edge-spread fit, which needs accurate corners).
+
+    Parameters
+    ----------
+    rig, state, tags
+        The fixture, the variant (its assumed calibration and PnP) and the tag ids.
+    gray : ndarray of uint8
+        The 8-bit grey frame, or a crop of it.
+    offset : tuple of int
+        Full-frame pixel of ``gray``'s top-left corner (px).
+    found, rejected
+        The detector's markers (tag id -> corners, px) and rejected candidates (px).
+    p, theta
+        Pin hole and turntable angle (rad).
+    """
+    out = estimate_tags(rig, state, tags, found, p, theta)
+    cal = state.estimation.calibration
+    layout = MarkerLayout(rig.marker_cells(), rig.tags.quiet_zone_cells)
+    for i, tag in enumerate(tags):
+        if tag in found:
+            corners, with_edge = found[tag], True
+        elif rig.is_visible(tag, p, theta):
+            corners = project_tag_corners(
+                rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal.matrix, cal.dist_coeffs
+            )
+            with_edge = False
+        else:
+            continue
+        out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, with_edge)
     return out
 
 

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from simgap.pose.image_stats import STATS
+
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 ERROR_UNITS = "m (tx, ty, tz); rad (rx, ry, rz)"
 
@@ -25,6 +27,7 @@ def empty_results(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
         "error": np.full(shape + (6,), np.nan),
         "reproj_px": np.full(shape, np.nan),
         "corners": np.full(shape + (4, 2), np.nan),
+        "image_stats": np.full(shape + (len(STATS),), np.nan),
     }
 
 
@@ -51,7 +54,9 @@ def build_dataset(
         Whether each tag is expected to be detectable.
     results : mapping
         ``detected`` (V, R, tag, p, theta), ``estimated`` and ``error`` (V, R, tag, p, theta, 6),
-        ``reproj_px`` (V, R, tag, p, theta), ``corners`` (V, R, tag, p, theta, 4, 2).
+        ``reproj_px`` (V, R, tag, p, theta), ``corners`` (V, R, tag, p, theta, 4, 2) and
+        optionally ``image_stats`` (V, R, tag, p, theta, stat), see
+        :data:`simgap.pose.image_stats.STATS`.
     variants, repeats
         Variant names and repeat indices.
     attrs
@@ -127,6 +132,20 @@ def build_dataset(
         },
         attrs=dict(attrs or {}),
     )
+    if "image_stats" in results:
+        ds["image_stats"] = (
+            full + ("stat",),
+            np.asarray(results["image_stats"], float),
+            {
+                "long_name": "image evidence around each tag (see stat_long_name, stat_units)",
+                "units": "per stat: see the stat_units coordinate",
+            },
+        )
+        ds = ds.assign_coords(
+            stat=("stat", np.asarray([s[0] for s in STATS], dtype=str)),
+            stat_units=("stat", np.asarray([s[1] for s in STATS], dtype=str)),
+            stat_long_name=("stat", np.asarray([s[2] for s in STATS], dtype=str)),
+        )
     return ds
 
 

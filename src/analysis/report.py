@@ -48,6 +48,7 @@ from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from .image_evidence import plot_image_stats
 from .paper import AXES, AXIS_UNITS, TABLE2, threshold_for
 
 REQUIRED_VARIABLES: Final[dict[str, tuple[str, ...]]] = {
@@ -754,7 +755,10 @@ def _save_text(text: str, path: Path) -> Path:
 
 
 def write_variant_report(
-    summary: VariantSummary, out_dir: Path, variants: Sequence[str] = ()
+    summary: VariantSummary,
+    out_dir: Path,
+    variants: Sequence[str] = (),
+    image_datasets: dict[str, xr.Dataset] | None = None,
 ) -> list[Path]:
     """Write the figures, ``table2.md`` and ``summary.md`` of one variant.
 
@@ -766,18 +770,25 @@ def write_variant_report(
         Existing output folder.
     variants : sequence of str, optional
         All variants of the dataset, named in the summary when some are not reported.
+    image_datasets : dict of str to xarray.Dataset, optional
+        Datasets with ``image_stats`` to plot against distance and view angle.
 
     Returns
     -------
     list of pathlib.Path
         Written files: per tag ``error_vs_distance_tag{t}.png``, then per tag
-        ``heatmap_tag{t}.png``, then ``table2.md`` and ``summary.md``.
+        ``heatmap_tag{t}.png``, then ``image_stats_vs_{distance,view_angle}.png`` when the
+        dataset has image statistics, then ``table2.md`` and ``summary.md``.
     """
     plotters = (("error_vs_distance", plot_error_vs_distance), ("heatmap", plot_error_heatmap))
     figures = []
     for stem, plot in plotters:
         for tag in summary.tags:
             figures.append(_save_figure(plot(summary, tag), out_dir / f"{stem}_tag{tag}.png"))
+    if image_datasets:
+        for against in ("distance", "view_angle"):
+            fig = plot_image_stats(image_datasets, against)
+            figures.append(_save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
     table = _save_text(table2_markdown(summary), out_dir / "table2.md")
     text = _save_text(summary_markdown(summary, figures, variants), out_dir / "summary.md")
     return [*figures, table, text]
@@ -814,4 +825,5 @@ def write_report(
     out_dir.mkdir(parents=True, exist_ok=True)
     variants = [str(v) for v in ds["variant"].values]
     summary = summarize_variant(ds.isel(variant=0), pin_pitch_m=pin_pitch_m)
-    return write_variant_report(summary, out_dir, variants)
+    images = {variants[0]: ds.isel(variant=[0])} if "image_stats" in ds else None
+    return write_variant_report(summary, out_dir, variants, images)

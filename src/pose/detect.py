@@ -83,14 +83,21 @@ class Detector:
             Tag id -> corners (4, 2) in px, ordered TL, TR, BR, BL. A tag id seen twice keeps
             the larger detection.
         """
-        corners, ids, _ = self._detector.detectMarkers(gray)
+        return self.detect_with_rejected(gray)[0]
+
+    def detect_with_rejected(
+        self, gray: np.ndarray
+    ) -> tuple[dict[int, np.ndarray], list[np.ndarray]]:
+        """Detected markers (as :meth:`detect`) and the rejected candidate quads (4, 2) in px."""
+        corners, ids, rejected = self._detector.detectMarkers(gray)
+        rejected_quads = [np.asarray(q, np.float64).reshape(4, 2) for q in rejected]
         found: dict[int, np.ndarray] = {}
         if ids is None:
-            return found
+            return found, rejected_quads
         for c, i in zip(corners, ids.ravel(), strict=True):
             c = c.reshape(4, 2).astype(np.float64)
             if int(i) not in found or cv2.contourArea(c.astype(np.float32)) > cv2.contourArea(
                 found[int(i)].astype(np.float32)
             ):
                 found[int(i)] = c
-        return found
+        return found, rejected_quads

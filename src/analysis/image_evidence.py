@@ -1,0 +1,117 @@
+"""Image evidence of result datasets: tag distance and view angle, and figures of the statistics.
+
+The statistics themselves are measured per tag and frame by :mod:`simgap.pose.image_stats` and
+stored in a result dataset as ``image_stats`` (variant, repeat, tag, p, theta, stat). Here they are
+put against the tag's distance and view angle, both computed from the dataset's ``expected`` pose
+(the dataset contract, DESIGN §3), so no rig is needed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import xarray as xr
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from scipy.spatial.transform import Rotation
+
+#: Statistics shown in the figures (the others are kept in the dataset and result.json).
+PLOTTED_STATS: tuple[str, ...] = (
+    "ink_linear",
+    "paper_linear",
+    "contrast",
+    "edge_width_px",
+    "noise_ink_linear",
+    "noise_paper_linear",
+    "clipped_fraction",
+    "highlight_fraction",
+    "rejected_candidates",
+)
+
+
+def tag_distance_and_view_angle(ds: xr.Dataset) -> tuple[xr.DataArray, xr.DataArray]:
+    """Distance of each tag from the eyepoint (m) and its view angle (deg), (tag, p, theta).
+
+    The view angle is the angle between the line of sight and the tag plane: 90 deg when the
+    tag faces the camera, 0 deg when seen edge-on, negative when it faces away.
+    """
+    pose = ds.expected.transpose("tag", "p", "theta", "axis").values
+    t = pose[..., :3]
+    distance = np.linalg.norm(t, axis=-1)
+    normal = Rotation.from_rotvec(pose[..., 3:].reshape(-1, 3)).as_matrix()[:, :, 2]
+    to_camera = -t.reshape(-1, 3) / np.maximum(distance.reshape(-1, 1), 1e-12)
+    angle = np.degrees(np.arcsin(np.clip(np.sum(to_camera * normal, axis=1), -1, 1)))
+    dims = ("tag", "p", "theta")
+    coords = {d: ds[d] for d in dims}
+    angle = angle.reshape(distance.shape)
+    return (
+        xr.DataArray(distance, dims=dims, coords=coords, attrs={"units": "m"}),
+        xr.DataArray(angle, dims=dims, coords=coords, attrs={"units": "deg"}),
+    )
+
+
+def repeat_median_stats(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
+    """Image statistics of one variant, the median over repeats (tag, p, theta, stat)."""
+    stats = ds.image_stats.sel(variant=variant) if variant else ds.image_stats.isel(variant=0)
+    return stats.median("repeat", skipna=True)
+
+
+def plot_image_stats(
+    datasets: Mapping[str, xr.Dataset],
+    against: str = "distance",
+    stats: Sequence[str] = PLOTTED_STATS,
+    title: str = "",
+) -> Figure:
+    """Each image statistic against tag distance (m) or view angle (deg), one colour per dataset.
+
+    Parameters
+    ----------
+    datasets : mapping of label to dataset
+        Datasets with ``image_stats`` (e.g. ``{"real": real, "simulation": sim}``); the first
+        variant of each, median over repeats, visible tags only.
+    against : {"distance", "view_angle"}
+        The x axis.
+    stats : sequence of str
+        Statistics to plot, one panel each.
+    title : str
+        Figure title.
+    """
+    stats = [s for s in stats if all(s in ds.stat.values for ds in datasets.values())]
+    cols = 3
+    rows = max(1, int(np.ceil(len(stats) / cols)))
+    fig = Figure(figsize=(4.6 * cols, 3.2 * rows), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
+    markers = "o^sDv<>"
+    for k, (label, ds) in enumerate(datasets.items()):
+        distance, view = tag_distance_and_view_angle(ds)
+        x = distance if against == "distance" else view
+        visible = ds.visible if "variant" not in ds.visible.dims else ds.visible.isel(variant=0)
+        values = repeat_median_stats(ds)
+        for ax, stat in zip(axes, stats, strict=False):
+            y = values.sel(stat=stat).where(visible)
+            for tag in ds.tag.values:
+                xs, ys = x.sel(tag=tag).values.ravel(), y.sel(tag=tag).values.ravel()
+                ok = np.isfinite(ys)
+                ax.plot(
+                    xs[ok],
+                    ys[ok],
+                    markers[int(tag) % len(markers)],
+                    color=f"C{k}",
+                    alpha=0.6,
+                    ms=4,
+                    label=f"{label}, tag {int(tag)}",
+                )
+    for ax, stat in zip(axes, stats, strict=False):
+        units = str(next(iter(datasets.values())).stat_units.sel(stat=stat).values)
+        ax.set_title(stat, fontsize=10)
+        ax.set_ylabel(units)
+        ax.set_xlabel("tag distance [m]" if against == "distance" else "view angle [deg]")
+        ax.grid(alpha=0.3)
+    for ax in axes[len(stats) :]:
+        ax.set_visible(False)
+    if stats:
+        axes[0].legend(fontsize=7)
+    fig.suptitle(title or f"Image evidence against {against.replace('_', ' ')}")
+    return fig

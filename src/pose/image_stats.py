@@ -1,0 +1,276 @@
+"""Image evidence around each tag: levels, contrast, edge width, noise, clipping, highlights.
+
+Measured the same way on real and simulated 8-bit grey frames, from the frame around the tag's
+detected corners (or its expected corners when it was not detected), so that the diagnosis can
+compare what the camera sees, not only where the corners land.
+
+Regions are defined in the marker's own normalised coordinates (the outer black square is
+``[-0.5, 0.5]^2``, one cell is ``1 / cells``), mapped to the image by the homography of the four
+corners, and every pixel centre of the sticker's bounding box is classified by mapping it back:
+
+``ink``
+    the middle half of the marker's one-cell black border, ``0.5 - 0.75 c <= r <= 0.5 - 0.25 c``
+    with ``r = max(|x|, |y|)``;
+``paper``
+    the middle of the white quiet zone, ``0.5 + 0.5 c <= r <= 0.5 + 1.5 c`` (the quiet zone is
+    ``quiet_cells`` wide; at least 2 cells are needed);
+``sticker``
+    everything inside ``r <= 0.5 + quiet_cells c``.
+
+Statistics (see :data:`STATS` for names, units and meanings):
+
+- levels: medians of the ink and paper regions, in 8-bit DN and linearised with the sRGB
+  transfer curve (IEC 61966-2-1, via colour-science) as a fraction of full scale;
+- contrast: Michelson contrast of the linear levels;
+- edge width: the 10-90 % rise of an edge-spread function fitted across the marker's outer border
+  (the slanted-edge idea of ISO 12233: pixels at many sub-pixel distances from a straight edge
+  sample the edge-spread function finely). The model is ``ink + (paper - ink) * Phi((d - d0) / s)``
+  on linearised values, fitted by robust least squares; the 10-90 % width is ``2 * 1.2816 * s``
+  (px). Only from detected corners (expected corners can be off by pixels);
+- noise: standard deviation of flat ink and paper pixels from differences of horizontal
+  neighbours (``std(diff) / sqrt(2)``, insensitive to smooth shading), in DN and linear units;
+  pairs of (level, variance) over many tags give the photon transfer curve (EMVA 1288);
+- clipped fraction: share of sticker pixels at 0 or 255 DN;
+- highlight fraction: share of sticker pixels far above the tag's own paper level
+  (more than ``max(5 sigma_paper, 12 DN)`` above it);
+- rejected candidates: quadrilaterals the ArUco detector rejected whose centre lies on the sticker.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import colour
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.special import ndtr
+
+#: ``(name, units, long name)`` of every statistic, in storage order.
+STATS: tuple[tuple[str, str, str], ...] = (
+    ("ink_dn", "DN", "median 8-bit level of the marker's black border"),
+    ("paper_dn", "DN", "median 8-bit level of the white quiet zone"),
+    ("ink_linear", "1", "ink level linearised with the sRGB curve (fraction of full scale)"),
+    ("paper_linear", "1", "paper level linearised with the sRGB curve (fraction of full scale)"),
+    ("contrast", "1", "Michelson contrast of the linear levels (paper - ink) / (paper + ink)"),
+    ("edge_width_px", "px", "10-90 % rise of the edge-spread function across the outer border"),
+    ("noise_ink_dn", "DN", "noise standard deviation in flat ink pixels"),
+    ("noise_paper_dn", "DN", "noise standard deviation in flat paper pixels"),
+    ("noise_ink_linear", "1", "noise standard deviation in flat ink pixels, linearised"),
+    ("noise_paper_linear", "1", "noise standard deviation in flat paper pixels, linearised"),
+    ("clipped_fraction", "1", "share of sticker pixels at 0 or 255 DN"),
+    ("highlight_fraction", "1", "share of sticker pixels far above the tag's paper level"),
+    ("rejected_candidates", "1", "detector candidates rejected on the sticker"),
+)
+STAT_NAMES: tuple[str, ...] = tuple(s[0] for s in STATS)
+STAT_INDEX = {name: i for i, name in enumerate(STAT_NAMES)}
+
+#: 10-90 % width of a Gaussian edge-spread function in units of its standard deviation:
+#: ``2 * Phi^-1(0.9)``.
+ESF_10_90_PER_SIGMA = 2.0 * 1.2815515655446004
+#: Highlight threshold above the paper level: this many paper noise sigmas, at least
+#: :data:`HIGHLIGHT_MIN_DN`.
+HIGHLIGHT_SIGMAS = 5.0
+HIGHLIGHT_MIN_DN = 12.0
+#: Largest distance from the edge used in the edge-spread fit (px), and the share of a cell
+#: (across the edge) it may reach on either side, so that neighbouring edges stay out of the fit.
+ESF_MAX_DISTANCE_PX = 4.0
+ESF_MAX_CELL_SHARE = 0.9
+#: Share of each side (about its middle) used for the edge-spread fit: corners are left out.
+ESF_SIDE_SHARE = 0.7
+#: Fewest pixels a region needs for its statistic (else NaN).
+MIN_PIXELS = 12
+
+_SRGB_TO_LINEAR = colour.cctf_decoding(np.arange(256) / 255.0, function="sRGB").astype(np.float64)
+_UNIT_SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]], np.float64)
+
+
+def linearise(dn: np.ndarray) -> np.ndarray:
+    """8-bit sRGB-encoded values (DN) to linear values (fraction of full scale)."""
+    return _SRGB_TO_LINEAR[np.clip(np.asarray(dn), 0, 255).astype(np.intp)]
+
+
+@dataclass(frozen=True)
+class MarkerLayout:
+    """Cells across the marker (including its black border) and quiet-zone cells around it."""
+
+    cells: int
+    quiet_cells: int
+
+    @property
+    def cell(self) -> float:
+        """One cell in normalised marker units."""
+        return 1.0 / self.cells
+
+
+def _noise(values: np.ndarray, mask: np.ndarray) -> float:
+    """Noise sigma from differences of horizontal neighbours that are both in ``mask``."""
+    pair = mask[:, :-1] & mask[:, 1:]
+    if pair.sum() < MIN_PIXELS:
+        return float("nan")
+    d = (values[:, 1:] - values[:, :-1])[pair]
+    med = np.median(d)
+    mad = 1.4826 * np.median(np.abs(d - med))
+    keep = np.abs(d - med) <= max(6.0 * mad, 1e-12) if mad > 0 else np.ones(d.shape, bool)
+    return float(np.std(d[keep]) / np.sqrt(2.0))
+
+
+def _edge_width(
+    lin: np.ndarray,
+    pts: np.ndarray,
+    norm: np.ndarray,
+    corners: np.ndarray,
+    layout: MarkerLayout,
+    ink: float,
+    paper: float,
+) -> float:
+    """10-90 % width (px) of the edge-spread function across the marker's outer border."""
+    c = layout.cell
+    dists, vals = [], []
+    for k in range(4):
+        a, b = corners[k], corners[(k + 1) % 4]
+        side = b - a
+        length = float(np.hypot(*side))
+        if length < 4.0:
+            return float("nan")
+        tangent = side / length
+        # outward normal: corners run clockwise on screen (TL, TR, BR, BL), outside is on the left
+        normal = np.array([tangent[1], -tangent[0]])
+        # along-side coordinate of each pixel in the marker's own units (0 at the middle)
+        along = norm[:, 0] if k in (0, 2) else norm[:, 1]
+        across = norm[:, 1] if k in (0, 2) else norm[:, 0]
+        outward_sign = -1.0 if k in (0, 3) else 1.0
+        on_side = (np.abs(along) <= ESF_SIDE_SHARE / 2) & (outward_sign * across > 0)
+        # width of one cell across this edge (px), at the side's middle
+        mid = (a + b) / 2
+        inner = _map(
+            np.array(
+                [[0.0, (-0.5 + c)]]
+                if k == 0
+                else [[0.5 - c, 0.0]]
+                if k == 1
+                else [[0.0, 0.5 - c]]
+                if k == 2
+                else [[-0.5 + c, 0.0]]
+            ),
+            corners,
+        )[0]
+        cell_px = float(np.hypot(*(inner - mid)))
+        reach = min(ESF_MAX_DISTANCE_PX, ESF_MAX_CELL_SHARE * cell_px)
+        if reach < 1.0:
+            return float("nan")
+        d = (pts - a) @ normal
+        sel = on_side & (np.abs(d) <= reach)
+        dists.append(d[sel])
+        vals.append(lin[sel])
+    d = np.concatenate(dists)
+    v = np.concatenate(vals)
+    if d.size < 4 * MIN_PIXELS or not paper > ink:
+        return float("nan")
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        lo, hi, d0, s = x
+        return lo + (hi - lo) * ndtr((d - d0) / s) - v
+
+    x0 = np.array([ink, paper, 0.0, 0.5])
+    lower = [-1.0, -1.0, -2.0, 0.05]
+    upper = [2.0, 2.0, 2.0, 5.0]
+    try:
+        sol = least_squares(
+            residual,
+            x0,
+            bounds=(lower, upper),
+            loss="soft_l1",
+            f_scale=max(0.05 * (paper - ink), 1e-4),
+        )
+    except ValueError:
+        return float("nan")
+    if not sol.success:
+        return float("nan")
+    return float(ESF_10_90_PER_SIGMA * sol.x[3])
+
+
+def _map(norm: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Normalised marker coordinates (N, 2) to image pixels (N, 2)."""
+    h = cv2.getPerspectiveTransform(_UNIT_SQUARE.astype(np.float32), corners.astype(np.float32))
+    return cv2.perspectiveTransform(norm.reshape(-1, 1, 2).astype(np.float64), h).reshape(-1, 2)
+
+
+def tag_stats(
+    gray: np.ndarray,
+    corners: np.ndarray,
+    layout: MarkerLayout,
+    offset: tuple[int, int] = (0, 0),
+    rejected: list[np.ndarray] | tuple = (),
+    with_edge: bool = True,
+) -> np.ndarray:
+    """Statistics of one tag, in the order of :data:`STATS`; NaN where not measurable.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8 (H, W)
+        8-bit grey frame or a crop of it.
+    corners : ndarray (4, 2)
+        Marker corners TL, TR, BR, BL in full-frame pixels (OpenCV convention).
+    layout : MarkerLayout
+        Cells across the marker and quiet-zone cells.
+    offset : tuple of int
+        Full-frame pixel of the crop's top-left corner (px).
+    rejected : sequence of ndarray (4, 2)
+        Rejected detector candidates in full-frame pixels.
+    with_edge : bool
+        Fit the edge-spread function (needs accurate corners).
+    """
+    out = np.full(len(STATS), np.nan)
+    corners = np.asarray(corners, np.float64).reshape(4, 2)
+    if not np.isfinite(corners).all():
+        return out
+    local = corners - np.asarray(offset, np.float64)
+    reach = 0.5 + layout.quiet_cells * layout.cell
+    sticker = _map(_UNIT_SQUARE * 2 * reach, local)
+    x0, y0 = np.floor(sticker.min(axis=0)).astype(int)
+    x1, y1 = np.ceil(sticker.max(axis=0)).astype(int)
+    h, w = gray.shape[:2]
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1 + 1, w), min(y1 + 1, h)
+    if x1 - x0 < 4 or y1 - y0 < 4:
+        return out
+    patch = np.asarray(gray[y0:y1, x0:x1], np.float64)
+    yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+    pts = np.stack([xx.ravel(), yy.ravel()], axis=1)
+    hinv = cv2.getPerspectiveTransform(local.astype(np.float32), _UNIT_SQUARE.astype(np.float32))
+    norm = cv2.perspectiveTransform(pts.reshape(-1, 1, 2), hinv).reshape(-1, 2)
+    r = np.max(np.abs(norm), axis=1).reshape(patch.shape)
+    c = layout.cell
+    ink_mask = (r >= 0.5 - 0.75 * c) & (r <= 0.5 - 0.25 * c)
+    paper_mask = (r >= 0.5 + 0.5 * c) & (r <= 0.5 + 1.5 * c)
+    sticker_mask = r <= reach
+    if ink_mask.sum() < MIN_PIXELS or paper_mask.sum() < MIN_PIXELS or layout.quiet_cells < 2:
+        return out
+    lin = linearise(patch)
+    ink_dn, paper_dn = float(np.median(patch[ink_mask])), float(np.median(patch[paper_mask]))
+    ink_lin, paper_lin = float(np.median(lin[ink_mask])), float(np.median(lin[paper_mask]))
+    s = STAT_INDEX
+    out[s["ink_dn"]], out[s["paper_dn"]] = ink_dn, paper_dn
+    out[s["ink_linear"]], out[s["paper_linear"]] = ink_lin, paper_lin
+    total = paper_lin + ink_lin
+    out[s["contrast"]] = (paper_lin - ink_lin) / total if total > 0 else np.nan
+    out[s["noise_ink_dn"]] = _noise(patch, ink_mask)
+    out[s["noise_paper_dn"]] = _noise(patch, paper_mask)
+    out[s["noise_ink_linear"]] = _noise(lin, ink_mask)
+    out[s["noise_paper_linear"]] = _noise(lin, paper_mask)
+    values = patch[sticker_mask]
+    out[s["clipped_fraction"]] = float(np.mean((values <= 0) | (values >= 255)))
+    sigma = out[s["noise_paper_dn"]]
+    limit = paper_dn + max(HIGHLIGHT_SIGMAS * (sigma if np.isfinite(sigma) else 0.0), 12.0)
+    out[s["highlight_fraction"]] = float(np.mean(values > limit))
+    if with_edge:
+        out[s["edge_width_px"]] = _edge_width(
+            lin.ravel(), pts, norm, local, layout, ink_lin, paper_lin
+        )
+    n_rejected = 0
+    for quad in rejected:
+        centre = np.asarray(quad, np.float64).reshape(4, 2).mean(axis=0) - offset
+        m = cv2.perspectiveTransform(centre.reshape(1, 1, 2), hinv).reshape(2)
+        n_rejected += bool(np.max(np.abs(m)) <= reach)
+    out[s["rejected_candidates"]] = float(n_rejected)
+    return out
