@@ -192,13 +192,16 @@ def diagnose(
         typer.echo(str(p))
     if json_path:
         typer.echo(str(write_json(result, json_path)))
-    verdict = (
-        "no significant gap"
-        if not result["where"]["significant"]
-        else (
-            "unexplained" if result["unexplained"] else "selected: " + ", ".join(result["selected"])
-        )
-    )
+    minor = result.get("minor", [])
+    major = [e for e in result["selected"] if e not in minor]
+    if not result["where"]["significant"]:
+        verdict = "no significant gap"
+    elif result["unexplained"]:
+        evidence = ", ".join(result["where"].get("significant_evidence", []))
+        verdict = f"unexplained (significant evidence: {evidence})"
+    else:
+        verdict = "selected: " + (", ".join(major) or "-")
+        verdict += f"; minor: {', '.join(minor)}" if minor else ""
     typer.echo(f"diagnosis: {verdict}")
 
 

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from simgap.analysis import evidence
 from simgap.analysis import gap as gapmod
 from simgap.analysis.fitting import (
     Items,
@@ -275,23 +276,39 @@ def diagnose(
     t0 = time.perf_counter()
     d = Diagnosis(real, exp, cache_dir, settings, scheduler)
     axes = d.where
-    significant = any(a["significant"] for a in axes.values())
+    pose_significant = any(a["significant"] for a in axes.values())
     det = gapmod.detection_summary(d.field)
+    tests = {
+        "scatter": evidence.scatter_tests(d.real, d.sim),
+        "detection": evidence.detection_tests(d.real, d.sim),
+        "image": evidence.image_tests(d.real, d.sim),
+    }
+    families = {"pose": pose_significant} | {
+        name: any(r["significant"] for r in rows) for name, rows in tests.items()
+    }
+    significant = any(families.values())
     where = {
         "axes": axes,
         "regions": [r for r in gapmod.region_summary(d.field) if r["significant"]],
         "detection": det,
         "significant": significant,
+        "significant_evidence": [name for name, hit in families.items() if hit],
+        "scatter_tests": tests["scatter"],
+        "detection_tests": tests["detection"],
+        "image_tests": tests["image"],
         "comparable_configurations": len(d.items),
     }
     ranking = (
-        d.search.rank(candidates or default_candidates(), significant) if len(d.items) >= 2 else []
+        d.search.rank(candidates or default_candidates(), pose_significant)
+        if len(d.items) >= 2
+        else []
     )
-    chosen = d.search.select(ranking) if significant else None
+    chosen = d.search.select(ranking) if pose_significant else None
     explained = chosen is not None and chosen.reduction >= settings.explained_reduction
     result: dict[str, Any] = {
         "ranking": [s.record() for s in ranking],
         "selected": chosen.effects if explained else [],
+        "minor": d.search.minor(chosen) if explained else [],
         "unexplained": bool(significant and not explained),
         "where": _jsonable(where),
         "split": {"train": int(len(d.train)), "heldout": int(len(d.held)), "seed": settings.seed},
@@ -304,6 +321,7 @@ def diagnose(
                     "effect": fit.effect,
                     "params": _jsonable(fit.params),
                     "pose_contribution": weight[fit.effect],
+                    "minor": weight[fit.effect] < 1.0,
                 }
                 for _, fit in chosen.fits
             ],

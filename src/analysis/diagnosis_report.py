@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 from simgap.analysis import compare
 from simgap.analysis.diagnose import AXES, Diagnosis, write_json
 from simgap.analysis.gap import align
+from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report import _save_figure, _save_text
 from simgap.analysis.selection import EQUIVALENT_PX, EQUIVALENT_REL
 
@@ -71,6 +72,7 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
         f"simulation {det['sim']:.1%} ({det['visible_configurations']} configurations).",
         "",
     ]
+    lines += evidence_markdown(where)
     if where["regions"]:
         lines += ["Significant regions (mean gap, z-score):", ""]
         for r in where["regions"]:
@@ -79,6 +81,65 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
                 f"- {r['axis']}, {r['region']}: {r['mean'] * k:+.3f} {unit} "
                 f"(z = {r['z']:+.1f}, n = {r['n']})"
             )
+        lines.append("")
+    return lines
+
+
+def evidence_markdown(where: dict[str, Any]) -> list[str]:
+    """Markdown lines for the scatter, detection and image-evidence tests."""
+    found = where.get("significant_evidence", [])
+    lines = [
+        "Evidence with a significant gap: "
+        + (", ".join(f"**{name}**" for name in found) if found else "none")
+        + " (pose means, pose scatter, detection rate, image statistics).",
+        "",
+    ]
+    scatter = [r for r in where.get("scatter_tests", []) if r["significant"]]
+    if scatter:
+        lines += [
+            "Pose scatter (Brown-Forsythe, robust scales):",
+            "",
+            "| axis | region | real | simulation | ratio | p |",
+            "|---|---|---|---|---|---|",
+        ]
+        for r in scatter:
+            unit, k = _unit(r["axis"])
+            lines.append(
+                f"| {r['axis']} | {r['region']} | {r['real_scatter'] * k:.3f} {unit} | "
+                f"{r['sim_scatter'] * k:.3f} {unit} | {r['ratio']:.2f} | {r['p_value']:.2g} |"
+            )
+        lines.append("")
+    detection = where.get("detection_tests", [])
+    if detection:
+        lines += [
+            "Detection (Fisher's exact test):",
+            "",
+            "| region | real | simulation | difference | p | significant |",
+            "|---|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {r['region']} | {r['real_detected']}/{r['real_attempts']} | "
+            f"{r['sim_detected']}/{r['sim_attempts']} | {r['difference']:+.1%} | "
+            f"{r['p_value']:.2g} | {'**yes**' if r['significant'] else 'no'} |"
+            for r in detection
+        ]
+        lines.append("")
+    image = where.get("image_tests", [])
+    if image:
+        lines += [
+            "Image evidence (median real - simulated per tag, Wilcoxon signed-rank):",
+            "",
+            "| statistic | real median | simulation median | median difference | floor | p "
+            "| significant |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {r['stat']} | {r['real_median']:.4g} | {r['sim_median']:.4g} | "
+            f"{r['median_difference']:+.3g} ({r['compared_as']}) | "
+            f"{'-' if r['floor'] is None else r['floor']} | {r['p_value']:.2g} | "
+            f"{'**yes**' if r['significant'] else 'no'} |"
+            for r in image
+        ]
         lines.append("")
     return lines
 
@@ -112,7 +173,14 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
     elif result["unexplained"]:
         lines.append("**Unexplained**: no effect of the catalogue reduces the held-out gap enough.")
     else:
-        lines.append(f"**Selected**: {', '.join(result['selected'])}.")
+        minor = result.get("minor", [])
+        major = [e for e in result["selected"] if e not in minor]
+        lines.append(f"**Selected**: {', '.join(major) or '-'}.")
+        if minor:
+            lines.append(
+                f"**Minor** (seen in the evidence, no pose change beyond the floor): "
+                f"{', '.join(minor)}."
+            )
         alternatives = result.get("combined", {}).get("equivalent_models", [])
         if alternatives:
             lines += [
@@ -155,9 +223,9 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
         ]
         lines += [
             "",
-            "Pose contribution: how far the effect moves the held-out pose predictions (median "
-            "|change| over the noise or practical floor, largest significant axis); effects "
-            "below 1 are not selected.",
+            "Pose contribution: how far the effect moves the held-out pose predictions with the "
+            "other effects held at their fitted values (median |change| over the noise or "
+            "practical floor, largest significant axis); below 1 the effect is minor.",
             "",
             "| axis | RMS gap before | after (fast) | after (confirmed) |",
             "|---|---|---|---|",
@@ -232,6 +300,12 @@ def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) 
             compare.plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png"
         )
     )
+    if "image_stats" in d.real and "image_stats" in d.sim:
+        real, sim = align(d.real, d.sim)
+        images = {"real": real, "simulation": sim}
+        for against in ("distance", "view_angle"):
+            fig = plot_image_stats(images, against, title="Image evidence: real vs simulation")
+            paths.append(_save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
     lines = ["# Sim-to-real gap diagnosis", ""]
     lines += where_markdown(result["where"])
     lines += which_markdown(result)

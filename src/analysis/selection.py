@@ -46,6 +46,10 @@ class Scored:
     corner_before: float = float("nan")
     corner_after: float = float("nan")
     prediction: np.ndarray | None = None
+    #: the joint projection fit of the model's projection effects and its parameter vector
+    projection: tuple[Any, np.ndarray] | None = None
+    #: held-out change of error (N, 6) of each simulation effect of the model (m, rad)
+    simulation_deltas: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def effects(self) -> list[str]:
@@ -164,9 +168,12 @@ class ModelSearch:
             (c for c in model if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
         )
         fits: list[tuple[Any, Fit]] = []
+        projection = None
+        simulation_deltas: dict[str, np.ndarray] = {}
         if proj:
             joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
             fit = joint.fit(rig, base, tr)
+            projection = (joint, fit)
             if len(proj) < len(model):
                 off_st += np.nan_to_num(joint.delta(rig, base, fit, st))
             off_h += np.nan_to_num(joint.delta(rig, base, fit, h))
@@ -177,7 +184,8 @@ class ModelSearch:
                 continue
             fit = cand.fit(runner, base, st, st.real_err - off_st, self.axes)
             off_st += np.nan_to_num(cand.delta(runner, base, fit, st))
-            off_h += np.nan_to_num(cand.delta(runner, base, fit, h))
+            simulation_deltas[cand.effect] = np.nan_to_num(cand.delta(runner, base, fit, h))
+            off_h += simulation_deltas[cand.effect]
             state = make_effect(cand.effect, fit.params).apply(base)
             corner_h += np.nan_to_num(runner.corners(state, h) - runner.corners(base, h))
             fits.append((cand, fit))
@@ -193,6 +201,8 @@ class ModelSearch:
             corner_score(h.real_corners, h.sim_corners),
             corner_score(h.real_corners, h.sim_corners + corner_h),
             pred,
+            projection,
+            simulation_deltas,
         )
         self._evaluated[key] = scored
         return scored
@@ -251,9 +261,9 @@ class ModelSearch:
 
         An effect is added while the held-out corner residual falls by ``min_gain`` or more and
         the fall is distinguishable (not :func:`equivalent`); the model is then simplified
-        (:meth:`simplify`). Effects whose :meth:`contributions` to the pose are below the
-        practical floor are then dropped. Effects are returned most important first: the one
-        whose removal hurts the held-out residual most.
+        (:meth:`simplify`) and pruned (:meth:`prune`). Effects are returned most important
+        first: effects that move the pose beyond the floor before minor ones (:meth:`minor`),
+        each group by how much its removal hurts the held-out residual.
         """
         if not ranking:
             return None
@@ -274,42 +284,95 @@ class ModelSearch:
                 break  # simplified back to a model already visited
             current = simpler
             seen.add(frozenset(current.effects))
-        while len(current.fits) > 1:
-            weight = self.contributions(current)
-            weakest = min(weight, key=weight.get)
-            if weight[weakest] >= 1.0:
-                break
-            current = self.evaluate(tuple(c for c, _ in current.fits if c.effect != weakest))
+        current = self.prune(current)
         if len(current.fits) > 1:
             model = [c for c, _ in current.fits]
+            minor = set(self.minor(current))
             loss = {
                 c.effect: self.evaluate(tuple(m for m in model if m is not c)).corner_after
                 for c in model
             }
             current = dataclasses.replace(
-                current, fits=sorted(current.fits, key=lambda cf: -loss[cf[0].effect])
+                current,
+                fits=sorted(
+                    current.fits, key=lambda cf: (cf[1].effect in minor, -loss[cf[1].effect])
+                ),
             )
         return current
+
+    def prune(self, scored: Scored) -> Scored:
+        """Drop effects that move no pose by a relevant amount and are not clearly seen.
+
+        An effect whose :meth:`contributions` is below 1 is dropped only when the model without
+        it still explains the held-out corners as well (:func:`equivalent`); otherwise it stays
+        as a *minor* effect (seen in the corners, no pose impact beyond the floor). Comparing
+        corner residuals, never letting the pose criterion alone swap the explanation, is what
+        keeps a refitted look-alike (a tag print scale soaking up a focal-length change) from
+        replacing the effect that the corners single out.
+        """
+        while len(scored.fits) > 1:
+            weight = self.contributions(scored)
+            options = []
+            for effect in (e for e, w in weight.items() if w < 1.0):
+                reduced = self.evaluate(tuple(c for c, _ in scored.fits if c.effect != effect))
+                if reduced.corner_after <= scored.corner_after or equivalent(
+                    reduced.corner_after, scored.corner_after
+                ):
+                    options.append(reduced)
+            if not options:
+                return scored
+            scored = min(options, key=lambda o: o.corner_after)
+        return scored
+
+    def minor(self, scored: Scored) -> list[str]:
+        """Effects of a model seen in the evidence that move no pose beyond the floor."""
+        return [e for e, w in self.contributions(scored).items() if w < 1.0]
+
+    def member_deltas(self, scored: Scored) -> dict[str, np.ndarray]:
+        """Held-out change of error (N, 6) due to each effect of a model, the others held fixed.
+
+        For a projection effect: the model's projection prediction minus the same prediction
+        with that effect's parameters set to zero (no refit). For a simulation effect: its own
+        change of error.
+        """
+        held = self.items.subset(self.held)
+        out = dict(scored.simulation_deltas)
+        if scored.projection is not None:
+            joint, fit = scored.projection
+            full = np.nan_to_num(joint.delta(self.rig, self.base, fit, held))
+            members = joint.members if isinstance(joint, ProjectionSet) else [joint]
+            if len(members) == 1:
+                out[members[0].effect] = full
+            else:
+                cuts = np.cumsum([m.n_params for m in members])[:-1]
+                for k, (m, xm) in enumerate(
+                    zip(members, np.split(fit.extra["x"], cuts), strict=True)
+                ):
+                    x = fit.extra["x"].copy()
+                    start = 0 if k == 0 else cuts[k - 1]
+                    x[start : start + len(xm)] = 0.0
+                    without = Fit(fit.effect, fit.params, fit.seconds, {"x": x})
+                    out[m.effect] = full - np.nan_to_num(
+                        joint.delta(self.rig, self.base, without, held)
+                    )
+        return out
 
     def contributions(self, scored: Scored) -> dict[str, float]:
         """How much each effect of a model moves its held-out pose predictions (dimensionless).
 
-        Per effect: the model's prediction against the model refitted without it, the median
+        Per effect: the change of the model's held-out pose predictions that this effect makes
+        with the others held at their fitted values (:meth:`member_deltas`, no refit: a refit
+        would let a look-alike take over its share and make both look irrelevant); the median
         absolute change per axis over the noise (or the practical floor, the larger), the
         largest over the axes with a significant gap. Below 1 the effect changes no pose by a
-        relevant amount: it only polishes the corners (e.g. a 0.1 % carriage-pitch error soaking
-        up another renderer's edge bias) and is not reported.
+        relevant amount.
         """
-        model = [c for c, _ in scored.fits]
         held = self.items.subset(self.held)
         axes = self.axes if np.any(self.axes) else np.ones(6, bool)
-        out = {}
-        for cand in model:
-            rest = tuple(m for m in model if m is not cand)
-            other = self.evaluate(rest).prediction if rest else held.sim_err
-            change = np.nanmedian(np.abs(scored.prediction - other), axis=0) / held.scale
-            out[cand.effect] = float(np.max(change[axes]))
-        return out
+        return {
+            effect: float(np.max((np.nanmedian(np.abs(d), axis=0) / held.scale)[axes]))
+            for effect, d in self.member_deltas(scored).items()
+        }
 
     def alternatives(self, chosen: Scored, limit: int = 5) -> list[dict[str, Any]]:
         """Other models tried that explain the held-out corners as well as ``chosen``.

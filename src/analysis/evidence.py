@@ -1,0 +1,261 @@
+"""Where the gap lies beyond the pose means: pose scatter, detection rate and image evidence.
+
+Three families of tests compare a real dataset with its simulation (aligned configurations):
+
+scatter
+    Per axis and distance region, the spread of the pose error around its smooth course. With
+    repeats, the deviations of each repeat from its configuration's mean; otherwise the residual
+    of each value from the straight line through its two neighbours along the carriage (exact
+    for any linear trend, also for unevenly spaced pin holes), scaled to unit noise. Real and
+    simulated residuals are compared with the Brown-Forsythe test (``scipy.stats.levene`` with
+    ``center="median"``). Significant when the test rejects at :data:`ALPHA` (Bonferroni over the
+    tests), the robust scales differ by :data:`SCATTER_RATIO` or more, and the extra scatter
+    ``sqrt(|real^2 - sim^2|)`` reaches :data:`SCATTER_FLOOR_SHARE` of the practical floor.
+detection
+    Detected / visible counts of the real data and of the simulation (over repeats), overall,
+    per distance region and per view-angle band; Fisher's exact test
+    (``scipy.stats.fisher_exact``). Significant when it rejects at :data:`ALPHA` (Bonferroni) and
+    the rates differ by :data:`DETECTION_MIN_DIFFERENCE` or more.
+image
+    Per statistic of :mod:`simgap.pose.image_stats`, the paired difference real - simulated over
+    tags visible in both (levels and noise as log2 ratios, in stops); Wilcoxon's signed-rank test
+    (``scipy.stats.wilcoxon``). Significant when it rejects at :data:`ALPHA` and the median
+    difference reaches the statistic's practical floor (:data:`IMAGE_FLOORS`).
+
+Every threshold here was fixed before the blind validation runs that report on it.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+import xarray as xr
+from scipy import stats as sps
+
+from simgap.analysis.gap import AXES, PRACTICAL_FLOOR, align, axis_unit
+from simgap.analysis.image_evidence import repeat_median_stats, tag_distance_and_view_angle
+
+#: Family-wise false-alarm rate of each family of tests.
+ALPHA = 0.01
+#: Smallest ratio of robust scatter (real / simulated, or its inverse) that matters.
+SCATTER_RATIO = 1.5
+#: The extra scatter must reach this share of the practical floor (0.5 mm / 8.7 mrad).
+SCATTER_FLOOR_SHARE = 0.5
+#: Smallest difference of detection rates that matters.
+DETECTION_MIN_DIFFERENCE = 0.05
+#: View-angle bands (deg) for the detection tests: oblique, intermediate, frontal.
+VIEW_BANDS_DEG = ((0.0, 35.0), (35.0, 60.0), (60.0, 90.1))
+#: Consistency constant of the median absolute deviation for a normal distribution.
+MAD_TO_SIGMA = 1.4826
+#: Added to linear levels before taking log2 ratios (a tenth of an 8-bit step near black).
+LEVEL_EPSILON = 0.002
+
+#: ``stat -> (transform, floor)``: compared as a difference ("diff") or a log2 ratio ("log2",
+#: stops), and the smallest median difference that matters. ``None`` floors are reported only.
+IMAGE_FLOORS: dict[str, tuple[str, float | None]] = {
+    "ink_linear": ("log2", 0.5),
+    "paper_linear": ("log2", 0.3),
+    "contrast": ("diff", 0.05),
+    "edge_width_px": ("diff", 0.2),
+    "noise_ink_linear": ("log2", 0.5),
+    "noise_paper_linear": ("log2", 0.5),
+    "clipped_fraction": ("diff", 0.02),
+    "highlight_fraction": ("diff", 0.02),
+    "rejected_candidates": ("diff", None),
+}
+
+
+def robust_scale(values: np.ndarray) -> float:
+    """Normal-consistent median absolute deviation of the finite values (NaN if fewer than 3)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size < 3:
+        return float("nan")
+    return float(MAD_TO_SIGMA * np.median(np.abs(v - np.median(v))))
+
+
+def line_residuals(field: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Residuals of each value from the line through its neighbours along the last axis.
+
+    For ``x[i-1] < x[i] < x[i+1]`` the residual is ``f[i] - (w f[i-1] + (1 - w) f[i+1])`` with
+    ``w = (x[i+1] - x[i]) / (x[i+1] - x[i-1])``, divided by ``sqrt(1 + w^2 + (1 - w)^2)`` so
+    that white noise of unit variance gives unit variance. A linear trend leaves zero.
+
+    Returns
+    -------
+    ndarray (..., n - 2)
+    """
+    x = np.asarray(x, float)
+    w = (x[2:] - x[1:-1]) / (x[2:] - x[:-2])
+    res = field[..., 1:-1] - (w * field[..., :-2] + (1 - w) * field[..., 2:])
+    return res / np.sqrt(1 + w**2 + (1 - w) ** 2)
+
+
+def _variant(ds: xr.Dataset, name: str) -> xr.Dataset:
+    return ds.sel(variant=name) if name in ds.variant.values else ds.isel(variant=0)
+
+
+def noise_residuals(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
+    """Pose noise samples per configuration (repeat or neighbour residuals), see module docstring.
+
+    Returns
+    -------
+    xarray.DataArray (sample, tag, p, theta, axis)
+        NaN where there is no sample; ``p`` is the middle pin hole of a neighbour residual.
+    """
+    err = _variant(ds, variant or "").error.transpose("repeat", "tag", "p", "theta", "axis")
+    e = err.values
+    r = e.shape[0]
+    if r > 1:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            dev = (e - np.nanmean(e, axis=0, keepdims=True)) * np.sqrt(r / (r - 1))
+        coords = {"tag": err.tag, "p": err.p, "theta": err.theta, "axis": err.axis}
+        return xr.DataArray(dev, dims=("sample", "tag", "p", "theta", "axis"), coords=coords)
+    field = np.moveaxis(e[0], 1, -1)  # tag, theta, axis, p
+    ps = err.p.values
+    res = np.moveaxis(line_residuals(field, ps), -1, 1)[None] if ps.size >= 3 else e[:, :, :0]
+    coords = {"tag": err.tag, "p": ps[1:-1], "theta": err.theta, "axis": err.axis}
+    return xr.DataArray(res, dims=("sample", "tag", "p", "theta", "axis"), coords=coords)
+
+
+def distance_regions(ps: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """Near / mid / far thirds of the pin holes, named with their range."""
+    ps = np.asarray(ps)
+    thirds = np.array_split(np.arange(ps.size), 3)
+    return [
+        (f"{name} (p {ps[idx].min()}-{ps[idx].max()})", ps[idx])
+        for name, idx in zip(("near", "mid", "far"), thirds, strict=True)
+        if idx.size
+    ]
+
+
+def scatter_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
+    """Brown-Forsythe tests of real vs simulated pose scatter per axis and distance region."""
+    real, sim = align(real, sim)
+    res_r, res_s = noise_residuals(real), noise_residuals(sim)
+    rows = []
+    regions = distance_regions(res_r.p.values) if res_r.p.size else []
+    n_tests = max(len(regions) * len(AXES), 1)
+    for axis in AXES:
+        unit = axis_unit(axis)
+        for name, members in regions:
+            a = res_r.sel(axis=axis, p=members).values.ravel()
+            b = res_s.sel(axis=axis, p=members).values.ravel()
+            a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+            if a.size < 5 or b.size < 5:
+                continue
+            sa, sb = robust_scale(a), robust_scale(b)
+            pvalue = float(sps.levene(a, b, center="median").pvalue)
+            ratio = sa / sb if sb > 0 else float("inf")
+            extra = float(np.sqrt(abs(sa**2 - sb**2)))
+            significant = (
+                pvalue < ALPHA / n_tests
+                and (ratio >= SCATTER_RATIO or ratio <= 1 / SCATTER_RATIO)
+                and extra >= SCATTER_FLOOR_SHARE * PRACTICAL_FLOOR[unit]
+            )
+            rows.append(
+                {
+                    "axis": axis,
+                    "region": name,
+                    "unit": unit,
+                    "n_real": int(a.size),
+                    "n_sim": int(b.size),
+                    "real_scatter": sa,
+                    "sim_scatter": sb,
+                    "ratio": float(ratio),
+                    "extra_scatter": extra,
+                    "p_value": pvalue,
+                    "significant": bool(significant),
+                }
+            )
+    return rows
+
+
+def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
+    """Fisher exact tests of real vs simulated detection rates, overall and per region."""
+    real, sim = align(real, sim)
+    visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
+    _, view = tag_distance_and_view_angle(real)
+    det_r = real.detected.isel(variant=0).where(visible)
+    det_s = sim.detected.isel(variant=0).where(visible)
+    ps = real.p.values
+    masks: list[tuple[str, xr.DataArray]] = [("all", visible)]
+    masks += [(name, visible & real.p.isin(members)) for name, members in distance_regions(ps)]
+    masks += [
+        (f"view {lo:g}-{min(hi, 90):g} deg", visible & (view >= lo) & (view < hi))
+        for lo, hi in VIEW_BANDS_DEG
+    ]
+    rows = []
+    n_tests = len(masks)
+    for name, mask in masks:
+        nr = int((mask.sum() * real.sizes["repeat"]).item())
+        ns = int((mask.sum() * sim.sizes["repeat"]).item())
+        if nr == 0 or ns == 0:
+            continue
+        kr = int(det_r.where(mask).sum().item())
+        ks = int(det_s.where(mask).sum().item())
+        pvalue = float(sps.fisher_exact([[kr, nr - kr], [ks, ns - ks]]).pvalue)
+        diff = kr / nr - ks / ns
+        rows.append(
+            {
+                "region": name,
+                "real_detected": kr,
+                "real_attempts": nr,
+                "sim_detected": ks,
+                "sim_attempts": ns,
+                "real_rate": kr / nr,
+                "sim_rate": ks / ns,
+                "difference": diff,
+                "p_value": pvalue,
+                "significant": bool(
+                    pvalue < ALPHA / n_tests and abs(diff) >= DETECTION_MIN_DIFFERENCE
+                ),
+            }
+        )
+    return rows
+
+
+def compare_stat(stat: str, real: np.ndarray, sim: np.ndarray) -> np.ndarray:
+    """Per-tag difference real - simulated of one statistic in its comparison units."""
+    transform, _ = IMAGE_FLOORS.get(stat, ("diff", None))
+    if transform == "log2":
+        return np.log2((real + LEVEL_EPSILON) / (sim + LEVEL_EPSILON))
+    return real - sim
+
+
+def image_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
+    """Wilcoxon signed-rank tests of paired real - simulated image statistics."""
+    if "image_stats" not in real or "image_stats" not in sim:
+        return []
+    real, sim = align(real, sim)
+    visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
+    r, s = repeat_median_stats(real).where(visible), repeat_median_stats(sim).where(visible)
+    rows = []
+    for stat, (transform, floor) in IMAGE_FLOORS.items():
+        if stat not in r.stat.values:
+            continue
+        d = compare_stat(stat, r.sel(stat=stat).values, s.sel(stat=stat).values).ravel()
+        d = d[np.isfinite(d)]
+        if d.size < 3:
+            continue
+        median = float(np.median(d))
+        pvalue = 1.0 if np.all(d == 0) else float(sps.wilcoxon(d).pvalue)
+        rows.append(
+            {
+                "stat": stat,
+                "compared_as": "log2 ratio (stops)" if transform == "log2" else "difference",
+                "n": int(d.size),
+                "median_difference": median,
+                "real_median": float(np.nanmedian(r.sel(stat=stat).values)),
+                "sim_median": float(np.nanmedian(s.sel(stat=stat).values)),
+                "floor": floor,
+                "p_value": pvalue,
+                "significant": bool(
+                    floor is not None and pvalue < ALPHA and abs(median) >= floor
+                ),
+            }
+        )
+    return rows
