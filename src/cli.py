@@ -196,12 +196,11 @@ def diagnose(
     major = [e for e in result["selected"] if e not in minor]
     if not result["where"]["significant"]:
         verdict = "no significant gap"
-    elif result["unexplained"]:
-        evidence = ", ".join(result["where"].get("significant_evidence", []))
-        verdict = f"unexplained (significant evidence: {evidence})"
     else:
         verdict = "selected: " + (", ".join(major) or "-")
         verdict += f"; minor: {', '.join(minor)}" if minor else ""
+        if result["unexplained"]:
+            verdict += f"; unexplained: {', '.join(result['unexplained_evidence'])}"
     typer.echo(f"diagnosis: {verdict}")
 
 

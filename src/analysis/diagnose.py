@@ -28,17 +28,20 @@ import xarray as xr
 
 from simgap.analysis import evidence
 from simgap.analysis import gap as gapmod
+from simgap.analysis.appearance import appearance_candidates
 from simgap.analysis.fitting import (
     Items,
     default_candidates,
     gap_rms_per_axis,
     gap_score,
 )
-from simgap.analysis.selection import ModelSearch, Scored
+from simgap.analysis.image_evidence import repeat_median_stats
+from simgap.analysis.selection import SCORED_STATS, ModelSearch, Scored
 from simgap.cache import Cache, content_hash
-from simgap.effects import make_effect
+from simgap.effects import EFFECTS, make_effect
 from simgap.effects.state import VariantState
 from simgap.experiment import Experiment
+from simgap.pose.image_stats import STAT_NAMES
 
 AXES = gapmod.AXES
 
@@ -57,10 +60,9 @@ class DiagnoseSettings:
         Configurations used when fitting a candidate by simulation (training subsample).
     max_heldout_items : int
         Held-out configurations on which all candidates are ranked.
-    min_gain : float
-        Relative fall of the held-out gap needed to add another effect in the greedy search.
     explained_reduction : float
-        Held-out gap reduction below which a significant gap is reported as unexplained.
+        Held-out pose-gap reduction below which a significant pose gap is reported as
+        unexplained.
     confirm : bool
         Re-run the full pipeline with the selected effects to confirm the reduction.
     """
@@ -69,7 +71,6 @@ class DiagnoseSettings:
     seed: int = 0
     max_sim_items: int = 40
     max_heldout_items: int = 80
-    min_gain: float = 0.1
     explained_reduction: float = 0.3
     confirm: bool = True
 
@@ -106,25 +107,43 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
 
 
 def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> Items:
-    """The comparable (tag, p, theta) items with their errors and corners."""
+    """The visible (tag, p, theta) items with their errors, corners, image statistics, detection.
+
+    Errors and corners are NaN where a side did not detect the tag; such items still carry image
+    statistics and detection outcomes.
+    """
     real, sim = gapmod.align(real, sim)
-    idx = np.argwhere(field.comparable.values)
+    visible = field.real_detection.notnull()
+    idx = np.argwhere(visible.values)
     tags, ps, thetas = real.tag.values, real.p.values, real.theta.values
+    at = (idx[:, 0], idx[:, 1], idx[:, 2])
     r_err = gapmod.mean_error(real).values
     s_err = gapmod.mean_error(sim).values
-    r_c = real.corners.isel(variant=0).mean("repeat", skipna=True).values
-    s_c = sim.corners.isel(variant=0).mean("repeat", skipna=True).values
+    with warnings.catch_warnings():  # never-detected items are all-NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r_c = real.corners.isel(variant=0).mean("repeat", skipna=True).values
+        s_c = sim.corners.isel(variant=0).mean("repeat", skipna=True).values
     units = np.array([gapmod.PRACTICAL_FLOOR[gapmod.axis_unit(a)] for a in AXES])
     scale = np.maximum(field.sigma.values, units)
+    stats = {}
+    for name, ds in (("real", real), ("sim", sim)):
+        if "image_stats" in ds:
+            stats[name] = repeat_median_stats(ds).values[at]
+        else:
+            stats[name] = np.full((len(idx), len(STAT_NAMES)), np.nan)
     return Items(
         tag=tags[idx[:, 0]],
         p=ps[idx[:, 1]],
         theta=thetas[idx[:, 2]],
-        real_err=r_err[idx[:, 0], idx[:, 1], idx[:, 2]],
-        sim_err=s_err[idx[:, 0], idx[:, 1], idx[:, 2]],
-        real_corners=r_c[idx[:, 0], idx[:, 1], idx[:, 2]],
-        sim_corners=s_c[idx[:, 0], idx[:, 1], idx[:, 2]],
+        real_err=r_err[at],
+        sim_err=s_err[at],
+        real_corners=r_c[at],
+        sim_corners=s_c[at],
         scale=scale,
+        real_stats=stats["real"],
+        sim_stats=stats["sim"],
+        real_detected=field.real_detection.values[at],
+        sim_detected=field.sim_detection.values[at],
     )
 
 
@@ -155,8 +174,8 @@ class SimRunner:
     def _results(self, state: VariantState, items: Items, field: str) -> np.ndarray:
         pipe = self.pipeline(state)
         reps = self.exp.repeats if state.image.stochastic else 1
-        shape = (6,) if field == "error" else (4, 2)
-        out = np.full((len(items),) + shape, np.nan)
+        shape = {"error": (6,), "corners": (4, 2), "image_stats": (len(STAT_NAMES),)}
+        out = np.full((len(items),) + shape.get(field, ()), np.nan)
         for i in range(len(items)):
             key = (pipe.scene_key, content_hash(state), int(items.p[i]), float(items.theta[i]))
             if key not in self._memo:
@@ -166,6 +185,11 @@ class SimRunner:
                     self._memo[key] = {
                         f: np.nanmean(np.stack([getattr(x, f) for x in runs]), axis=0)
                         for f in ("error", "corners")
+                    } | {
+                        "image_stats": np.nanmedian(
+                            np.stack([x.image_stats for x in runs]), axis=0
+                        ),
+                        "detected": np.mean(np.stack([x.detected for x in runs]), axis=0),
                     }
             out[i] = self._memo[key][field][self.tags.index(int(items.tag[i]))]
         return out
@@ -177,6 +201,18 @@ class SimRunner:
     def corners(self, state: VariantState, items: Items) -> np.ndarray:
         """Repeat-mean detected corners (N, 4, 2) of ``items`` under ``state`` (px)."""
         return self._results(state, items, "corners")
+
+    def stats(self, state: VariantState, items: Items) -> np.ndarray:
+        """Repeat-median image statistics (N, S) of ``items`` under ``state``."""
+        return self._results(state, items, "image_stats")
+
+    def detected(self, state: VariantState, items: Items) -> np.ndarray:
+        """Detection rate over repeats (N,) of ``items`` under ``state``."""
+        return self._results(state, items, "detected")
+
+    def depths(self, items: Items) -> np.ndarray:
+        """Depth of each item's tag along the optical axis, nominal rig (N,) (m)."""
+        return self.rig.eyepoints_from_tags(items.tag, items.p, items.theta)[:, 1, 3]
 
 
 def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -239,7 +275,6 @@ class Diagnosis:
             self.sim_train,
             self.axes,
             self.runner,
-            settings.min_gain,
         )
 
     # ------------------------------------------------------------------ which
@@ -262,6 +297,39 @@ class Diagnosis:
             "seconds": time.perf_counter() - t0,
             "configurations": len(h),
         }
+
+
+def unexplained_evidence(
+    chosen: Scored | None, where: dict[str, Any], settings: DiagnoseSettings
+) -> list[str]:
+    """Significant evidence that the chosen model leaves unexplained on held-out data.
+
+    ``pose``: the held-out pose gap falls by less than ``settings.explained_reduction``;
+    an image statistic: its held-out misfit stays at or above its floor; ``detection``: the
+    held-out detection mismatch stays at or above 5 %; ``scatter``: the model has no noise
+    effect (the pose scatter of a model is not predicted otherwise). Everything significant is
+    unexplained when no model was chosen.
+    """
+    out = []
+    pose = any(a["significant"] for a in where["axes"].values())
+    if pose and (chosen is None or chosen.reduction < settings.explained_reduction):
+        out.append("pose")
+    misfit = dict(zip(SCORED_STATS, chosen.image_after, strict=True)) if chosen else {}
+    out += [
+        r["stat"]
+        for r in where["image_tests"]
+        if r["significant"] and misfit.get(r["stat"], np.inf) >= 1.0
+    ]
+    if any(r["significant"] for r in where["detection_tests"]) and (
+        chosen is None or chosen.detection_after >= 1.0
+    ):
+        out.append("detection")
+    noisy = chosen is not None and any(
+        getattr(EFFECTS[e], "stochastic", False) for e in chosen.effects
+    )
+    if any(r["significant"] for r in where["scatter_tests"]) and not noisy:
+        out.append("scatter")
+    return out
 
 
 def diagnose(
@@ -296,20 +364,20 @@ def diagnose(
         "scatter_tests": tests["scatter"],
         "detection_tests": tests["detection"],
         "image_tests": tests["image"],
-        "comparable_configurations": len(d.items),
+        "comparable_configurations": int(d.field.comparable.sum()),
     }
-    ranking = (
-        d.search.rank(candidates or default_candidates(), pose_significant)
-        if len(d.items) >= 2
-        else []
-    )
-    chosen = d.search.select(ranking) if pose_significant else None
-    explained = chosen is not None and chosen.reduction >= settings.explained_reduction
+    if candidates is None:
+        candidates = default_candidates() + appearance_candidates(d.rig.camera.fx)
+    ranking = d.search.rank(candidates, significant) if len(d.items) >= 2 else []
+    chosen = d.search.select(ranking) if significant else None
+    left = unexplained_evidence(chosen, where, settings) if significant else []
+    explained = chosen is not None
     result: dict[str, Any] = {
         "ranking": [s.record() for s in ranking],
         "selected": chosen.effects if explained else [],
         "minor": d.search.minor(chosen) if explained else [],
-        "unexplained": bool(significant and not explained),
+        "unexplained": bool(significant and left),
+        "unexplained_evidence": left,
         "where": _jsonable(where),
         "split": {"train": int(len(d.train)), "heldout": int(len(d.held)), "seed": settings.seed},
     }
@@ -331,6 +399,9 @@ def diagnose(
             "reduction": chosen.reduction,
             "heldout_corner_gap_before_px": chosen.corner_before,
             "heldout_corner_gap_after_px": chosen.corner_after,
+            "heldout_evidence_before": chosen.evidence_before,
+            "heldout_evidence_after": chosen.evidence_after,
+            "evidence_reduction": chosen.evidence_reduction,
             "heldout_gap_before_per_axis": dict(
                 zip(AXES, map(float, chosen.before_axes), strict=True)
             ),

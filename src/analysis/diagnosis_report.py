@@ -170,8 +170,8 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
     lines.append("")
     if not result["where"]["significant"]:
         lines.append("**No significant gap**: nothing is selected.")
-    elif result["unexplained"]:
-        lines.append("**Unexplained**: no effect of the catalogue reduces the held-out gap enough.")
+    elif not result["selected"]:
+        lines.append("**Unexplained**: no effect of the catalogue explains the held-out evidence.")
     else:
         minor = result.get("minor", [])
         major = [e for e in result["selected"] if e not in minor]
@@ -180,6 +180,11 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
             lines.append(
                 f"**Minor** (seen in the evidence, no pose change beyond the floor): "
                 f"{', '.join(minor)}."
+            )
+        if result["unexplained"]:
+            lines.append(
+                "**Unexplained** (significant, and still off on held-out configurations with the "
+                f"selected effects): {', '.join(result['unexplained_evidence'])}."
             )
         alternatives = result.get("combined", {}).get("equivalent_models", [])
         if alternatives:

@@ -50,6 +50,10 @@ class Items:
         Repeat-mean errors (m, rad).
     real_corners, sim_corners : ndarray (N, 4, 2)
         Repeat-mean detected corners (px).
+    real_stats, sim_stats : ndarray (N, S)
+        Repeat-median image statistics (:data:`simgap.pose.image_stats.STATS`).
+    real_detected, sim_detected : ndarray (N,)
+        Detection rate over repeats.
     scale : ndarray (6,)
         Per-axis normalisation of residuals (m, rad): noise or practical floor, the larger.
     """
@@ -62,6 +66,10 @@ class Items:
     real_corners: np.ndarray
     sim_corners: np.ndarray
     scale: np.ndarray
+    real_stats: np.ndarray | None = None
+    sim_stats: np.ndarray | None = None
+    real_detected: np.ndarray | None = None
+    sim_detected: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.tag)
@@ -70,7 +78,9 @@ class Items:
         """Items at ``index``."""
         return Items(
             **{
-                f.name: getattr(self, f.name)[index] if f.name != "scale" else self.scale
+                f.name: getattr(self, f.name)
+                if f.name == "scale" or getattr(self, f.name) is None
+                else getattr(self, f.name)[index]
                 for f in dataclasses.fields(self)
             }
         )
@@ -325,7 +335,10 @@ class SimulationCandidate:
 
 
 def default_candidates() -> list:
-    """The diagnosis catalogue with its fitted parameters or grids."""
+    """The geometric and calibration part of the diagnosis catalogue, with fitted parameters.
+
+    The appearance part is :func:`simgap.analysis.appearance.appearance_candidates`.
+    """
     return [
         ProjectionCandidate("focal_length", [("scale", 0.01, 0.25)]),
         ProjectionCandidate("principal_point", [("dx_px", 5.0, 150.0), ("dy_px", 5.0, 150.0)]),
@@ -339,20 +352,4 @@ def default_candidates() -> list:
         ProjectionCandidate("carriage_pitch", [("scale", 0.01, 0.15)]),
         ProjectionCandidate("tag_scale", [("scale", 0.01, 0.25)]),
         ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.001, 0.015) for i in range(3)]),
-        SimulationCandidate(
-            "detector_refinement", [{"method": m} for m in ("NONE", "CONTOUR", "APRILTAG")]
-        ),
-        SimulationCandidate("exposure", [{"ev": v} for v in (-2.0, -1.0, 1.0)]),
-        SimulationCandidate("sensor_noise", [{"full_well_e": v} for v in (1000.0, 4000.0)]),
-        SimulationCandidate("jpeg", [{"quality": q} for q in (30, 60)]),
-        SimulationCandidate("defocus", [{"aperture_radius_m": a} for a in (0.0005, 0.001)]),
-        SimulationCandidate("tag_gloss", [{"alpha": a} for a in (0.05, 0.2)]),
-        SimulationCandidate(
-            "lighting",
-            [
-                {"power": 3.0},
-                {"power": 20.0},
-                {"type": "point", "position": [-0.2, 0.1, 0.45], "power": 1.5},
-            ],
-        ),
     ]

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from simgap.analysis.appearance import RESIDUAL_CAP
+from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
 from simgap.analysis.fitting import (
     Fit,
     Items,
@@ -27,9 +29,18 @@ from simgap.analysis.fitting import (
     gap_score,
 )
 from simgap.analysis.gap import AXES
-from simgap.effects import make_effect
+from simgap.effects import EFFECTS, make_effect
 from simgap.effects.state import VariantState
+from simgap.pose.image_stats import STAT_INDEX
 from simgap.rig import Rig
+
+#: Noise statistics: only stochastic effects change them (see :meth:`ModelSearch.evaluate`).
+NOISE_STATS = [
+    STAT_INDEX[s]
+    for s in ("noise_ink_dn", "noise_paper_dn", "noise_ink_linear", "noise_paper_linear")
+]
+#: Image statistics with a floor, in the order of :attr:`Scored.image_after`.
+SCORED_STATS = tuple(s for s, (_, floor) in IMAGE_FLOORS.items() if floor is not None)
 
 
 @dataclass
@@ -46,10 +57,48 @@ class Scored:
     corner_before: float = float("nan")
     corner_after: float = float("nan")
     prediction: np.ndarray | None = None
-    #: the joint projection fit of the model's projection effects and its parameter vector
-    projection: tuple[Any, np.ndarray] | None = None
+    #: the joint projection candidate, its fit and the held-out items it was applied to
+    projection: tuple[Any, Fit, Items] | None = None
     #: held-out change of error (N, 6) of each simulation effect of the model (m, rad)
     simulation_deltas: dict[str, np.ndarray] = field(default_factory=dict)
+    #: held-out image-evidence misfit per statistic before / after (floors, :func:`image_misfits`)
+    image_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    image_after: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: held-out detection mismatch before / after (in units of DETECTION_UNIT)
+    detection_before: float = 0.0
+    detection_after: float = 0.0
+
+    @property
+    def channels_after(self) -> np.ndarray:
+        """Held-out misfit per evidence channel, in its units.
+
+        Corners (:data:`CORNER_UNIT_PX`), detection (:data:`DETECTION_UNIT`), then each image
+        statistic (floors).
+        """
+        head = [_finite(self.corner_after) / CORNER_UNIT_PX, self.detection_after]
+        return np.concatenate([head, self.image_after])
+
+    @property
+    def channels_before(self) -> np.ndarray:
+        """Held-out misfit per evidence channel without the model's effects."""
+        head = [_finite(self.corner_before) / CORNER_UNIT_PX, self.detection_before]
+        return np.concatenate([head, self.image_before])
+
+    @property
+    def evidence_after(self) -> float:
+        """Combined held-out misfit of all evidence (root sum of squared channels)."""
+        return float(np.sqrt(np.sum(self.channels_after**2)))
+
+    @property
+    def evidence_before(self) -> float:
+        """Combined held-out misfit without the model's effects."""
+        return float(np.sqrt(np.sum(self.channels_before**2)))
+
+    @property
+    def evidence_reduction(self) -> float:
+        """Relative fall of the combined held-out misfit."""
+        b = self.evidence_before
+        return 1.0 - self.evidence_after / b if b > 0 else 0.0
 
     @property
     def effects(self) -> list[str]:
@@ -83,6 +132,12 @@ class Scored:
                 zip(AXES, map(float, self.before_axes), strict=True)
             ),
             "heldout_gap_after_per_axis": dict(zip(AXES, map(float, self.after_axes), strict=True)),
+            "heldout_image_misfit_before": _rss(self.image_before),
+            "heldout_image_misfit_after": _rss(self.image_after),
+            "heldout_detection_mismatch_before": self.detection_before,
+            "heldout_detection_mismatch_after": self.detection_after,
+            "heldout_evidence_before": self.evidence_before,
+            "heldout_evidence_after": self.evidence_after,
             "n_params": cand.n_params,
             "fit_seconds": fit.seconds,
             "stage": cand.kind,
@@ -96,21 +151,103 @@ EQUIVALENT_PX = 0.05
 EQUIVALENT_REL = 0.1
 
 
+#: Unit of the corner channel (px): the ArUco detector's own corner bias on ideal renders, so
+#: that :data:`EQUIVALENT_PX` is a quarter unit, like the other channels' tolerance.
+CORNER_UNIT_PX = 0.2
+#: Unit of the detection channel: this share of held-out tags detected differently.
+DETECTION_UNIT = 0.05
+#: Channel misfits (in channel units) closer than this are indistinguishable.
+EQUIVALENT_UNITS = EQUIVALENT_PX / CORNER_UNIT_PX
+
+
+def _finite(v: float) -> float:
+    return float(v) if np.isfinite(v) else 0.0
+
+
+def _rss(v: np.ndarray) -> float:
+    """Root sum of squares."""
+    return float(np.sqrt(np.sum(np.square(v))))
+
+
 def equivalent(a: float, b: float) -> bool:
     """Whether two held-out corner residuals (px) are too close to prefer one explanation."""
     return abs(a - b) <= max(EQUIVALENT_PX, EQUIVALENT_REL * min(a, b))
 
 
+def equivalent_models(a: Scored, b: Scored) -> bool:
+    """Whether two models explain every held-out evidence channel equally well.
+
+    Per channel (corners, image statistics, detection) the misfits must be within
+    :data:`EQUIVALENT_UNITS` channel units or :data:`EQUIVALENT_REL` of the smaller; for the
+    corner channel this is :func:`equivalent` (0.05 px or 10 %).
+    """
+    return not (improves(a, b) or improves(b, a))
+
+
+def distinguishably_lower(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether some channel misfit of ``a`` is lower than ``b``'s beyond the tolerance.
+
+    Lower by more than :data:`EQUIVALENT_UNITS` channel units and :data:`EQUIVALENT_REL` of the
+    smaller misfit (for the corner channel: 0.05 px and 10 %, the rule of issue 4).
+    """
+    return bool(np.any(b - a > np.maximum(EQUIVALENT_UNITS, EQUIVALENT_REL * np.minimum(a, b))))
+
+
+def improves(a: Scored, b: Scored) -> bool:
+    """Whether ``a`` explains some held-out evidence channel distinguishably better than ``b``."""
+    return distinguishably_lower(a.channels_after, b.channels_after)
+
+
+def as_good(a: Scored, b: Scored) -> bool:
+    """``a`` explains the held-out evidence at least as well as ``b`` (or indistinguishably)."""
+    return a.evidence_after <= b.evidence_after or equivalent_models(a, b)
+
+
 def parsimonious(options: list[Scored]) -> Scored:
     """The model with the fewest parameters among those as good as the best.
 
-    Ties within :func:`equivalent` are not evidence: a richer effect (a 6-DOF camera mount)
-    reproduces a simpler one (a principal-point shift is a small camera rotation) and also
+    Ties within :func:`equivalent_models` are not evidence: a richer effect (a 6-DOF camera
+    mount) reproduces a simpler one (a principal-point shift is a small camera rotation) and also
     soaks up unrelated nuisance, so it wins by a hair unless parsimony decides.
     """
-    best = min(s.corner_after for s in options)
-    tied = [s for s in options if s.corner_after <= best or equivalent(s.corner_after, best)]
-    return min(tied, key=lambda s: (s.n_params, s.corner_after))
+    best = min(options, key=lambda s: s.evidence_after)
+    tied = [s for s in options if as_good(s, best)]
+    return min(tied, key=lambda s: (s.n_params, s.evidence_after))
+
+
+def improves_on_nothing(scored: Scored) -> bool:
+    """Whether a model explains the held-out evidence distinguishably better than no effect."""
+    return scored.evidence_after < scored.evidence_before and distinguishably_lower(
+        scored.channels_after, scored.channels_before
+    )
+
+
+def image_misfits(real: np.ndarray | None, pred: np.ndarray | None) -> np.ndarray:
+    """Held-out image-evidence misfit per statistic (floors), capped at RESIDUAL_CAP.
+
+    Per statistic of :data:`simgap.analysis.evidence.IMAGE_FLOORS` that has a floor, the
+    absolute median over tags of ``compare_stat(real, pred) / floor`` (a bias, robust to
+    per-tag noise). Misfits beyond the cap mean "not modelled" and count as the cap, so that an
+    effect is not credited or blamed for a difference nothing in the catalogue explains (a print
+    whose ink is blacker than the simulation's, say). Zeros when nothing is measured.
+    """
+    out = np.zeros(len(SCORED_STATS))
+    if real is None or pred is None:
+        return out
+    for k, stat in enumerate(SCORED_STATS):
+        floor = IMAGE_FLOORS[stat][1]
+        i = STAT_INDEX[stat]
+        d = compare_stat(stat, real[:, i], pred[:, i])
+        d = d[np.isfinite(d)]
+        if d.size:
+            out[k] = min(abs(float(np.median(d))) / floor, RESIDUAL_CAP)
+    return out
+
+
+def detection_score(real: np.ndarray, pred: np.ndarray) -> float:
+    """Share of held-out tags whose detection rate differs, in units of DETECTION_UNIT."""
+    ok = np.isfinite(real) & np.isfinite(pred)
+    return float(np.mean(np.abs(real[ok] - pred[ok])) / DETECTION_UNIT) if ok.any() else 0.0
 
 
 @dataclass
@@ -131,8 +268,6 @@ class ModelSearch:
         Axes on which the pose gap is scored (those with a significant gap).
     runner : callable or None
         Runs a state through the cached pipeline (``SimRunner``); needed by simulation effects.
-    min_gain : float
-        Relative fall of the held-out corner residual needed to add another effect.
     """
 
     rig: Rig
@@ -143,7 +278,6 @@ class ModelSearch:
     sim_train: np.ndarray
     axes: np.ndarray
     runner: Any = None
-    min_gain: float = 0.1
     _evaluated: dict[tuple[str, ...], Scored] = field(default_factory=dict, repr=False)
 
     def _key(self, model: tuple) -> tuple[str, ...]:
@@ -153,42 +287,59 @@ class ModelSearch:
     def evaluate(self, model: tuple) -> Scored:
         """Fit a model and score it on the held-out configurations (memoised).
 
-        Projection effects are fitted jointly on the training corners; simulation effects then
-        one by one on the training subsample, on top of what is already modelled. Predictions
-        add each effect's change of error (m, rad) and of detected corners (px).
+        Simulation (appearance) effects are fitted first, each on the image evidence of the
+        training subsample; their change of the detected corners is then added to the simulated
+        corners, and the projection effects are fitted jointly on the training corners on top
+        (geometry is what the corners show once the image formation is modelled; fitting it
+        first would let, say, a print scale soak up a blur's edge bias and then count it twice).
+        Predictions add each effect's change of error (m, rad), corners (px), image statistics
+        and detections.
         """
         key = self._key(model)
         if key in self._evaluated:
             return self._evaluated[key]
         rig, base, runner, items = self.rig, self.base, self.runner, self.items
         tr, st, h = (items.subset(i) for i in (self.train, self.sim_train, self.held))
-        off_st, off_h = np.zeros((len(st), 6)), np.zeros((len(h), 6))
-        corner_h = np.zeros((len(h), 4, 2))
-        proj = sorted(
-            (c for c in model if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
-        )
+        off_h = np.zeros((len(h), 6))
+        corner_tr, corner_h = np.zeros((len(tr), 4, 2)), np.zeros((len(h), 4, 2))
+        has_evidence = h.sim_stats is not None and h.real_stats is not None
+        stats_h = np.zeros_like(h.sim_stats) if has_evidence else None
+        det_h = np.zeros(len(h))
         fits: list[tuple[Any, Fit]] = []
-        projection = None
         simulation_deltas: dict[str, np.ndarray] = {}
-        if proj:
-            joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
-            fit = joint.fit(rig, base, tr)
-            projection = (joint, fit)
-            if len(proj) < len(model):
-                off_st += np.nan_to_num(joint.delta(rig, base, fit, st))
-            off_h += np.nan_to_num(joint.delta(rig, base, fit, h))
-            corner_h += np.nan_to_num(joint.corner_shift(rig, base, fit.extra["x"], h))
-            fits += zip(proj, joint.member_fits(fit) if len(proj) > 1 else [fit], strict=True)
         for cand in model:
             if isinstance(cand, ProjectionCandidate):
                 continue
-            fit = cand.fit(runner, base, st, st.real_err - off_st, self.axes)
-            off_st += np.nan_to_num(cand.delta(runner, base, fit, st))
+            fit = cand.fit(runner, base, st, st.real_err, self.axes)
             simulation_deltas[cand.effect] = np.nan_to_num(cand.delta(runner, base, fit, h))
             off_h += simulation_deltas[cand.effect]
             state = make_effect(cand.effect, fit.params).apply(base)
+            corner_tr += np.nan_to_num(runner.corners(state, tr) - runner.corners(base, tr))
             corner_h += np.nan_to_num(runner.corners(state, h) - runner.corners(base, h))
+            if has_evidence:
+                change = np.nan_to_num(runner.stats(state, h) - runner.stats(base, h))
+                if not getattr(EFFECTS[cand.effect], "stochastic", False):
+                    # a deterministic effect does not change the camera's noise; the change of
+                    # the simulation's noise statistics is its render noise being smoothed
+                    change[:, NOISE_STATS] = 0.0
+                stats_h += change
+                det_h += np.nan_to_num(runner.detected(state, h) - runner.detected(base, h))
             fits.append((cand, fit))
+        proj = sorted(
+            (c for c in model if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
+        )
+        projection = None
+        if proj:
+            joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
+            tr_shifted = dataclasses.replace(tr, sim_corners=tr.sim_corners + corner_tr)
+            h_shifted = dataclasses.replace(h, sim_corners=h.sim_corners + corner_h)
+            fit = joint.fit(rig, base, tr_shifted)
+            projection = (joint, fit, h_shifted)
+            off_h += np.nan_to_num(joint.delta(rig, base, fit, h_shifted))
+            corner_h += np.nan_to_num(joint.corner_shift(rig, base, fit.extra["x"], h))
+            fits = list(
+                zip(proj, joint.member_fits(fit) if len(proj) > 1 else [fit], strict=True)
+            ) + fits
         pred = h.sim_err + off_h
         scored = Scored(
             fits,
@@ -203,6 +354,12 @@ class ModelSearch:
             pred,
             projection,
             simulation_deltas,
+            image_misfits(h.real_stats, h.sim_stats),
+            image_misfits(h.real_stats, h.sim_stats + stats_h if has_evidence else None),
+            detection_score(h.real_detected, h.sim_detected) if has_evidence else 0.0,
+            detection_score(h.real_detected, np.clip(h.sim_detected + det_h, 0.0, 1.0))
+            if has_evidence
+            else 0.0,
         )
         self._evaluated[key] = scored
         return scored
@@ -210,8 +367,9 @@ class ModelSearch:
     def rank(self, candidates, significant: bool) -> list[Scored]:
         """Fit and score every candidate alone; projection ones only when no gap is significant.
 
-        Ranked on the held-out detected corners (the most direct evidence, in one unit, px,
-        free of the planar pose ambiguity); among indistinguishable ones the simpler first.
+        Ranked on the combined held-out misfit of all evidence (:attr:`Scored.evidence_after`:
+        detected corners, image statistics, detections, each in units of its smallest relevant
+        difference); among indistinguishable ones (:func:`equivalent_models`) the simpler first.
         """
         rest = [
             self.evaluate((c,))
@@ -225,12 +383,12 @@ class ModelSearch:
         return out
 
     def simplify(self, scored: Scored, pool: list) -> Scored:
-        """Simplify a model while it explains the held-out corners as well.
+        """Simplify a model while it explains the held-out evidence as well.
 
         Effects are dropped, or projection effects swapped for ones with fewer parameters, while
-        the held-out corner residual stays equivalent to ``scored``'s.
+        the model stays :func:`as_good` as ``scored`` on every evidence channel.
         """
-        reference = scored.corner_after
+        reference = scored
         while True:
             model = [c for c, _ in scored.fits]
             options = []
@@ -247,25 +405,21 @@ class ModelSearch:
                         and alt.n_params < member.n_params
                     ):
                         options.append(self.evaluate(tuple(rest) + (alt,)))
-            ok = [
-                o
-                for o in options
-                if o.corner_after <= reference or equivalent(o.corner_after, reference)
-            ]
+            ok = [o for o in options if as_good(o, reference)]
             if not ok:
                 return scored
-            scored = min(ok, key=lambda s: (s.n_params, s.corner_after))
+            scored = min(ok, key=lambda s: (s.n_params, s.evidence_after))
 
     def select(self, ranking: list[Scored], max_effects: int = 3) -> Scored | None:
         """Greedy forward search with joint refits, simplified after every step.
 
-        An effect is added while the held-out corner residual falls by ``min_gain`` or more and
-        the fall is distinguishable (not :func:`equivalent`); the model is then simplified
+        An effect is added while the combined held-out misfit falls and some evidence channel
+        improves distinguishably (:func:`improves`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`). Effects are returned most important
         first: effects that move the pose beyond the floor before minor ones (:meth:`minor`),
         each group by how much its removal hurts the held-out residual.
         """
-        if not ranking:
+        if not ranking or not improves_on_nothing(ranking[0]):
             return None
         pool = [s.fits[0][0] for s in ranking]
         current = self.simplify(ranking[0], pool)
@@ -276,8 +430,8 @@ class ModelSearch:
             if not options:
                 break
             best = parsimonious(options)
-            gain = best.corner_after <= current.corner_after * (1.0 - self.min_gain)
-            if not gain or equivalent(best.corner_after, current.corner_after):
+            gain = best.evidence_after < current.evidence_after and improves(best, current)
+            if not gain:
                 break  # no distinguishable improvement
             simpler = self.simplify(best, pool)
             if frozenset(simpler.effects) in seen:
@@ -289,7 +443,7 @@ class ModelSearch:
             model = [c for c, _ in current.fits]
             minor = set(self.minor(current))
             loss = {
-                c.effect: self.evaluate(tuple(m for m in model if m is not c)).corner_after
+                c.effect: self.evaluate(tuple(m for m in model if m is not c)).evidence_after
                 for c in model
             }
             current = dataclasses.replace(
@@ -304,9 +458,10 @@ class ModelSearch:
         """Drop effects that move no pose by a relevant amount and are not clearly seen.
 
         An effect whose :meth:`contributions` is below 1 is dropped only when the model without
-        it still explains the held-out corners as well (:func:`equivalent`); otherwise it stays
-        as a *minor* effect (seen in the corners, no pose impact beyond the floor). Comparing
-        corner residuals, never letting the pose criterion alone swap the explanation, is what
+        it still explains the held-out evidence as well (:func:`as_good`); otherwise it stays
+        as a *minor* effect (seen in the corners or images, no pose impact beyond the floor).
+        Comparing the evidence, never letting the pose criterion alone swap the explanation, is
+        what
         keeps a refitted look-alike (a tag print scale soaking up a focal-length change) from
         replacing the effect that the corners single out.
         """
@@ -315,13 +470,11 @@ class ModelSearch:
             options = []
             for effect in (e for e, w in weight.items() if w < 1.0):
                 reduced = self.evaluate(tuple(c for c, _ in scored.fits if c.effect != effect))
-                if reduced.corner_after <= scored.corner_after or equivalent(
-                    reduced.corner_after, scored.corner_after
-                ):
+                if as_good(reduced, scored):
                     options.append(reduced)
             if not options:
                 return scored
-            scored = min(options, key=lambda o: o.corner_after)
+            scored = min(options, key=lambda o: o.evidence_after)
         return scored
 
     def minor(self, scored: Scored) -> list[str]:
@@ -335,10 +488,9 @@ class ModelSearch:
         with that effect's parameters set to zero (no refit). For a simulation effect: its own
         change of error.
         """
-        held = self.items.subset(self.held)
         out = dict(scored.simulation_deltas)
         if scored.projection is not None:
-            joint, fit = scored.projection
+            joint, fit, held = scored.projection
             full = np.nan_to_num(joint.delta(self.rig, self.base, fit, held))
             members = joint.members if isinstance(joint, ProjectionSet) else [joint]
             if len(members) == 1:
@@ -375,25 +527,25 @@ class ModelSearch:
         }
 
     def alternatives(self, chosen: Scored, limit: int = 5) -> list[dict[str, Any]]:
-        """Other models tried that explain the held-out corners as well as ``chosen``.
+        """Other models tried that explain the held-out evidence indistinguishably from ``chosen``.
 
-        Supersets of ``chosen`` are left out: that an extra effect changes nothing is no news.
+        Only models within :func:`equivalent_models` on every channel are listed (a model that is
+        clearly better or worse is not a look-alike). Supersets of ``chosen`` are left out: that
+        an extra effect changes nothing is no news.
         """
         same = [
             s
             for s in self._evaluated.values()
             if not set(chosen.effects) <= set(s.effects)  # not the choice plus extras
-            and (
-                s.corner_after <= chosen.corner_after
-                or equivalent(s.corner_after, chosen.corner_after)
-            )
+            and equivalent_models(s, chosen)
         ]
         return [
             {
                 "effects": s.effects,
                 "n_params": s.n_params,
                 "heldout_corner_gap_after_px": s.corner_after,
+                "heldout_evidence_after": s.evidence_after,
                 "heldout_gap_after": s.after,
             }
-            for s in sorted(same, key=lambda s: (s.n_params, s.corner_after))[:limit]
+            for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
         ]

@@ -1,0 +1,233 @@
+"""Appearance candidates: effects that change what the camera sees, fitted on image evidence.
+
+Each candidate's parameters are fitted continuously (bounded ``scipy.optimize``) so that the
+image statistics of the simulation with the effect (:mod:`simgap.pose.image_stats`) match the
+real ones on the training configurations:
+
+==================  =====================================  =====================================
+effect              parameters (bounds)                    fitted on
+==================  =====================================  =====================================
+``blur``            ``sigma_px`` (0.05 - 3 px)             edge width; pipeline re-run per value
+``exposure``        ``ev`` (-4 - 4 stops)                  ink and paper levels; pipeline re-run
+``sensor_noise``    ``full_well_e``, ``read_noise_e``      photon transfer of the excess noise
+                                                           variance (EMVA 1288), closed form
+``defocus``         ``aperture_radius_m``,                 edge width against tag depth, thin-
+                    ``focus_distance_m``                   lens blur circle, least squares
+==================  =====================================  =====================================
+
+Image-stage effects (blur, exposure, noise) re-process the cached renders; defocus is fitted on
+the evidence with the thin-lens model and then rendered once for scoring (its change of corners,
+pose, statistics and detections comes from the full pipeline, like every candidate's).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares, minimize_scalar
+
+from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
+from simgap.analysis.fitting import Fit, Items, SimulationCandidate
+from simgap.effects import make_effect
+from simgap.effects.state import VariantState
+from simgap.pose.image_stats import STAT_INDEX
+
+#: Image statistics each candidate is fitted on.
+FIT_STATS: dict[str, tuple[str, ...]] = {
+    "blur": ("edge_width_px",),
+    "exposure": ("paper_linear", "ink_linear"),
+    "sensor_noise": ("noise_paper_linear", "noise_ink_linear"),
+    "defocus": ("edge_width_px",),
+}
+#: 10-90 % width of the edge-spread function of a uniform disk of radius R, in units of R
+#: (the area of a disk left of a chord at -u R is 10 % of the disk for u = 0.68705).
+DISK_10_90_PER_RADIUS = 2 * 0.68705
+#: Residuals beyond this many floors count as this many (a robust, Huber-like cap).
+RESIDUAL_CAP = 3.0
+#: Points of the coarse scan that brackets a 1-D fit before the bounded Brent search.
+SCAN_POINTS = 16
+
+
+def evidence_misfit(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) -> float:
+    """Mean over statistics of the mean squared per-tag misfit in floors, capped (dimensionless).
+
+    Parameters
+    ----------
+    stats : tuple of str
+        Statistic names (see :data:`simgap.analysis.evidence.IMAGE_FLOORS`).
+    real, pred : ndarray (N, S)
+        Real and predicted image statistics of the same tags.
+    """
+    total = []
+    for stat in stats:
+        i = STAT_INDEX[stat]
+        r = compare_stat(stat, real[:, i], pred[:, i]) / IMAGE_FLOORS[stat][1]
+        r = r[np.isfinite(r)]
+        if r.size:
+            total.append(np.mean(np.minimum(r**2, RESIDUAL_CAP**2)))
+    return float(np.mean(total)) if total else float("nan")
+
+
+class AppearanceCandidate(SimulationCandidate):
+    """An effect fitted on image evidence (see module docstring).
+
+    Parameters
+    ----------
+    effect : str
+        Catalogue name.
+    param : str
+        The parameter fitted by a bounded scalar search (1-D candidates).
+    bounds : tuple of float
+        Search interval of ``param``.
+    xatol : float
+        Absolute tolerance of the search.
+    """
+
+    kind = "appearance"
+    n_params = 1
+
+    def __init__(self, effect: str, param: str, bounds: tuple[float, float], xatol: float):
+        super().__init__(effect, [])
+        self.param, self.bounds, self.xatol = param, bounds, xatol
+
+    def params(self, x: float) -> dict[str, Any]:
+        """Effect parameters for a value of the fitted parameter."""
+        return {self.param: float(x)}
+
+    def fit(self, runner, base: VariantState, items: Items, target=None, axes=None) -> Fit:
+        """Bounded scalar search of the parameter that best matches the image evidence."""
+        t0 = time.perf_counter()
+        stats = FIT_STATS[self.effect]
+
+        def misfit(x: float) -> float:
+            state = make_effect(self.effect, self.params(x)).apply(base)
+            return evidence_misfit(stats, items.real_stats, runner.stats(state, items))
+
+        # the misfit is capped and can be flat far from its minimum: a coarse scan brackets the
+        # minimum, a bounded Brent search refines it
+        grid = np.linspace(*self.bounds, SCAN_POINTS)
+        values = np.array([misfit(x) for x in grid])
+        if not np.isfinite(values).any():
+            return Fit(self.effect, self.params(0.0), time.perf_counter() - t0, {})
+        k = int(np.nanargmin(values))
+        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+        sol = minimize_scalar(
+            misfit, bounds=(lo, hi), method="bounded", options={"xatol": self.xatol}
+        )
+        x, fun = (sol.x, sol.fun) if sol.fun <= values[k] else (grid[k], values[k])
+        return Fit(
+            self.effect, self.params(x), time.perf_counter() - t0, {"train_misfit": float(fun)}
+        )
+
+
+class SensorNoiseCandidate(AppearanceCandidate):
+    """Shot + read noise from the photon transfer of the excess noise (EMVA 1288).
+
+    The real noise variance in linear units is the simulation's (render noise, quantisation)
+    plus the sensor's ``mu / full_well + (read / full_well)^2`` at level ``mu``. The excess
+    variance of ink and paper regions of every training tag is regressed on their level by
+    bounded robust least squares: slope ``1 / full_well``, intercept ``(read / full_well)^2``.
+    """
+
+    n_params = 2
+
+    def __init__(self) -> None:
+        super().__init__("sensor_noise", "full_well_e", (10.0, 1e6), 0.0)
+
+    def fit(self, runner, base: VariantState, items: Items, target=None, axes=None) -> Fit:
+        """Photon transfer fit of the excess noise variance."""
+        t0 = time.perf_counter()
+        levels, excess = [], []
+        pairs = (("ink_linear", "noise_ink_linear"), ("paper_linear", "noise_paper_linear"))
+        for level, noise in pairs:
+            mu = items.real_stats[:, STAT_INDEX[level]]
+            var = (
+                items.real_stats[:, STAT_INDEX[noise]] ** 2
+                - items.sim_stats[:, STAT_INDEX[noise]] ** 2
+            )
+            ok = np.isfinite(mu) & np.isfinite(var)
+            levels.append(mu[ok])
+            excess.append(var[ok])
+        mu, var = np.concatenate(levels), np.concatenate(excess)
+        if mu.size < 4:
+            return Fit(self.effect, {"full_well_e": 1e6, "read_noise_e": 0.0}, 0.0, {})
+        scale = max(float(np.median(np.abs(var))), 1e-10)
+        sol = least_squares(
+            lambda x: (x[0] * mu + x[1] - var) / scale,
+            x0=[max(float(np.median(var / np.maximum(mu, 1e-3))), 1e-6), 0.0],
+            bounds=([1e-6, 0.0], [0.1, 1e-2]),
+            loss="soft_l1",
+        )
+        full_well = float(np.clip(1.0 / sol.x[0], 10.0, 1e6))
+        read = float(min(np.sqrt(sol.x[1]) * full_well, 1e3))
+        return Fit(
+            self.effect,
+            {"full_well_e": full_well, "read_noise_e": read},
+            time.perf_counter() - t0,
+            {"slope_per_level": float(sol.x[0]), "intercept": float(sol.x[1])},
+        )
+
+
+class DefocusCandidate(AppearanceCandidate):
+    """Thin-lens defocus: aperture radius and focus distance from edge width against depth.
+
+    A point at depth ``z`` is imaged as a disk of radius ``R = f A |1/z - 1/z_f|`` (px, ``f`` the
+    focal length in px, ``A`` the aperture radius, ``z_f`` the focus distance; the model of
+    :class:`simgap.render.camera.OpenCVCamera`). The real edge width is modelled as the
+    simulation's combined in quadrature with the disk's edge-spread width
+    (:data:`DISK_10_90_PER_RADIUS` ``* R``); ``A`` and ``1 / z_f`` are fitted by bounded robust
+    least squares over the training tags.
+    """
+
+    n_params = 2
+
+    def __init__(self, focal_px: float) -> None:
+        super().__init__("defocus", "aperture_radius_m", (0.0, 0.005), 0.0)
+        self.focal_px = focal_px
+
+    def fit(self, runner, base: VariantState, items: Items, target=None, axes=None) -> Fit:
+        """Least squares of the thin-lens edge-width model."""
+        t0 = time.perf_counter()
+        i = STAT_INDEX["edge_width_px"]
+        w_real, w_sim = items.real_stats[:, i], items.sim_stats[:, i]
+        depth = runner.depths(items)
+        ok = np.isfinite(w_real) & np.isfinite(w_sim) & np.isfinite(depth)
+        w_real, w_sim, depth = w_real[ok], w_sim[ok], depth[ok]
+        floor = IMAGE_FLOORS["edge_width_px"][1]
+
+        def residual(x: np.ndarray) -> np.ndarray:
+            radius = self.focal_px * x[0] * 1e-3 * np.abs(1.0 / depth - x[1])
+            pred = np.sqrt(w_sim**2 + (DISK_10_90_PER_RADIUS * radius) ** 2)
+            return (pred - w_real) / floor
+
+        if depth.size < 3:
+            return Fit(self.effect, {"aperture_radius_m": 0.0, "focus_distance_m": 1.0}, 0.0, {})
+        starts = [(0.5, 1.0 / zf) for zf in (0.15, 0.4, 1.0, 3.0)]
+        best = min(
+            (
+                least_squares(residual, x0=x0, bounds=([0.0, 0.2], [5.0, 10.0]), loss="soft_l1")
+                for x0 in starts
+            ),
+            key=lambda s: s.cost,
+        )
+        return Fit(
+            self.effect,
+            {
+                "aperture_radius_m": float(best.x[0] * 1e-3),
+                "focus_distance_m": float(1.0 / best.x[1]),
+            },
+            time.perf_counter() - t0,
+            {"train_cost": float(best.cost)},
+        )
+
+
+def appearance_candidates(focal_px: float) -> list[AppearanceCandidate]:
+    """The appearance part of the diagnosis catalogue (``focal_px``: the calibration's fx)."""
+    return [
+        AppearanceCandidate("blur", "sigma_px", (0.05, 3.0), 0.02),
+        AppearanceCandidate("exposure", "ev", (-4.0, 4.0), 0.02),
+        SensorNoiseCandidate(),
+        DefocusCandidate(focal_px),
+    ]
