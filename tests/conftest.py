@@ -12,7 +12,9 @@ from simgap.rig import load_rig
 REPO = Path(__file__).resolve().parents[1]
 #: The public sample capture (made by an independent generator), in ``shared/`` beside the
 #: checkout (the project's layout) or where ``SIMGAP_SHARED`` points.
-SAMPLE = Path(os.environ.get("SIMGAP_SHARED", REPO.parent / "shared")) / "captures" / "sample-focal"
+CAPTURES = Path(os.environ.get("SIMGAP_SHARED", REPO.parent / "shared")) / "captures"
+SAMPLE = CAPTURES / "sample-focal"
+SAMPLE_NULL = CAPTURES / "sample-null"
 
 
 @pytest.fixture(scope="session")
@@ -21,6 +23,14 @@ def sample() -> Path:
     if not (SAMPLE / "manifest.csv").is_file():
         pytest.skip(f"shared sample capture not found at {SAMPLE} (set SIMGAP_SHARED)")
     return SAMPLE
+
+
+@pytest.fixture(scope="session")
+def sample_null() -> Path:
+    """The shared capture with nothing wrong in it (another camera's image formation only)."""
+    if not (SAMPLE_NULL / "manifest.csv").is_file():
+        pytest.skip(f"shared sample capture not found at {SAMPLE_NULL} (set SIMGAP_SHARED)")
+    return SAMPLE_NULL
 
 
 @pytest.fixture(scope="session")

@@ -132,3 +132,18 @@ def test_offset_crop_gives_the_same_statistics():
 def test_linearise_is_the_srgb_curve():
     assert linearise(np.array([0, 255]))[1] == pytest.approx(1.0)
     assert linearise(np.array([188]))[0] == pytest.approx(0.5, abs=0.005)
+
+
+def test_directional_blur_shows_in_the_edge_width_along_x_only():
+    import cv2
+
+    frame, corners = synthetic_tag(sigma_px=0.5, angle=0.0)
+    kernel = np.zeros((1, 7), np.float32)
+    kernel[0, 1:6] = 1 / 5  # 5 px horizontal motion on the 8-bit frame
+    moved = cv2.filter2D(frame, -1, kernel, borderType=cv2.BORDER_REFLECT)
+    s0, s1 = tag_stats(frame, corners, LAYOUT), tag_stats(moved, corners, LAYOUT)
+    x, y = STAT_INDEX["edge_width_x_px"], STAT_INDEX["edge_width_y_px"]
+    assert s0[x] == pytest.approx(s0[y], rel=0.05)
+    # a 5 px box on an edge 1.5 px wide: measured +2.44 px along x; y unchanged
+    assert s1[x] - s0[x] > 2.0
+    assert abs(s1[y] - s0[y]) < 0.1

@@ -36,10 +36,10 @@ from simgap.pose.image_stats import STAT_INDEX
 
 #: Image statistics each candidate is fitted on.
 FIT_STATS: dict[str, tuple[str, ...]] = {
-    "blur": ("edge_width_px",),
+    "blur": ("edge_width_x_px", "edge_width_y_px"),
     "exposure": ("paper_linear", "ink_linear"),
     "sensor_noise": ("noise_paper_linear", "noise_ink_linear"),
-    "defocus": ("edge_width_px",),
+    "defocus": ("edge_width_x_px", "edge_width_y_px"),
 }
 #: 10-90 % width of the edge-spread function of a uniform disk of radius R, in units of R
 #: (the area of a disk left of a chord at -u R is 10 % of the disk for u = 0.68705).
@@ -195,7 +195,7 @@ class DefocusCandidate(AppearanceCandidate):
         depth = runner.depths(items)
         ok = np.isfinite(w_real) & np.isfinite(w_sim) & np.isfinite(depth)
         w_real, w_sim, depth = w_real[ok], w_sim[ok], depth[ok]
-        floor = IMAGE_FLOORS["edge_width_px"][1]
+        floor = IMAGE_FLOORS["edge_width_x_px"][1]
 
         def residual(x: np.ndarray) -> np.ndarray:
             radius = self.focal_px * x[0] * 1e-3 * np.abs(1.0 / depth - x[1])

@@ -353,3 +353,8 @@ def default_candidates() -> list:
         ProjectionCandidate("tag_scale", [("scale", 0.01, 0.25)]),
         ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.001, 0.015) for i in range(3)]),
     ]
+
+
+def geometric_effects() -> set[str]:
+    """Names of the geometric and calibration effects of the catalogue (projection effects)."""
+    return {c.effect for c in default_candidates()}

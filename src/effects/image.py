@@ -75,6 +75,42 @@ class Blur(ImageEffect):
 
 
 @register
+class MotionBlur(ImageEffect):
+    """Linear motion blur during the exposure: a box PSF ``length_px`` long at ``angle_deg``.
+
+    E.g. the turntable still turning while the shutter is open (horizontal, ``angle_deg`` 0) or
+    a vibrating carriage. Not a diagnosis candidate: the blind validation hides it as an effect
+    outside the catalogue, which the diagnosis must report as unexplained.
+    """
+
+    name = "motion_blur"
+    order = 11
+
+    @dataclass(frozen=True)
+    class Params:
+        """Motion during the exposure."""
+
+        length_px: float = 3.0
+        angle_deg: float = 0.0
+
+        def __post_init__(self) -> None:
+            require(0 < self.length_px < 50, "length_px: expected 0 < length < 50 px")
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Convolve with a normalised line kernel (anti-aliased by 4x supersampling)."""
+        half = self.params.length_px / 2
+        size = 2 * int(np.ceil(half)) + 3
+        fine = np.zeros((size * 4, size * 4), np.float32)
+        c = (size * 4 - 1) / 2
+        a = np.deg2rad(self.params.angle_deg)
+        for t in np.linspace(-half * 4, half * 4, int(self.params.length_px * 16) + 1):
+            fine[int(round(c - t * np.sin(a))), int(round(c + t * np.cos(a)))] = 1.0
+        kernel = fine.reshape(size, 4, size, 4).sum(axis=(1, 3))
+        kernel /= kernel.sum()
+        return cv2.filter2D(img, -1, kernel, borderType=cv2.BORDER_REFLECT)
+
+
+@register
 class Vignetting(ImageEffect):
     """Radial fall-off: gain ``1 - strength * (r / r_corner)^2`` about the principal point."""
 

@@ -26,7 +26,9 @@ Statistics (see :data:`STATS` for names, units and meanings):
   (the slanted-edge idea of ISO 12233: pixels at many sub-pixel distances from a straight edge
   sample the edge-spread function finely). The model is ``ink + (paper - ink) * Phi((d - d0) / s)``
   on linearised values, fitted by robust least squares; the 10-90 % width is ``2 * 1.2816 * s``
-  (px). Only from detected corners (expected corners can be off by pixels);
+  (px). All four sides, and the left/right (``x``) and top/bottom (``y``) pairs apart, which
+  tells a directional blur (motion) from an isotropic one. Only from detected corners (expected
+  corners can be off by pixels);
 - noise: standard deviation of flat ink and paper pixels from differences of horizontal
   neighbours (``std(diff) / sqrt(2)``, insensitive to smooth shading), in DN and linear units;
   pairs of (level, variance) over many tags give the photon transfer curve (EMVA 1288);
@@ -54,6 +56,8 @@ STATS: tuple[tuple[str, str, str], ...] = (
     ("paper_linear", "1", "paper level linearised with the sRGB curve (fraction of full scale)"),
     ("contrast", "1", "Michelson contrast of the linear levels (paper - ink) / (paper + ink)"),
     ("edge_width_px", "px", "10-90 % rise of the edge-spread function across the outer border"),
+    ("edge_width_x_px", "px", "edge width across the marker's left and right sides (along x)"),
+    ("edge_width_y_px", "px", "edge width across the marker's top and bottom sides (along y)"),
     ("noise_ink_dn", "DN", "noise standard deviation in flat ink pixels"),
     ("noise_paper_dn", "DN", "noise standard deviation in flat paper pixels"),
     ("noise_ink_linear", "1", "noise standard deviation in flat ink pixels, linearised"),
@@ -115,79 +119,63 @@ def _noise(values: np.ndarray, mask: np.ndarray) -> float:
     return float(np.std(d[keep]) / np.sqrt(2.0))
 
 
-def _edge_width(
-    lin: np.ndarray,
-    pts: np.ndarray,
-    norm: np.ndarray,
-    corners: np.ndarray,
-    layout: MarkerLayout,
-    ink: float,
-    paper: float,
-) -> float:
-    """10-90 % width (px) of the edge-spread function across the marker's outer border."""
+def _edge_samples(
+    pts: np.ndarray, norm: np.ndarray, corners: np.ndarray, layout: MarkerLayout
+) -> list[np.ndarray] | None:
+    """Pixels for the edge-spread fit of each side (top, right, bottom, left).
+
+    Returns, per side, an array (2, n): pixel indices and their signed distances to the marker's
+    outer edge (px, positive outwards); None when the marker is too small.
+    """
     c = layout.cell
-    dists, vals = [], []
+    inner_mid = np.array([[0.0, -0.5 + c], [0.5 - c, 0.0], [0.0, 0.5 - c], [-0.5 + c, 0.0]])
+    inner = _map(inner_mid, corners)
+    out = []
     for k in range(4):
         a, b = corners[k], corners[(k + 1) % 4]
         side = b - a
         length = float(np.hypot(*side))
         if length < 4.0:
-            return float("nan")
+            return None
         tangent = side / length
         # outward normal: corners run clockwise on screen (TL, TR, BR, BL), outside is on the left
         normal = np.array([tangent[1], -tangent[0]])
-        # along-side coordinate of each pixel in the marker's own units (0 at the middle)
+        # along-side and across-side coordinates in the marker's own units (0 at the middle)
         along = norm[:, 0] if k in (0, 2) else norm[:, 1]
         across = norm[:, 1] if k in (0, 2) else norm[:, 0]
         outward_sign = -1.0 if k in (0, 3) else 1.0
         on_side = (np.abs(along) <= ESF_SIDE_SHARE / 2) & (outward_sign * across > 0)
         # width of one cell across this edge (px), at the side's middle
-        mid = (a + b) / 2
-        inner = _map(
-            np.array(
-                [[0.0, (-0.5 + c)]]
-                if k == 0
-                else [[0.5 - c, 0.0]]
-                if k == 1
-                else [[0.0, 0.5 - c]]
-                if k == 2
-                else [[-0.5 + c, 0.0]]
-            ),
-            corners,
-        )[0]
-        cell_px = float(np.hypot(*(inner - mid)))
+        cell_px = float(np.hypot(*(inner[k] - (a + b) / 2)))
         reach = min(ESF_MAX_DISTANCE_PX, ESF_MAX_CELL_SHARE * cell_px)
         if reach < 1.0:
-            return float("nan")
+            return None
         d = (pts - a) @ normal
-        sel = on_side & (np.abs(d) <= reach)
-        dists.append(d[sel])
-        vals.append(lin[sel])
-    d = np.concatenate(dists)
-    v = np.concatenate(vals)
-    if d.size < 4 * MIN_PIXELS or not paper > ink:
+        sel = np.flatnonzero(on_side & (np.abs(d) <= reach))
+        out.append(np.stack([sel, d[sel]]))
+    return out
+
+
+def _esf_width(d: np.ndarray, v: np.ndarray, ink: float, paper: float) -> float:
+    """10-90 % width (px) of ``ink + (paper - ink) Phi((d - d0) / s)`` fitted to (d, v)."""
+    if d.size < 2 * MIN_PIXELS or not paper > ink:
         return float("nan")
 
     def residual(x: np.ndarray) -> np.ndarray:
         lo, hi, d0, s = x
         return lo + (hi - lo) * ndtr((d - d0) / s) - v
 
-    x0 = np.array([ink, paper, 0.0, 0.5])
-    lower = [-1.0, -1.0, -2.0, 0.05]
-    upper = [2.0, 2.0, 2.0, 5.0]
     try:
         sol = least_squares(
             residual,
-            x0,
-            bounds=(lower, upper),
+            np.array([ink, paper, 0.0, 0.5]),
+            bounds=([-1.0, -1.0, -2.0, 0.05], [2.0, 2.0, 2.0, 5.0]),
             loss="soft_l1",
             f_scale=max(0.05 * (paper - ink), 1e-4),
         )
     except ValueError:
         return float("nan")
-    if not sol.success:
-        return float("nan")
-    return float(ESF_10_90_PER_SIGMA * sol.x[3])
+    return float(ESF_10_90_PER_SIGMA * sol.x[3]) if sol.success else float("nan")
 
 
 def _map(norm: np.ndarray, corners: np.ndarray) -> np.ndarray:
@@ -263,10 +251,18 @@ def tag_stats(
     sigma = out[s["noise_paper_dn"]]
     limit = paper_dn + max(HIGHLIGHT_SIGMAS * (sigma if np.isfinite(sigma) else 0.0), 12.0)
     out[s["highlight_fraction"]] = float(np.mean(values > limit))
-    if with_edge:
-        out[s["edge_width_px"]] = _edge_width(
-            lin.ravel(), pts, norm, local, layout, ink_lin, paper_lin
-        )
+    samples = _edge_samples(pts, norm, local, layout) if with_edge else None
+    if samples is not None:
+        flat = lin.ravel()
+
+        def width(sides: tuple[int, ...]) -> float:
+            idx = np.concatenate([samples[k][0] for k in sides]).astype(np.intp)
+            d = np.concatenate([samples[k][1] for k in sides])
+            return _esf_width(d, flat[idx], ink_lin, paper_lin)
+
+        out[s["edge_width_px"]] = width((0, 1, 2, 3))
+        out[s["edge_width_x_px"]] = width((1, 3))
+        out[s["edge_width_y_px"]] = width((0, 2))
     n_rejected = 0
     for quad in rejected:
         centre = np.asarray(quad, np.float64).reshape(4, 2).mean(axis=0) - offset

@@ -108,9 +108,17 @@ class LightSpec:
 
 @dataclass(frozen=True)
 class SceneSpec:
-    """Resolved scene template: integrator, objects, materials and lights."""
+    """Resolved scene template: integrator, pixel reconstruction filter, objects, materials, lights.
+
+    ``rfilter`` is the film's Mitsuba reconstruction filter (``box`` keeps edges sharpest and
+    renders bit-identical; ``gaussian`` with ``stddev`` in px is a softer camera). The tag
+    material may set ``texture_filter: bilinear`` (default ``nearest``): the marker texture is
+    then upsampled :data:`BILINEAR_UPSAMPLE` times and filtered bilinearly, a print whose cell
+    edges are slightly soft.
+    """
 
     integrator: dict[str, Any] = field(default_factory=lambda: {"type": "path", "max_depth": 3})
+    rfilter: dict[str, Any] = field(default_factory=lambda: {"type": "box"})
     objects: dict[str, ObjectSpec] = field(default_factory=dict)
     materials: dict[str, dict[str, Any]] = field(default_factory=dict)
     lights: dict[str, LightSpec] = field(default_factory=dict)
@@ -153,16 +161,28 @@ def load_scene_spec(overrides: dict | None = None, template: str | Path | None =
     return from_mapping(SceneSpec, data, where=f"{path}: ")
 
 
+#: Upsampling of the one-texel-per-cell marker texture before bilinear filtering.
+BILINEAR_UPSAMPLE = 8
+
+
 def _tag_material(spec: dict[str, Any], texture: np.ndarray, mi) -> dict[str, Any]:
     """Tag BSDF with the marker texture mapped to ink/paper albedo."""
     spec = dict(spec)
     ink, paper = float(spec.pop("ink", 0.03)), float(spec.pop("paper", 0.8))
+    texture_filter = spec.pop("texture_filter", "nearest")
+    if texture_filter not in ("nearest", "bilinear"):
+        raise ConfigError(
+            "materials.tag.texture_filter: expected 'nearest' or 'bilinear', "
+            f"got {texture_filter!r}"
+        )
+    if texture_filter == "bilinear":
+        texture = np.kron(texture, np.ones((BILINEAR_UPSAMPLE, BILINEAR_UPSAMPLE), texture.dtype))
     albedo = np.where(texture > 127, paper, ink).astype(np.float32)[..., None]
     bitmap = {
         "type": "bitmap",
         "bitmap": mi.Bitmap(albedo),
         "raw": True,
-        "filter_type": "nearest",
+        "filter_type": texture_filter,
         "to_uv": mi.ScalarTransform4f().translate([0, 1, 0]).scale([1, -1, 1]),
     }
     slot = "reflectance" if spec.get("type", "diffuse") == "diffuse" else "diffuse_reflectance"
@@ -224,7 +244,7 @@ class FixtureScene:
                     "type": "hdrfilm",
                     "width": int(film_size[0]),
                     "height": int(film_size[1]),
-                    "rfilter": {"type": "box"},
+                    "rfilter": copy.deepcopy(spec.rfilter),
                     "pixel_format": "rgb",
                     "component_format": "float32",
                 },
