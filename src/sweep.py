@@ -49,7 +49,7 @@ from simgap.rig import Rig
 CROP_STEP_PX = 32
 RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners", "image_stats")
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
-RESULT_VERSION = "image-stats-2"
+RESULT_VERSION = "image-stats-3"
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ real ones on the training configurations:
 effect              parameters (bounds)                    fitted on
 ==================  =====================================  =====================================
 ``blur``            ``sigma_px`` (0.05 - 3 px)             edge width; pipeline re-run per value
-``exposure``        ``ev`` (-4 - 4 stops)                  ink and paper levels; pipeline re-run
+``exposure``        ``ev`` (-4 - 4 stops)                  paper level (ink near black is flare
+                                                           and print, not exposure); re-run
 ``sensor_noise``    ``full_well_e``, ``read_noise_e``      photon transfer of the excess noise
                                                            variance (EMVA 1288), closed form
 ``defocus``         ``aperture_radius_m``,                 edge width against tag depth, thin-
@@ -37,7 +38,7 @@ from simgap.pose.image_stats import STAT_INDEX
 #: Image statistics each candidate is fitted on.
 FIT_STATS: dict[str, tuple[str, ...]] = {
     "blur": ("edge_width_x_px", "edge_width_y_px"),
-    "exposure": ("paper_linear", "ink_linear"),
+    "exposure": ("paper_linear",),
     "sensor_noise": ("noise_paper_linear", "noise_ink_linear"),
     "defocus": ("edge_width_x_px", "edge_width_y_px"),
 }

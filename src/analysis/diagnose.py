@@ -36,7 +36,12 @@ from simgap.analysis.fitting import (
     gap_score,
 )
 from simgap.analysis.image_evidence import repeat_median_stats
-from simgap.analysis.selection import SCORED_STATS, ModelSearch, Scored
+from simgap.analysis.selection import (
+    SCORED_STATS,
+    ModelSearch,
+    Scored,
+    bootstrap_reductions,
+)
 from simgap.cache import Cache, content_hash
 from simgap.effects import EFFECTS, make_effect
 from simgap.effects.state import VariantState
@@ -53,13 +58,17 @@ class DiagnoseSettings:
     Attributes
     ----------
     train_fraction : float
-        Share of comparable configurations used to fit; the rest are held out for scoring.
+        Share of the visible configurations used to fit effects.
+    choose_fraction : float
+        Share used to rank, add, simplify and prune effects (the model choice). The rest is the
+        report split: the reduction is measured there only, never on configurations that
+        fitted or chose the model.
     seed : int
         Seed of the split and the subsamples.
     max_sim_items : int
         Configurations used when fitting a candidate by simulation (training subsample).
     max_heldout_items : int
-        Held-out configurations on which all candidates are ranked.
+        Most configurations of the choice split (all candidates are scored on them).
     explained_reduction : float
         Held-out pose-gap reduction below which a significant pose gap is reported as
         unexplained.
@@ -67,7 +76,8 @@ class DiagnoseSettings:
         Re-run the full pipeline with the selected effects to confirm the reduction.
     """
 
-    train_fraction: float = 0.6
+    train_fraction: float = 0.5
+    choose_fraction: float = 0.25
     seed: int = 0
     max_sim_items: int = 40
     max_heldout_items: int = 80
@@ -215,10 +225,27 @@ class SimRunner:
         return self.rig.eyepoints_from_tags(items.tag, items.p, items.theta)[:, 1, 3]
 
 
-def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def split_items(
+    n: int, train_fraction: float, choose_fraction: float, seed: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Disjoint random fit / choose / report index sets of ``n`` items (each non-empty if n >= 3).
+
+    Parameters
+    ----------
+    n : int
+        Number of items.
+    train_fraction, choose_fraction : float
+        Shares of the fit and choice splits; the report split takes the rest.
+    seed : int
+        Seed of the permutation.
+    """
     order = np.random.default_rng(seed).permutation(n)
-    k = min(max(int(round(fraction * n)), 1), n - 1) if n > 1 else n
-    return np.sort(order[:k]), np.sort(order[k:])
+    if n < 3:
+        return np.sort(order), np.sort(order), np.sort(order)
+    k_fit = min(max(int(round(train_fraction * n)), 1), n - 2)
+    k_choose = min(max(int(round(choose_fraction * n)), 1), n - k_fit - 1)
+    cut = k_fit + k_choose
+    return np.sort(order[:k_fit]), np.sort(order[k_fit:cut]), np.sort(order[cut:])
 
 
 def _subsample(index: np.ndarray, k: int, seed: int) -> np.ndarray:
@@ -259,9 +286,11 @@ class Diagnosis:
         self.runner = SimRunner(self.exp, cache_dir)
         self.base = self.exp.variant_states()[0][1]
         self.rig = self.exp.rig_model
-        train, held = _split(len(self.items), settings.train_fraction, settings.seed)
-        self.train = train
-        self.held = _subsample(held, settings.max_heldout_items, settings.seed)
+        train, choose, report = split_items(
+            len(self.items), settings.train_fraction, settings.choose_fraction, settings.seed
+        )
+        self.train, self.report = train, report
+        self.held = _subsample(choose, settings.max_heldout_items, settings.seed)
         self.sim_train = _subsample(train, settings.max_sim_items, settings.seed)
         self.where = gapmod.axis_summary(self.field)
         #: axes where the gap is significant: the held-out gap is scored on them
@@ -282,11 +311,11 @@ class Diagnosis:
     # ------------------------------------------------------------------ how far
 
     def confirm(self, chosen: Scored) -> dict[str, Any]:
-        """Re-run the pipeline (re-render) with all selected effects; held-out gap after."""
+        """Re-run the pipeline (re-render) with all selected effects; report-split gap after."""
         state = self.base
         for _, fit in chosen.fits:
             state = make_effect(fit.effect, fit.params).apply(state)
-        h = self.items.subset(self.held)
+        h = self.items.subset(self.report)
         t0 = time.perf_counter()
         pred = self.runner(state, h)
         return {
@@ -379,10 +408,18 @@ def diagnose(
         "unexplained": bool(significant and left),
         "unexplained_evidence": left,
         "where": _jsonable(where),
-        "split": {"train": int(len(d.train)), "heldout": int(len(d.held)), "seed": settings.seed},
+        "split": {
+            "train": int(len(d.train)),
+            "heldout": int(len(d.held)),
+            "report": int(len(d.report)),
+            "seed": settings.seed,
+        },
     }
     if chosen is not None and explained:
         weight = d.search.contributions(chosen)
+        projection = chosen.projection[:2] if chosen.projection else None
+        reported = d.search.score(chosen.fits, projection, d.report)
+        interval = bootstrap_reductions(reported, d.axes, seed=settings.seed)
         result["combined"] = {
             "effects": [
                 {
@@ -394,25 +431,37 @@ def diagnose(
                 for _, fit in chosen.fits
             ],
             "n_params": chosen.n_params,
-            "heldout_gap_before": chosen.before,
-            "heldout_gap_after": chosen.after,
-            "reduction": chosen.reduction,
-            "heldout_corner_gap_before_px": chosen.corner_before,
-            "heldout_corner_gap_after_px": chosen.corner_after,
-            "heldout_evidence_before": chosen.evidence_before,
-            "heldout_evidence_after": chosen.evidence_after,
-            "evidence_reduction": chosen.evidence_reduction,
+            "measured_on": "report split: configurations that neither fitted nor chose the model",
+            "configurations": len(d.report),
+            "heldout_gap_before": reported.before,
+            "heldout_gap_after": reported.after,
+            "reduction": reported.reduction,
+            "reduction_interval_90": interval["pose_reduction"],
+            "heldout_corner_gap_before_px": reported.corner_before,
+            "heldout_corner_gap_after_px": reported.corner_after,
+            "heldout_evidence_before": reported.evidence_before,
+            "heldout_evidence_after": reported.evidence_after,
+            "evidence_reduction": reported.evidence_reduction,
+            "evidence_reduction_interval_90": interval["evidence_reduction"],
             "heldout_gap_before_per_axis": dict(
-                zip(AXES, map(float, chosen.before_axes), strict=True)
+                zip(AXES, map(float, reported.before_axes), strict=True)
             ),
             "heldout_gap_after_per_axis": dict(
-                zip(AXES, map(float, chosen.after_axes), strict=True)
+                zip(AXES, map(float, reported.after_axes), strict=True)
             ),
+            "choice": {
+                "configurations": len(d.held),
+                "heldout_evidence_before": chosen.evidence_before,
+                "heldout_evidence_after": chosen.evidence_after,
+                "heldout_gap_after": chosen.after,
+            },
             "equivalent_models": d.search.alternatives(chosen),
         }
         if settings.confirm:
             conf = d.confirm(chosen)
-            conf["reduction"] = 1.0 - conf["heldout_gap_after"] / chosen.before
+            conf["reduction"] = (
+                1.0 - conf["heldout_gap_after"] / reported.before if reported.before > 0 else 0.0
+            )
             result["confirmed"] = conf
     result["seconds"] = time.perf_counter() - t0
     return result, d

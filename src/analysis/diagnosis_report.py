@@ -206,8 +206,15 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
         lines += [
             "## How far it shrinks",
             "",
-            f"Held-out gap {c['heldout_gap_before']:.2f} -> {c['heldout_gap_after']:.2f} "
-            f"({c['reduction']:.0%} reduction) with the fitted effects (fast model).",
+            f"Measured on the report split ({c['configurations']} configurations that neither "
+            "fitted nor chose the model): pose gap "
+            f"{c['heldout_gap_before']:.2f} -> {c['heldout_gap_after']:.2f} "
+            f"({c['reduction']:.0%} reduction, 90 % bootstrap interval "
+            f"{c['reduction_interval_90'][0]:.0%} to {c['reduction_interval_90'][1]:.0%}); all "
+            f"evidence {c['heldout_evidence_before']:.2f} -> {c['heldout_evidence_after']:.2f} "
+            f"({c['evidence_reduction']:.0%}, interval "
+            f"{c['evidence_reduction_interval_90'][0]:.0%} to "
+            f"{c['evidence_reduction_interval_90'][1]:.0%}), with the fitted effects (fast model).",
         ]
         if "confirmed" in result:
             f = result["confirmed"]

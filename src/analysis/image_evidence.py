@@ -8,6 +8,7 @@ put against the tag's distance and view angle, both computed from the dataset's 
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -15,6 +16,8 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
+
+from simgap.pose.image_stats import STAT_NAMES
 
 #: Statistics shown in the figures (the others are kept in the dataset and result.json).
 PLOTTED_STATS: tuple[str, ...] = (
@@ -53,9 +56,16 @@ def tag_distance_and_view_angle(ds: xr.Dataset) -> tuple[xr.DataArray, xr.DataAr
 
 
 def repeat_median_stats(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
-    """Image statistics of one variant, the median over repeats (tag, p, theta, stat)."""
+    """Image statistics of one variant, the median over repeats (tag, p, theta, stat).
+
+    The ``stat`` axis is that of :data:`simgap.pose.image_stats.STAT_NAMES` (statistics a
+    dataset written by another simgap version lacks are NaN).
+    """
     stats = ds.image_stats.sel(variant=variant) if variant else ds.image_stats.isel(variant=0)
-    return stats.median("repeat", skipna=True)
+    with warnings.catch_warnings():  # tags never measured are all-NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        median = stats.median("repeat", skipna=True)
+    return median.reindex(stat=list(STAT_NAMES))
 
 
 def plot_image_stats(

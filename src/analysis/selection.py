@@ -67,21 +67,35 @@ class Scored:
     #: held-out detection mismatch before / after (in units of DETECTION_UNIT)
     detection_before: float = 0.0
     detection_after: float = 0.0
+    #: the scored items and the model's predictions for them: corners (N, 4, 2) px, image
+    #: statistics (N, S), detection rate (N,)
+    items: Items | None = None
+    corners_pred: np.ndarray | None = None
+    stats_pred: np.ndarray | None = None
+    detected_pred: np.ndarray | None = None
 
     @property
     def channels_after(self) -> np.ndarray:
         """Held-out misfit per evidence channel, in its units.
 
-        Corners (:data:`CORNER_UNIT_PX`), detection (:data:`DETECTION_UNIT`), then each image
-        statistic (floors).
+        Corners (:data:`CORNER_UNIT_PX`), pose over all axes (:func:`gap_score`, noise or
+        practical floor), detection (:data:`DETECTION_UNIT`), then each image statistic (floors).
         """
-        head = [_finite(self.corner_after) / CORNER_UNIT_PX, self.detection_after]
+        head = [
+            _finite(self.corner_after) / CORNER_UNIT_PX,
+            _finite(self.after_all),
+            self.detection_after,
+        ]
         return np.concatenate([head, self.image_after])
 
     @property
     def channels_before(self) -> np.ndarray:
         """Held-out misfit per evidence channel without the model's effects."""
-        head = [_finite(self.corner_before) / CORNER_UNIT_PX, self.detection_before]
+        head = [
+            _finite(self.corner_before) / CORNER_UNIT_PX,
+            _finite(self.before_all),
+            self.detection_before,
+        ]
         return np.concatenate([head, self.image_before])
 
     @property
@@ -285,7 +299,7 @@ class ModelSearch:
         return tuple(proj) + tuple(c.effect for c in model if c.effect not in proj)
 
     def evaluate(self, model: tuple) -> Scored:
-        """Fit a model and score it on the held-out configurations (memoised).
+        """Fit a model on the training items and score it on the held-out ones (memoised).
 
         Simulation (appearance) effects are fitted first, each on the image evidence of the
         training subsample; their change of the detected corners is then added to the simulated
@@ -298,50 +312,82 @@ class ModelSearch:
         key = self._key(model)
         if key in self._evaluated:
             return self._evaluated[key]
-        rig, base, runner, items = self.rig, self.base, self.runner, self.items
-        tr, st, h = (items.subset(i) for i in (self.train, self.sim_train, self.held))
-        off_h = np.zeros((len(h), 6))
-        corner_tr, corner_h = np.zeros((len(tr), 4, 2)), np.zeros((len(h), 4, 2))
-        has_evidence = h.sim_stats is not None and h.real_stats is not None
-        stats_h = np.zeros_like(h.sim_stats) if has_evidence else None
-        det_h = np.zeros(len(h))
+        rig, base, runner = self.rig, self.base, self.runner
+        tr, st = self.items.subset(self.train), self.items.subset(self.sim_train)
         fits: list[tuple[Any, Fit]] = []
-        simulation_deltas: dict[str, np.ndarray] = {}
         for cand in model:
-            if isinstance(cand, ProjectionCandidate):
-                continue
-            fit = cand.fit(runner, base, st, st.real_err, self.axes)
-            simulation_deltas[cand.effect] = np.nan_to_num(cand.delta(runner, base, fit, h))
-            off_h += simulation_deltas[cand.effect]
-            state = make_effect(cand.effect, fit.params).apply(base)
-            corner_tr += np.nan_to_num(runner.corners(state, tr) - runner.corners(base, tr))
-            corner_h += np.nan_to_num(runner.corners(state, h) - runner.corners(base, h))
-            if has_evidence:
-                change = np.nan_to_num(runner.stats(state, h) - runner.stats(base, h))
-                if not getattr(EFFECTS[cand.effect], "stochastic", False):
-                    # a deterministic effect does not change the camera's noise; the change of
-                    # the simulation's noise statistics is its render noise being smoothed
-                    change[:, NOISE_STATS] = 0.0
-                stats_h += change
-                det_h += np.nan_to_num(runner.detected(state, h) - runner.detected(base, h))
-            fits.append((cand, fit))
+            if not isinstance(cand, ProjectionCandidate):
+                fits.append((cand, cand.fit(runner, base, st, st.real_err, self.axes)))
         proj = sorted(
             (c for c in model if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
         )
         projection = None
         if proj:
             joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
-            tr_shifted = dataclasses.replace(tr, sim_corners=tr.sim_corners + corner_tr)
+            shift_tr, _, _ = self._simulation_changes(fits, tr)
+            fit = joint.fit(
+                rig, base, dataclasses.replace(tr, sim_corners=tr.sim_corners + shift_tr)
+            )
+            projection = (joint, fit)
+            members = joint.member_fits(fit) if len(proj) > 1 else [fit]
+            fits = list(zip(proj, members, strict=True)) + fits
+        scored = self.score(fits, projection, self.held)
+        self._evaluated[key] = scored
+        return scored
+
+    def _simulation_changes(
+        self, fits: list[tuple[Any, Fit]], items: Items
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Changes the simulation effects of ``fits`` make on ``items``, summed over effects.
+
+        Returns the change of detected corners (N, 4, 2) (px), of image statistics (N, S) (None
+        without statistics) and of the detection rate (N,).
+        """
+        runner, base = self.runner, self.base
+        corners = np.zeros((len(items), 4, 2))
+        has_stats = items.sim_stats is not None
+        stats = np.zeros_like(items.sim_stats) if has_stats else None
+        detected = np.zeros(len(items))
+        for cand, fit in fits:
+            if isinstance(cand, ProjectionCandidate):
+                continue
+            state = make_effect(cand.effect, fit.params).apply(base)
+            corners += np.nan_to_num(runner.corners(state, items) - runner.corners(base, items))
+            if has_stats:
+                change = np.nan_to_num(runner.stats(state, items) - runner.stats(base, items))
+                if not getattr(EFFECTS[cand.effect], "stochastic", False):
+                    # a deterministic effect does not change the camera's noise; the change of
+                    # the simulation's noise statistics is its render noise being smoothed
+                    change[:, NOISE_STATS] = 0.0
+                stats += change
+                detected += np.nan_to_num(
+                    runner.detected(state, items) - runner.detected(base, items)
+                )
+        return corners, stats, detected
+
+    def score(
+        self, fits: list[tuple[Any, Fit]], projection: tuple[Any, Fit] | None, index: np.ndarray
+    ) -> Scored:
+        """Score fitted effects (no refit) on the items at ``index``."""
+        rig, base, runner = self.rig, self.base, self.runner
+        h = self.items.subset(index)
+        off_h = np.zeros((len(h), 6))
+        simulation_deltas: dict[str, np.ndarray] = {}
+        for cand, fit in fits:
+            if not isinstance(cand, ProjectionCandidate):
+                simulation_deltas[cand.effect] = np.nan_to_num(cand.delta(runner, base, fit, h))
+                off_h += simulation_deltas[cand.effect]
+        corner_h, stats_h, det_h = self._simulation_changes(fits, h)
+        proj_record = None
+        if projection is not None:
+            joint, fit = projection
             h_shifted = dataclasses.replace(h, sim_corners=h.sim_corners + corner_h)
-            fit = joint.fit(rig, base, tr_shifted)
-            projection = (joint, fit, h_shifted)
+            proj_record = (joint, fit, h_shifted)
             off_h += np.nan_to_num(joint.delta(rig, base, fit, h_shifted))
-            corner_h += np.nan_to_num(joint.corner_shift(rig, base, fit.extra["x"], h))
-            fits = list(
-                zip(proj, joint.member_fits(fit) if len(proj) > 1 else [fit], strict=True)
-            ) + fits
+            corner_h = corner_h + np.nan_to_num(joint.corner_shift(rig, base, fit.extra["x"], h))
         pred = h.sim_err + off_h
-        scored = Scored(
+        has_evidence = h.real_stats is not None and stats_h is not None
+        return Scored(
             fits,
             gap_score(h.real_err, h.sim_err, h.scale, self.axes),
             gap_score(h.real_err, pred, h.scale, self.axes),
@@ -352,7 +398,7 @@ class ModelSearch:
             corner_score(h.real_corners, h.sim_corners),
             corner_score(h.real_corners, h.sim_corners + corner_h),
             pred,
-            projection,
+            proj_record,
             simulation_deltas,
             image_misfits(h.real_stats, h.sim_stats),
             image_misfits(h.real_stats, h.sim_stats + stats_h if has_evidence else None),
@@ -360,9 +406,11 @@ class ModelSearch:
             detection_score(h.real_detected, np.clip(h.sim_detected + det_h, 0.0, 1.0))
             if has_evidence
             else 0.0,
+            h,
+            h.sim_corners + corner_h,
+            h.sim_stats + stats_h if has_evidence else None,
+            np.clip(h.sim_detected + det_h, 0.0, 1.0) if has_evidence else None,
         )
-        self._evaluated[key] = scored
-        return scored
 
     def rank(self, candidates, significant: bool) -> list[Scored]:
         """Fit and score every candidate alone; projection ones only when no gap is significant.
@@ -549,3 +597,43 @@ class ModelSearch:
             }
             for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
         ]
+
+
+def bootstrap_reductions(
+    scored: Scored, axes: np.ndarray, resamples: int = 1000, seed: int = 0, level: float = 0.9
+) -> dict[str, list[float]]:
+    """Bootstrap intervals of a scored model's pose-gap and evidence reductions.
+
+    The scored items are resampled with replacement ``resamples`` times; each time the pose gap
+    (:func:`gap_score` on ``axes``) and the combined evidence misfit are recomputed before and
+    after. Returns the central ``level`` interval of each relative reduction.
+    """
+    h = scored.items
+    rng = np.random.default_rng(seed)
+    pose, evidence = [], []
+    for _ in range(resamples):
+        i = rng.integers(0, len(h), len(h))
+        before = gap_score(h.real_err[i], h.sim_err[i], h.scale, axes)
+        after = gap_score(h.real_err[i], scored.prediction[i], h.scale, axes)
+        pose.append(1.0 - after / before if before > 0 else 0.0)
+        channels = []
+        for pred_c, pred_s, pred_d in (
+            (h.sim_corners, h.sim_stats, h.sim_detected),
+            (scored.corners_pred, scored.stats_pred, scored.detected_pred),
+        ):
+            pred_e = h.sim_err if pred_c is h.sim_corners else scored.prediction
+            head = [
+                _finite(corner_score(h.real_corners[i], pred_c[i])) / CORNER_UNIT_PX,
+                _finite(gap_score(h.real_err[i], pred_e[i], h.scale)),
+            ]
+            if pred_s is not None and h.real_stats is not None:
+                head.append(detection_score(h.real_detected[i], pred_d[i]))
+                head += list(image_misfits(h.real_stats[i], pred_s[i]))
+            channels.append(_rss(np.asarray(head)))
+        evidence.append(1.0 - channels[1] / channels[0] if channels[0] > 0 else 0.0)
+    q = [(1 - level) / 2 * 100, (1 + level) / 2 * 100]
+    return {
+        "pose_reduction": [float(v) for v in np.nanpercentile(pose, q)],
+        "evidence_reduction": [float(v) for v in np.nanpercentile(evidence, q)],
+    }
+

@@ -24,9 +24,11 @@ Statistics (see :data:`STATS` for names, units and meanings):
 - contrast: Michelson contrast of the linear levels;
 - edge width: the 10-90 % rise of an edge-spread function fitted across the marker's outer border
   (the slanted-edge idea of ISO 12233: pixels at many sub-pixel distances from a straight edge
-  sample the edge-spread function finely). The model is ``ink + (paper - ink) * Phi((d - d0) / s)``
-  on linearised values, fitted by robust least squares; the 10-90 % width is ``2 * 1.2816 * s``
-  (px). All four sides, and the left/right (``x``) and top/bottom (``y``) pairs apart, which
+  sample the edge-spread function finely). The model is ``ink + (paper - ink) E(d - d0; s)``
+  on linearised values, with ``E`` a Gaussian PSF of ``s`` px seen through square pixels
+  (:func:`pixel_esf`), fitted by robust least squares; the width is the 10-90 % rise of
+  ``E`` (px; 0.8 px for a perfectly sharp edge, ``~2.563 sqrt(s^2 + 1/12)`` for a blurred one).
+  All four sides, and the left/right (``x``) and top/bottom (``y``) pairs apart, which
   tells a directional blur (motion) from an isotropic one. Only from detected corners (expected
   corners can be off by pixels);
 - noise: standard deviation of flat ink and paper pixels from differences of horizontal
@@ -45,7 +47,7 @@ from dataclasses import dataclass
 import colour
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import brentq, least_squares
 from scipy.special import ndtr
 
 #: ``(name, units, long name)`` of every statistic, in storage order.
@@ -82,6 +84,8 @@ ESF_MAX_DISTANCE_PX = 4.0
 ESF_MAX_CELL_SHARE = 0.9
 #: Share of each side (about its middle) used for the edge-spread fit: corners are left out.
 ESF_SIDE_SHARE = 0.7
+#: Smallest PSF sigma fitted to an edge (px): sharper edges are a 1 px pixel ramp anyway.
+ESF_MIN_SIGMA_PX = 0.02
 #: Fewest pixels a region needs for its statistic (else NaN).
 MIN_PIXELS = 12
 
@@ -156,26 +160,49 @@ def _edge_samples(
     return out
 
 
+def pixel_esf(d: np.ndarray, sigma: float) -> np.ndarray:
+    """Edge-spread function of a Gaussian PSF (``sigma`` px) seen through square pixels.
+
+    The value of a pixel whose centre is at signed distance ``d`` (px) from a unit step along a
+    pixel axis: ``Phi(u / sigma)`` averaged over ``u`` in ``[d - 1/2, d + 1/2]``, in closed form
+    ``sigma [G((d + 1/2) / sigma) - G((d - 1/2) / sigma)]`` with ``G(t) = t Phi(t) + phi(t)``.
+    Modelling the pixel aperture makes the fitted PSF independent of where the edge falls within
+    a pixel (the tag edges here are nearly aligned with the pixel grid, so the sub-pixel phases
+    that a slanted edge would spread out are few).
+    """
+
+    def g(t: np.ndarray) -> np.ndarray:
+        return t * ndtr(t) + np.exp(-0.5 * t * t) / np.sqrt(2 * np.pi)
+
+    return sigma * (g((d + 0.5) / sigma) - g((d - 0.5) / sigma))
+
+
+def esf_width_10_90(sigma: float) -> float:
+    """10-90 % rise (px) of :func:`pixel_esf` for a PSF of ``sigma`` px (0.8 px when sharp)."""
+    lo = brentq(lambda d: pixel_esf(np.array([d]), sigma)[0] - 0.1, -sigma * 8 - 1, 0.0)
+    return -2.0 * lo
+
+
 def _esf_width(d: np.ndarray, v: np.ndarray, ink: float, paper: float) -> float:
-    """10-90 % width (px) of ``ink + (paper - ink) Phi((d - d0) / s)`` fitted to (d, v)."""
+    """10-90 % width (px) of ``ink + (paper - ink) pixel_esf(d - d0, s)`` fitted to (d, v)."""
     if d.size < 2 * MIN_PIXELS or not paper > ink:
         return float("nan")
 
     def residual(x: np.ndarray) -> np.ndarray:
-        lo, hi, d0, s = x
-        return lo + (hi - lo) * ndtr((d - d0) / s) - v
+        lo, hi, d0, sigma = x
+        return lo + (hi - lo) * pixel_esf(d - d0, sigma) - v
 
     try:
         sol = least_squares(
             residual,
             np.array([ink, paper, 0.0, 0.5]),
-            bounds=([-1.0, -1.0, -2.0, 0.05], [2.0, 2.0, 2.0, 5.0]),
+            bounds=([-1.0, -1.0, -2.0, ESF_MIN_SIGMA_PX], [2.0, 2.0, 2.0, 5.0]),
             loss="soft_l1",
             f_scale=max(0.05 * (paper - ink), 1e-4),
         )
     except ValueError:
         return float("nan")
-    return float(ESF_10_90_PER_SIGMA * sol.x[3]) if sol.success else float("nan")
+    return esf_width_10_90(float(sol.x[3])) if sol.success else float("nan")
 
 
 def _map(norm: np.ndarray, corners: np.ndarray) -> np.ndarray:
