@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from simgap.atomic import atomic_write
 from simgap.config import to_mapping
 
 #: Bump when a change to the code changes renders or results for the same settings.
@@ -68,15 +68,14 @@ class Cache:
 
     def save_arrays(self, kind: str, key: str, arrays: dict[str, np.ndarray]) -> None:
         """Store arrays as ``.npz``, atomically."""
-        path = self.path(kind, key, ".npz")
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez(tmp, **arrays)
-        os.replace(tmp, path)
+
+        def write(tmp: Path) -> None:
+            with open(tmp, "xb") as handle:  # a handle: np.savez would append .npz to a name
+                np.savez(handle, **arrays)
+
+        atomic_write(self.path(kind, key, ".npz"), write)
 
 
 def write_text(path: Path, text: str) -> None:
     """Write a text file atomically."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    atomic_write(Path(path), text)

@@ -29,7 +29,6 @@ import csv
 import io
 import json
 import math
-import os
 import platform
 import warnings
 from collections.abc import Iterable, Sequence
@@ -41,6 +40,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
+from simgap.atomic import atomic_write
 from simgap.config import ConfigError, to_mapping
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
@@ -682,13 +682,8 @@ def _version() -> str:
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
-    """Write a file atomically (temporary file + rename)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    """Write a file atomically (:func:`simgap.atomic.atomic_write`)."""
+    atomic_write(path, data)
 
 
 def image_name(p: int, theta: float, repeat: int = 0, ext: str = "png") -> str:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from simgap.atomic import atomic_write
 from simgap.experiment import Configurations, Experiment, VariantSpec
 
 Sampler = Callable[[np.random.Generator], dict[str, Any]]
@@ -208,7 +209,7 @@ def run_validation(
         },
         out_dir / "validation.json",
     )
-    (out_dir / "validation.md").write_text(validation_markdown(summary, trials))
+    atomic_write(out_dir / "validation.md", validation_markdown(summary, trials))
     return summary
 
 

@@ -6,12 +6,13 @@ Build it with :func:`build_dataset`, write it with :func:`write_netcdf` (atomic)
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
+
+from simgap.atomic import atomic_write
 
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 ERROR_UNITS = "m (tx, ty, tz); rad (rx, ry, rz)"
@@ -134,13 +135,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     """Write ``ds`` as netCDF4 atomically (temporary file + rename); return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4"))
 
 
 def read_netcdf(path: str | Path) -> xr.Dataset:

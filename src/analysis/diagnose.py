@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import time
 import warnings
 from dataclasses import dataclass
@@ -34,6 +33,7 @@ from simgap.analysis.fitting import (
     gap_score,
 )
 from simgap.analysis.selection import ModelSearch, Scored
+from simgap.atomic import atomic_write
 from simgap.cache import Cache, content_hash
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
@@ -333,7 +333,4 @@ def write_json(result: dict[str, Any], path: Path) -> Path:
     """Write ``result.json`` atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(result), indent=2))
-    os.replace(tmp, path)
-    return path
+    return atomic_write(path, json.dumps(_jsonable(result), indent=2))

@@ -7,13 +7,14 @@ rendering) so that a run served from cache gives bit-identical frames.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import colour
 import cv2
 import numpy as np
 import OpenEXR
+
+from simgap.atomic import atomic_write
 
 
 def quantise_half(hdr: np.ndarray) -> np.ndarray:
@@ -23,12 +24,13 @@ def quantise_half(hdr: np.ndarray) -> np.ndarray:
 
 def write_exr(path: Path, hdr: np.ndarray) -> None:
     """Write linear RGB (H, W, 3) as a half-float, ZIP-compressed EXR, atomically."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp.exr")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, {"RGB": np.ascontiguousarray(hdr, dtype=np.float16)}) as f:
-        f.write(str(tmp))
-    os.replace(tmp, path)
+
+    def write(tmp: Path) -> None:
+        with OpenEXR.File(header, {"RGB": np.ascontiguousarray(hdr, dtype=np.float16)}) as f:
+            f.write(str(tmp))
+
+    atomic_write(Path(path), write)
 
 
 def read_exr(path: Path) -> np.ndarray:
@@ -62,12 +64,12 @@ def paste(crop: np.ndarray, offset: tuple[int, int], size: tuple[int, int]) -> n
 def write_png(path: Path, rgb8: np.ndarray) -> None:
     """Write an 8-bit RGB frame as PNG, atomically."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp.png")
-    if not cv2.imwrite(
-        str(tmp), cv2.cvtColor(rgb8, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
-    ):
+    ok, buf = cv2.imencode(
+        ".png", cv2.cvtColor(rgb8, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
+    )
+    if not ok:
         raise OSError(f"could not write {path}")
-    os.replace(tmp, path)
+    atomic_write(path, buf.tobytes())
 
 
 def to_gray(rgb8: np.ndarray) -> np.ndarray:
