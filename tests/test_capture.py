@@ -220,7 +220,7 @@ def test_write_jpeg(tmp_path, sample_rgb, rig, sample):
 
 
 def test_write_capture_rejects_bad_frames(tmp_path):
-    cal = CameraModel(width=64, height=48)
+    cal = CameraModel(width=64, height=48, fx=60.0, fy=60.0, cx=31.5, cy=23.5)
     with pytest.raises(ValueError, match="expected uint8 48x64"):
         write_capture(tmp_path / "a", [(0, 0.0, 0, np.zeros((48, 64, 3), np.float32))], cal)
     frame = np.zeros((48, 64, 3), np.uint8)

@@ -29,6 +29,16 @@ def empty_results(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
     }
 
 
+def result_nbytes(n_configurations: int) -> int:
+    """Bytes of the :func:`empty_results` arrays for ``n_configurations`` entries.
+
+    An entry is one (variant, repeat, tag, p, theta): 169 B (flag, two poses, reprojection error,
+    four corners).
+    """
+    per = sum(a.nbytes for a in empty_results((1,)).values())
+    return int(n_configurations) * per
+
+
 def build_dataset(
     tags: tuple[int, ...],
     ps: tuple[int, ...],
