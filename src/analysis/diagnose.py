@@ -26,6 +26,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
+from simgap.analysis.dataset import check_dataset
 from simgap.analysis.fitting import (
     Items,
     default_candidates,
@@ -271,7 +272,14 @@ def diagnose(
     candidates=None,
     scheduler: str | None = None,
 ) -> tuple[dict[str, Any], Diagnosis]:
-    """Run the whole diagnosis; return the ``result.json`` mapping and the diagnosis state."""
+    """Run the whole diagnosis; return the ``result.json`` mapping and the diagnosis state.
+
+    Raises
+    ------
+    simgap.analysis.dataset.DatasetError
+        Before any simulation, when ``real`` does not follow the result dataset contract.
+    """
+    check_dataset(real, required=("error", "detected", "visible", "corners"))
     t0 = time.perf_counter()
     d = Diagnosis(real, exp, cache_dir, settings, scheduler)
     axes = d.where
