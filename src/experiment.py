@@ -286,7 +286,7 @@ class Experiment:
         """
         base = self.base_state()
         for name, params in self.effects.items():
-            base = make_effect(name, params, where=f"{self.source}: effects.").apply(base)
+            base = _apply_effect(name, params, base, f"{self.source}: effects.")
         out = []
         listed = {v.name: i for i, v in enumerate(self.variants)}
         for spec in self.variant_specs():
@@ -297,7 +297,7 @@ class Experiment:
             )
             state = base
             for name, params in spec.effects.items():
-                state = make_effect(name, params, where=where).apply(state)
+                state = _apply_effect(name, params, state, where)
             out.append((spec.name, state))
         return out
 
@@ -359,6 +359,17 @@ class Experiment:
         data = to_mapping(self)
         data.pop("source")
         return yaml.safe_dump(data, sort_keys=False)
+
+
+def _apply_effect(name: str, params: Any, state: VariantState, where: str) -> VariantState:
+    """Apply one effect; a state it makes invalid (e.g. an implausible camera) is a ConfigError."""
+    effect = make_effect(name, params, where=where)
+    try:
+        return effect.apply(state)
+    except ConfigError:
+        raise
+    except ValueError as exc:
+        raise ConfigError(f"{where}{name}: {exc}") from exc
 
 
 def _read_chain(path: Path, seen: tuple[Path, ...] = ()) -> list[tuple[Path, dict[str, Any]]]:
