@@ -38,6 +38,7 @@ def atomic_write(
     content: bytes | str | Callable[[Path], object],
     *,
     fsync: bool = False,
+    exclusive: bool = False,
 ) -> Path:
     """Write ``path`` atomically and return it.
 
@@ -51,9 +52,14 @@ def atomic_write(
     fsync : bool
         Flush the temporary file to disk before the rename (durability across power loss; costs
         a disk sync, so caches leave it off).
+    exclusive : bool
+        Publish only if ``path`` does not exist yet (first writer wins: a hard link, which is
+        atomic and fails on an existing target), instead of replacing it.
 
     Raises
     ------
+    FileExistsError
+        With ``exclusive``, when another writer published ``path`` first (nothing is changed).
     OSError
         If the file cannot be written; the target is then unchanged and no temporary file is
         left behind.
@@ -72,7 +78,20 @@ def atomic_write(
         if fsync:
             with open(tmp, "rb+") as handle:
                 os.fsync(handle.fileno())
-        os.replace(tmp, path)
+        if exclusive:
+            _link_or_replace(tmp, path)
+        else:
+            os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+def _link_or_replace(tmp: Path, path: Path) -> None:
+    """Hard-link ``tmp`` to ``path`` (FileExistsError if it exists); rename where links fail."""
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        raise
+    except OSError:  # a file system without hard links: last writer wins instead
+        os.replace(tmp, path)

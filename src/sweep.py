@@ -186,7 +186,14 @@ class VariantPipeline:
         scene.set_pose(p, theta)
         seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
         hdr = imaging.quantise_half(scene.render(offset, seed))
-        imaging.write_exr(path, hdr)
+        try:
+            imaging.write_exr(path, hdr, exclusive=True)
+        except FileExistsError:  # another process published this render first: share its copy
+            shared = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+            if shared is None:  # it was corrupt (and is now moved aside): publish ours
+                imaging.write_exr(path, hdr)
+            else:
+                hdr = shared
         return hdr, offset
 
     def frame_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:

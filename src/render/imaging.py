@@ -22,15 +22,19 @@ def quantise_half(hdr: np.ndarray) -> np.ndarray:
     return np.asarray(hdr, dtype=np.float16).astype(np.float32)
 
 
-def write_exr(path: Path, hdr: np.ndarray) -> None:
-    """Write linear RGB (H, W, 3) as a half-float, ZIP-compressed EXR, atomically."""
+def write_exr(path: Path, hdr: np.ndarray, exclusive: bool = False) -> None:
+    """Write linear RGB (H, W, 3) as a half-float, ZIP-compressed EXR, atomically.
+
+    With ``exclusive``, only when ``path`` does not exist yet (FileExistsError otherwise; see
+    :func:`simgap.atomic.atomic_write`).
+    """
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
 
     def write(tmp: Path) -> None:
         with OpenEXR.File(header, {"RGB": np.ascontiguousarray(hdr, dtype=np.float16)}) as f:
             f.write(str(tmp))
 
-    atomic_write(Path(path), write)
+    atomic_write(Path(path), write, exclusive=exclusive)
 
 
 def read_exr(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
