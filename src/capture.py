@@ -29,7 +29,6 @@ import csv
 import io
 import json
 import math
-import os
 import platform
 import warnings
 from collections.abc import Iterable, Sequence
@@ -41,10 +40,12 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from simgap.config import ConfigError, to_mapping
+from simgap.atomic import atomic_write
+from simgap.config import ConfigError, parse_yaml, read_text, to_mapping
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
-from simgap.rig import CameraModel, Rig, load_rig
+from simgap.render.imaging import png_bit_depth, truncation
+from simgap.rig import MAX_IMAGE_SIDE_PX, CameraModel, Rig, load_rig
 
 CALIBRATION_FILE = "camera.yaml"
 MANIFEST_FILE = "manifest.csv"
@@ -133,8 +134,10 @@ def _numbers(values: Any, where: str, count: int | None = None) -> list[float]:
 def _size(value: Any, where: str) -> int:
     if isinstance(value, float) and value.is_integer():
         value = int(value)
-    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-        raise ConfigError(f"{where}: expected a positive integer (px), got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 < value <= MAX_IMAGE_SIDE_PX:
+        raise ConfigError(
+            f"{where}: expected a positive integer <= {MAX_IMAGE_SIDE_PX} (px), got {value!r}"
+        )
     return value
 
 
@@ -170,7 +173,12 @@ def _camera_model(
             f"(k1, k2, p1, p2, k3; plumb_bob), got {len(dist)} with non-zero k4 and beyond"
         )
     dist = (dist + [0.0] * 5)[:5]
-    return CameraModel(w, h, k[0], k[4], k[2], k[5], tuple(dist))
+    try:  # plausibility relative to the image size (CameraModel's checks)
+        return CameraModel(w, h, k[0], k[4], k[2], k[5], tuple(dist))
+    except ValueError as exc:
+        field = str(exc).split(":", 1)[0]
+        key = "distortion_coefficients.data" if "distortion" in field else "camera_matrix.data"
+        raise ConfigError(f"{where}{key}: {exc}") from None
 
 
 def _matrix_data(node: Any, where: str, shape: tuple[int, int] | None) -> list[float]:
@@ -197,10 +205,7 @@ def _matrix_data(node: Any, where: str, shape: tuple[int, int] | None) -> list[f
 
 def _read_ros(path: Path, text: str, width: int | None, height: int | None) -> CameraModel:
     where = f"{path}: "
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from exc
+    data = parse_yaml(text, str(path))
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a ROS camera_info mapping, got {type(data).__name__}")
     for key in ("camera_matrix", "distortion_coefficients"):
@@ -252,11 +257,22 @@ def _fs_matrix(fs: Any, key: str, where: str, count: int | None) -> list[float]:
 def _read_opencv(path: Path, width: int | None, height: int | None) -> CameraModel:
     import cv2
 
-    where = f"{path}: "
     try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    except cv2.error as exc:
-        raise ConfigError(f"{path}: not a valid OpenCV FileStorage YAML file: {exc}") from exc
+        return _read_opencv_nodes(
+            cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ), path, width, height
+        )
+    except ConfigError:
+        raise
+    except (cv2.error, SystemError, OverflowError, ValueError) as exc:  # truncated: SystemError
+        inner = exc.__cause__ or exc.__context__ or exc  # SystemError wraps OpenCV's error
+        reason = (str(inner).strip().splitlines() or [""])[-1]
+        raise ConfigError(
+            f"{path}: not a valid OpenCV FileStorage YAML file (truncated or malformed: {reason})"
+        ) from exc
+
+
+def _read_opencv_nodes(fs: Any, path: Path, width: int | None, height: int | None) -> CameraModel:
+    where = f"{path}: "
     try:
         if not fs.isOpened():
             raise ConfigError(f"{path}: cannot be opened as an OpenCV FileStorage YAML file")
@@ -312,12 +328,7 @@ def read_calibration(
         distortion model other than ``plumb_bob`` and for a camera matrix with skew.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: calibration file not found")
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read calibration file: {exc}") from exc
+    text = read_text(path, "calibration file")
     if _is_opencv_yaml(text):
         return _read_opencv(path, width, height)
     return _read_ros(path, text, width, height)
@@ -387,12 +398,76 @@ def _parse_int(text: str) -> int | None:
         return int(value) if value.is_integer() else None
 
 
+class _CsvRows:
+    """A ``csv.reader`` whose format errors (e.g. a field over the size limit) are ConfigErrors."""
+
+    def __init__(self, path: Path, reader: Any) -> None:
+        self.path, self.reader = path, reader
+
+    @property
+    def line_num(self) -> int:
+        """Current line of the CSV text (1-based)."""
+        return self.reader.line_num
+
+    def __iter__(self) -> _CsvRows:
+        return self
+
+    def __next__(self) -> list[str]:
+        try:
+            return next(self.reader)
+        except csv.Error as exc:
+            raise ConfigError(
+                f"{self.path}: line {self.reader.line_num}: not valid CSV ({exc})"
+            ) from exc
+
+
+def _image_path(folder: Path, name: str, where: str) -> Path:
+    """The image of a manifest row, confined to the capture folder.
+
+    Raises
+    ------
+    simgap.config.ConfigError
+        For an empty, absolute or ``..`` path, one that resolves outside the folder (through a
+        symbolic link), a missing or unreadable file, or a 16-bit PNG (simgap reads 8-bit frames,
+        DESIGN §3: the scaling of 16-bit data depends on the sensor's bit depth, so it is not
+        guessed; convert the frames to 8 bits first).
+    """
+    if not name:
+        raise ConfigError(f"{where}: image: expected a path, got an empty field")
+    rel = Path(name)
+    if "\x00" in name or rel.is_absolute() or ".." in rel.parts:
+        raise ConfigError(
+            f"{where}: image: expected a path inside the capture folder (relative, without "
+            f"'..'), got {name!r}"
+        )
+    image = folder / rel
+    root = folder.resolve()
+    if not image.resolve().is_relative_to(root):
+        raise ConfigError(
+            f"{where}: image: {name!r} resolves to {image.resolve()}, outside the capture "
+            f"folder {root} (a symbolic link?); expected a file inside the folder"
+        )
+    if not image.is_file():
+        raise ConfigError(f"{where}: image: file not found: {image}")
+    try:
+        with open(image, "rb") as handle:
+            head = handle.read(32)
+    except OSError as exc:
+        raise ConfigError(f"{where}: image: cannot read {image}: {exc.strerror or exc}") from exc
+    if png_bit_depth(head) == 16:
+        raise ConfigError(
+            f"{where}: image: {image} is a 16-bit PNG; expected 8-bit PNG or JPEG frames "
+            "(the scaling to 8 bits depends on the sensor's bit depth: convert the frames first)"
+        )
+    return image
+
+
 def _read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
     try:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read manifest: {exc}") from exc
-    reader = csv.reader(io.StringIO(text))
+    reader = _CsvRows(path, csv.reader(io.StringIO(text)))
     header = next(reader, None)
     if header is None:
         raise ConfigError(
@@ -446,11 +521,7 @@ def _read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
         repeat = _parse_int(rec["repeat"]) if "repeat" in rec else 0
         if repeat is None or repeat < 0:
             raise ConfigError(f"{where}: repeat: expected an integer >= 0, got {rec['repeat']!r}")
-        if not rec["image"]:
-            raise ConfigError(f"{where}: image: expected a path, got an empty field")
-        image = folder / rec["image"]
-        if not image.is_file():
-            raise ConfigError(f"{where}: image: file not found: {image}")
+        image = _image_path(folder, rec["image"], where)
         key = (p, round(theta, 9), repeat)
         if key in seen:
             raise ConfigError(
@@ -465,11 +536,22 @@ def _read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
 
 
 def _read_image(path: Path) -> np.ndarray | None:
-    """An image as 8-bit BGR, or None when it cannot be decoded."""
+    """An image as 8-bit BGR, or None when it cannot be read, is truncated or cannot be decoded.
+
+    Truncation is checked on the bytes (:func:`simgap.render.imaging.truncation`: a PNG must end
+    with its IEND chunk, a JPEG with the end-of-image marker), because decoders return a
+    grey-filled image for a truncated JPEG with only a warning on stderr.
+    """
     import cv2
 
     try:
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        data = path.read_bytes()
+    except OSError:
+        return None
+    if truncation(data) is not None:
+        return None
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
     except cv2.error:
         return None
     return img if img is not None and img.size > 0 else None
@@ -685,13 +767,8 @@ def _version() -> str:
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
-    """Write a file atomically (temporary file + rename)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    """Write a file atomically (:func:`simgap.atomic.atomic_write`)."""
+    atomic_write(path, data)
 
 
 def image_name(p: int, theta: float, repeat: int = 0, ext: str = "png") -> str:

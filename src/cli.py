@@ -1,17 +1,82 @@
 """simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
 
 Commands: run, report, compare, study, ingest, diagnose, validate, effects, assets.
+
+Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
+shows the traceback instead).
 """
 
 from __future__ import annotations
 
+import functools
+import inspect
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+import click
 import typer
 
 from simgap.config import ConfigError
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+_STATE = {"debug": False}
+
+
+def _error_line(exc: BaseException, paths: list[Path]) -> str:
+    """One line for ``exc``, prefixed with the command's input file unless it names a file."""
+    if isinstance(exc, OSError) and exc.filename and exc.strerror:
+        message = f"{exc.filename}: {exc.strerror}"
+    elif isinstance(exc, (ConfigError, ValueError, OSError)):
+        message = str(exc)
+    elif isinstance(exc, MemoryError):
+        message = "out of memory (reduce the experiment's size)"
+    else:
+        message = f"{type(exc).__name__}: {exc} (unexpected; rerun with --debug for the traceback)"
+    if paths and not any(str(p) in message for p in paths):
+        message = f"{paths[0]}: {message}"
+    return " ".join(message.split())
+
+
+def _handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Run a command; any error exits with code 2 and one line (the traceback with --debug)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except Exception as exc:
+            if _STATE["debug"]:
+                raise
+            bound = inspect.signature(func).bind_partial(*args, **kwargs).arguments
+            paths = [v for v in bound.values() if isinstance(v, Path)]
+            _fail(_error_line(exc, paths))
+
+    return wrapper
+
+
+class _App(typer.Typer):
+    """A Typer app whose commands all go through :func:`_handle_errors` (one place)."""
+
+    def command(self, *args: Any, **kwargs: Any) -> Callable[[Callable], Callable]:
+        """Register a command, wrapped by :func:`_handle_errors`."""
+        register = super().command(*args, **kwargs)
+        return lambda func: register(_handle_errors(func))
+
+
+app = _App(add_completion=False, no_args_is_help=True, help=__doc__)
+
+
+@app.callback()
+def main(
+    debug: bool = typer.Option(
+        False, "--debug", help="Show the full traceback of an error instead of one line."
+    ),
+) -> None:
+    """Simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap."""
+    _STATE["debug"] = debug
+
 
 CACHE_HELP = "Cache folder for renders and results (default: $SIMGAP_CACHE or ~/.cache/simgap)."
 SCHEDULER_HELP = (
@@ -26,13 +91,10 @@ def _fail(message: str) -> None:
 
 
 def _experiment(path: Path):
-    """Load an experiment file, or exit with code 2 and the message naming file and key."""
+    """Load an experiment file (errors name the file and key)."""
     from simgap.experiment import load_experiment
 
-    try:
-        return load_experiment(path)
-    except ConfigError as exc:
-        _fail(str(exc))
+    return load_experiment(path)
 
 
 @app.command()
@@ -49,10 +111,7 @@ def run(
     from simgap.sweep import run_experiment
 
     exp = _experiment(experiment)
-    try:
-        ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
-    except ConfigError as exc:
-        _fail(f"{experiment}: {exc}")
+    ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
     write_netcdf(ds, output)
     vis = ds.visible.values
     det = ds.detected.values[0, 0]
@@ -68,23 +127,15 @@ def report(
     output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
 ) -> None:
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
-    from simgap.analysis.dataset import read_netcdf
+    from simgap.analysis.dataset import check_dataset, read_netcdf
     from simgap.analysis.report import write_report
 
-    try:
-        ds = read_netcdf(result)
-    except FileNotFoundError as exc:
-        _fail(str(exc))
-    except (OSError, ValueError) as exc:
-        _fail(f"{result}: cannot read result dataset: {exc}")
-    try:
-        paths = write_report(ds, output)
-        if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
-            from simgap.analysis.compare import write_comparison
+    ds = check_dataset(read_netcdf(result), result)
+    paths = write_report(ds, output)
+    if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
+        from simgap.analysis.compare import write_comparison
 
-            paths += write_comparison(ds, output)
-    except ValueError as exc:
-        _fail(f"{result}: {exc}")
+        paths += write_comparison(ds, output)
     for p in paths:
         typer.echo(str(p))
 
@@ -99,18 +150,10 @@ def compare(
 ) -> None:
     """Compare each variant of a result dataset with the reference variant."""
     from simgap.analysis.compare import write_comparison
-    from simgap.analysis.dataset import read_netcdf
+    from simgap.analysis.dataset import check_dataset, read_netcdf
 
-    try:
-        ds = read_netcdf(result)
-    except FileNotFoundError as exc:
-        _fail(str(exc))
-    except (OSError, ValueError) as exc:
-        _fail(f"{result}: cannot read result dataset: {exc}")
-    try:
-        paths = write_comparison(ds, output, baseline)
-    except ValueError as exc:
-        _fail(f"{result}: {exc}")
+    ds = check_dataset(read_netcdf(result), result)
+    paths = write_comparison(ds, output, baseline)
     for p in paths:
         typer.echo(str(p))
 
@@ -132,10 +175,7 @@ def ingest(
     if experiment is not None:
         exp = _experiment(experiment)
         kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
-    try:
-        ds = ingest_capture(capture, show_progress=progress, **kwargs)
-    except ConfigError as exc:
-        _fail(str(exc))
+    ds = ingest_capture(capture, show_progress=progress, **kwargs)
     write_netcdf(ds, output)
     vis = ds.visible.values
     det = ds.detected.values[0].any(axis=0)
@@ -176,18 +216,12 @@ def diagnose(
     from simgap.analysis.diagnosis_report import write_diagnosis_report
     from simgap.paths import default_cache_dir
 
-    try:
-        exp = _load_sim(sim)
-        data = read_netcdf(real)
-    except (ConfigError, FileNotFoundError) as exc:
-        _fail(str(exc))
-    try:
-        settings = DiagnoseSettings(seed=seed)
-        result, state = run_diagnosis(
-            data, exp, cache or default_cache_dir(), settings, None, scheduler
-        )
-    except (ConfigError, ValueError) as exc:
-        _fail(f"{real}: {exc}")
+    data = read_netcdf(real)
+    exp = _load_sim(sim)
+    settings = DiagnoseSettings(seed=seed)
+    result, state = run_diagnosis(
+        data, exp, cache or default_cache_dir(), settings, None, scheduler
+    )
     for p in write_diagnosis_report(result, state, output):
         typer.echo(str(p))
     if json_path:

@@ -21,12 +21,18 @@ An experiment YAML holds (all optional but ``name``)::
     repeats: 3                                 # Monte Carlo repeats (image-stage noise)
 
 Unknown keys, wrong types and out-of-range values raise :class:`~simgap.config.ConfigError` naming
-the file and key path.
+the file and key path; a value set in an inherited file is reported against that (parent) file. An
+empty or comment-only file is an error (it does not mean "the full study": write ``name: ...``).
+Configurations must be distinct (``theta_deg: [0, 360]`` names one stop twice), and an experiment
+whose result arrays would not fit in memory is refused before any work starts.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
+import os
+import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -35,7 +41,15 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
-from simgap.config import ConfigError, deep_merge, from_mapping, read_yaml, require, to_mapping
+from simgap.config import (
+    ConfigError,
+    deep_merge,
+    from_mapping,
+    parse_yaml,
+    read_yaml,
+    require,
+    to_mapping,
+)
 from simgap.effects import make_effect
 from simgap.effects.state import (
     EstimationState,
@@ -48,6 +62,22 @@ from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.render.scene import SceneSpec, load_scene_spec
 from simgap.rig import Rig, load_rig
+
+#: Share of the machine's physical memory one run may plan to use for its result arrays.
+MEMORY_SHARE = 0.5
+#: Scheduler overhead per (p, theta) task: future, key and task graph entry (bytes, measured
+#: order of magnitude with dask.distributed).
+TASK_OVERHEAD_BYTES = 16 * 1024
+#: The result arrays are held twice at the end of a run (arrays, then the dataset being written).
+RESULT_COPIES = 2
+
+
+def physical_memory_bytes() -> int:
+    """Physical memory of this machine (bytes)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # not POSIX: assume 16 GiB
+        return 16 * 2**30
 
 
 @dataclass(frozen=True)
@@ -153,6 +183,65 @@ class Experiment:
         for key, values in self.grid.items():
             require(key.count(".") == 1, f"grid.{key}: expected a key of the form effect.parameter")
             require(len(values) >= 1, f"grid.{key}: expected a non-empty list of values")
+            seen = [repr(v) for v in values]
+            again = next((v for v in seen if seen.count(v) > 1), None)
+            require(again is None, f"grid.{key}: expected distinct values, {again} is repeated")
+        for key in ("p", "tags"):
+            values = getattr(self.configurations, key)
+            again = next((v for v in values if values.count(v) > 1), None)
+            require(
+                again is None,
+                f"configurations.{key}: expected distinct values, {again} is repeated",
+            )
+
+    def memory_estimate(self) -> tuple[int, str, str]:
+        """Planned memory of the run's result arrays, computed from counts (nothing allocated).
+
+        Returns
+        -------
+        tuple
+            ``(bytes, key, shape)``: the estimate (bytes), the key path of the largest factor
+            (what to reduce) and the shape in words.
+        """
+        from simgap.analysis.dataset import result_nbytes
+
+        rig, c = self.rig_model, self.configurations
+        n_variants = len(self.variants) + ("baseline" not in [v.name for v in self.variants])
+        n_variants += math.prod(len(v) for v in self.grid.values()) if self.grid else 0
+        factors = {
+            "variants": n_variants,
+            "repeats": self.repeats,
+            "configurations.tags": len(c.tags or rig.tags.ids),
+            "configurations.p" if c.p else "rig.grid.p": len(c.p or rig.grid.p),
+            "configurations.theta_deg" if c.theta_deg else "rig.grid.theta_count": (
+                len(c.theta_deg) or rig.grid.theta_count
+            ),
+        }
+        n = math.prod(factors.values())
+        tasks = factors["configurations.p" if c.p else "rig.grid.p"] * (
+            len(c.theta_deg) or rig.grid.theta_count
+        )
+        total = RESULT_COPIES * result_nbytes(n) + tasks * TASK_OVERHEAD_BYTES
+        key = max(factors, key=lambda k: factors[k])
+        shape = " x ".join(f"{v} {k.split('.')[-1]}" for k, v in factors.items())
+        return total, key, shape
+
+    def check_memory(self) -> None:
+        """Refuse an experiment whose result arrays this machine cannot hold.
+
+        Raises
+        ------
+        simgap.config.ConfigError
+            Naming the largest factor's key path, the estimate and the machine's memory.
+        """
+        need, key, shape = self.memory_estimate()
+        have = physical_memory_bytes()
+        if need > MEMORY_SHARE * have:
+            raise ConfigError(
+                f"{self.source}: {key}: the run would need about {need / 2**30:.3g} GiB for its "
+                f"results ({shape}); expected at most {MEMORY_SHARE:.0%} of this machine's "
+                f"{have / 2**30:.3g} GiB"
+            )
 
     def variant_specs(self) -> list[VariantSpec]:
         """All variants: ``baseline`` first, then the listed ones, then the grid's combinations."""
@@ -197,7 +286,7 @@ class Experiment:
         """
         base = self.base_state()
         for name, params in self.effects.items():
-            base = make_effect(name, params, where=f"{self.source}: effects.").apply(base)
+            base = _apply_effect(name, params, base, f"{self.source}: effects.")
         out = []
         listed = {v.name: i for i, v in enumerate(self.variants)}
         for spec in self.variant_specs():
@@ -208,7 +297,7 @@ class Experiment:
             )
             state = base
             for name, params in spec.effects.items():
-                state = make_effect(name, params, where=where).apply(state)
+                state = _apply_effect(name, params, state, where)
             out.append((spec.name, state))
         return out
 
@@ -238,12 +327,21 @@ class Experiment:
             )
         if c.theta_deg:
             stops = rig.grid.theta_step_deg * np.arange(rig.grid.theta_count)
+            first: dict[int, float] = {}
             for t in c.theta_deg:
-                if not np.any(np.isclose(stops, t % 360.0)):
+                close = np.flatnonzero(np.isclose(stops, t % 360.0))
+                if not len(close):
                     raise ConfigError(
                         f"{self.source}: configurations.theta_deg: {t} is not a turntable stop "
                         f"(multiples of {rig.grid.theta_step_deg} deg)"
                     )
+                if int(close[0]) in first:
+                    raise ConfigError(
+                        f"{self.source}: configurations.theta_deg: {t} and {first[int(close[0])]} "
+                        f"are the same turntable stop ({stops[close[0]]:g} deg); expected "
+                        "distinct stops"
+                    )
+                first[int(close[0])] = t
             thetas = np.deg2rad(np.asarray(c.theta_deg, float) % 360.0)
         else:
             thetas = rig.grid.theta
@@ -263,14 +361,30 @@ class Experiment:
         return yaml.safe_dump(data, sort_keys=False)
 
 
-def _read_with_parents(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
-    """Read an experiment file merged over the files it inherits from (this file wins)."""
+def _apply_effect(name: str, params: Any, state: VariantState, where: str) -> VariantState:
+    """Apply one effect; a state it makes invalid (e.g. an implausible camera) is a ConfigError."""
+    effect = make_effect(name, params, where=where)
+    try:
+        return effect.apply(state)
+    except ConfigError:
+        raise
+    except ValueError as exc:
+        raise ConfigError(f"{where}{name}: {exc}") from exc
+
+
+def _read_chain(path: Path, seen: tuple[Path, ...] = ()) -> list[tuple[Path, dict[str, Any]]]:
+    """An experiment file and the files it inherits from: ``(path, data)``, root ancestor first."""
     data = read_yaml(path)
+    if not data:
+        raise ConfigError(
+            f"{path}: empty experiment file; expected a mapping of settings (at least "
+            "`name: ...`; an experiment with only a name runs the full study)"
+        )
     if "source" in data:
         raise ConfigError(f"{path}: source: unknown key (reserved)")
     parent = data.get("inherit")
     if parent is None:
-        return data
+        return [(path, data)]
     if not isinstance(parent, str):
         raise ConfigError(f"{path}: inherit: expected a file path, got {parent!r}")
     parent_path = (path.parent / parent).resolve()
@@ -278,15 +392,66 @@ def _read_with_parents(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any
         raise ConfigError(f"{path}: inherit: circular inheritance through {parent_path}")
     if not parent_path.is_file():
         raise ConfigError(f"{path}: inherit: {parent_path} not found")
-    base = _read_with_parents(parent_path, seen + (path.resolve(),))
-    base.pop("name", None)
-    base.pop("description", None)
-    return deep_merge(base, data)
+    chain = _read_chain(parent_path, seen + (path.resolve(),))
+    return chain + [(path, data)]
+
+
+def _merge_chain(chain: list[tuple[Path, dict[str, Any]]]) -> dict[str, Any]:
+    """The files of :func:`_read_chain` merged (the last file wins; names are not inherited)."""
+    merged: dict[str, Any] = {}
+    for _, data in chain[:-1]:
+        merged = deep_merge(merged, data)
+    merged.pop("name", None)
+    merged.pop("description", None)
+    return deep_merge(merged, chain[-1][1])
+
+
+def _origins(chain: list[tuple[Path, dict[str, Any]]]) -> dict[tuple[str, ...], Path]:
+    """Which file set each key path last (mappings merge, other values replace)."""
+    out: dict[tuple[str, ...], Path] = {}
+
+    def walk(data: Any, prefix: tuple[str, ...], path: Path) -> None:
+        for key, value in data.items():
+            out[prefix + (str(key),)] = path
+            if isinstance(value, dict):
+                walk(value, prefix + (str(key),), path)
+
+    for path, data in chain:
+        walk(data, (), path)
+    return out
+
+
+def _blame_parent(
+    exc: ConfigError, path: Path, origins: dict[tuple[str, ...], Path]
+) -> ConfigError:
+    """``exc`` reported against the inherited file that set the offending key, if not ``path``."""
+    message, prefix = str(exc), f"{path}: "
+    if not message.startswith(prefix):
+        return exc
+    rest = message[len(prefix) :]
+    keys = tuple(re.findall(r"[^.\[\]]+", rest.split(": ", 1)[0]))
+    for n in range(len(keys), 0, -1):
+        origin = origins.get(keys[:n])
+        if origin is not None:
+            if origin == path:
+                return exc
+            blamed = ConfigError(f"{origin}: {rest} (inherited by {path})")
+            blamed.__cause__ = exc.__cause__
+            return blamed
+    return exc
 
 
 def experiment_from_yaml(text: str, source: str = "<dataset>") -> Experiment:
-    """Rebuild an experiment from its resolved YAML (as stored in a dataset's attrs)."""
-    data = yaml.safe_load(text)
+    """Rebuild an experiment from its resolved YAML (as stored in a dataset's attrs).
+
+    Raises
+    ------
+    simgap.config.ConfigError
+        Naming ``source`` when the text is not a valid experiment.
+    """
+    data = parse_yaml(text, f"{source}: experiment_yaml")
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: experiment_yaml: expected a mapping, got {data!r:.60}")
     data.pop("inherit", None)
     return from_mapping(Experiment, {**data, "source": source}, where=f"{source}: ")
 
@@ -300,11 +465,16 @@ def load_experiment(path: str | Path) -> Experiment:
         Naming the file and key path of what is wrong.
     """
     path = Path(path)
-    data = _read_with_parents(path)
+    chain = _read_chain(path)
+    data = _merge_chain(chain)
     data.setdefault("name", path.stem)
-    exp = from_mapping(Experiment, {**data, "source": str(path)}, where=f"{path}: ")
-    exp.rig_model  # noqa: B018  (validate now, not in the middle of a sweep)
-    exp.scene_spec  # noqa: B018
-    exp.configuration_axes()
-    exp.variant_states()
+    try:
+        exp = from_mapping(Experiment, {**data, "source": str(path)}, where=f"{path}: ")
+        exp.rig_model  # noqa: B018  (validate now, not in the middle of a sweep)
+        exp.scene_spec  # noqa: B018
+        exp.check_memory()
+        exp.configuration_axes()
+        exp.variant_states()
+    except ConfigError as exc:
+        raise _blame_parent(exc, path, _origins(chain)) from exc.__cause__
     return exp

@@ -21,6 +21,7 @@ geometry.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -32,6 +33,14 @@ from simgap import transforms as tf
 from simgap.config import deep_merge, from_mapping, read_yaml, require
 
 DEFAULT_RIG_FILE = Path(__file__).with_name("rig.yaml")
+#: Largest image side accepted (px).
+MAX_IMAGE_SIDE_PX = 65536
+#: Plausible focal lengths, as multiples of the image width (field of view ~170 deg .. ~1 deg).
+FOCAL_RANGE_WIDTHS = (0.05, 50.0)
+#: How far the principal point may lie outside the image, as a fraction of the image size.
+PRINCIPAL_POINT_MARGIN = 0.25
+#: Bounds of the Brown-Conrady coefficients: |k1|, |k2|, |k3| and |p1|, |p2| (dimensionless).
+MAX_RADIAL_COEFF, MAX_TANGENTIAL_COEFF = 100.0, 1.0
 
 
 @dataclass(frozen=True)
@@ -41,11 +50,14 @@ class CameraModel:
     Attributes
     ----------
     width, height : int
-        Image size (px).
+        Image size (px), 1 .. :data:`MAX_IMAGE_SIDE_PX`.
     fx, fy, cx, cy : float
-        Focal lengths and principal point (px); pixel centres at integer coordinates.
+        Focal lengths and principal point (px); pixel centres at integer coordinates. Focal
+        lengths must lie within :data:`FOCAL_RANGE_WIDTHS` times the width, the principal point
+        within the image extended by :data:`PRINCIPAL_POINT_MARGIN` of its size on each side.
     distortion : tuple of float
-        ``(k1, k2, p1, p2, k3)``, dimensionless.
+        ``(k1, k2, p1, p2, k3)``, dimensionless; ``|k| <= MAX_RADIAL_COEFF``,
+        ``|p| <= MAX_TANGENTIAL_COEFF``.
     """
 
     width: int = 1920
@@ -57,8 +69,49 @@ class CameraModel:
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        require(self.width > 0 and self.height > 0, "width/height: expected positive pixel sizes")
+        for name in ("width", "height"):
+            size = getattr(self, name)
+            require(
+                0 < size <= MAX_IMAGE_SIDE_PX,
+                f"{name}: expected positive pixel sizes 1..{MAX_IMAGE_SIDE_PX} (px), got {size}",
+            )
+        values = (self.fx, self.fy, self.cx, self.cy, *self.distortion)
+        require(
+            all(math.isfinite(v) for v in values),
+            f"fx/fy/cx/cy/distortion: expected finite numbers, got {values}",
+        )
         require(self.fx > 0 and self.fy > 0, "fx/fy: expected positive focal lengths (px)")
+        lo, hi = (r * self.width for r in FOCAL_RANGE_WIDTHS)
+        for name in ("fx", "fy"):
+            f = getattr(self, name)
+            require(
+                lo <= f <= hi,
+                f"{name}: expected a focal length of {FOCAL_RANGE_WIDTHS[0]:g}.."
+                f"{FOCAL_RANGE_WIDTHS[1]:g} x the image width = {lo:g}..{hi:g} px, got {f:g}",
+            )
+        for name, size in (("cx", self.width), ("cy", self.height)):
+            c, m = getattr(self, name), PRINCIPAL_POINT_MARGIN * size
+            require(
+                -0.5 - m <= c <= size - 0.5 + m,
+                f"{name}: expected a principal point within the image (with a margin of "
+                f"{PRINCIPAL_POINT_MARGIN:g} x its size): {-0.5 - m:g}..{size - 0.5 + m:g} px, "
+                f"got {c:g}",
+            )
+        require(len(self.distortion) == 5, "distortion: expected (k1, k2, p1, p2, k3)")
+        for i, (name, bound) in enumerate(
+            zip(
+                ("k1", "k2", "p1", "p2", "k3"),
+                (MAX_RADIAL_COEFF, MAX_RADIAL_COEFF)
+                + (MAX_TANGENTIAL_COEFF,) * 2
+                + (MAX_RADIAL_COEFF,),
+                strict=True,
+            )
+        ):
+            require(
+                abs(self.distortion[i]) <= bound,
+                f"distortion[{i}] ({name}): expected |{name}| <= {bound:g}, "
+                f"got {self.distortion[i]:g}",
+            )
 
     @property
     def matrix(self) -> np.ndarray:
@@ -98,7 +151,19 @@ class Grid:
 
     def __post_init__(self) -> None:
         require(len(self.p) > 0 and min(self.p) >= 0, "p: expected non-negative pin holes")
+        dup = sorted({p for p in self.p if self.p.count(p) > 1})
+        require(not dup, f"p: expected distinct pin holes, {dup[0] if dup else ''} is repeated")
+        require(
+            self.theta_step_deg > 0,
+            f"theta_step_deg: expected a positive step (deg), got {self.theta_step_deg}",
+        )
         require(self.theta_count >= 1, "theta_count: expected an integer >= 1")
+        turn = self.theta_step_deg * self.theta_count
+        require(
+            turn <= 360.0 + 1e-9,
+            f"theta_count: expected theta_step_deg x theta_count <= 360 deg (one turn; more stops "
+            f"would repeat angles), got {self.theta_step_deg:g} x {self.theta_count} = {turn:g}",
+        )
 
     @property
     def theta(self) -> np.ndarray:
@@ -128,6 +193,9 @@ class Tags:
     faces: tuple[TagFace, ...] = (TagFace(0, 0.0806, "outward"), TagFace(1, 0.0381, "inward"))
 
     def __post_init__(self) -> None:
+        from simgap.pose.detect import check_dictionary
+
+        check_dictionary(self.dictionary)
         require(self.size > 0, "size: expected a positive length (m)")
         require(self.quiet_zone_cells >= 0, "quiet_zone_cells: expected an integer >= 0")
         ids = [f.id for f in self.faces]

@@ -85,6 +85,14 @@ class Frame:
         return imaging.paste(self.crop, self.offset, self.size)
 
 
+def _read_offset(path: Path) -> tuple[int, int]:
+    """The crop offset (x0, y0 px) stored beside a cached frame."""
+    offset = json.loads(path.read_text())["offset"]
+    if not (isinstance(offset, list) and len(offset) == 2 and all(type(v) is int for v in offset)):
+        raise ValueError(f"{path}: offset: expected two integers (px), got {offset!r}")
+    return offset[0], offset[1]
+
+
 def _union(boxes: dict) -> tuple[float, float, float, float]:
     return (
         min(b[0] for b in boxes.values()),
@@ -175,13 +183,21 @@ class VariantPipeline:
             return None
         side, offset = crop
         path = self.cache.path("renders", self.render_key(p, theta, render_repeat), ".exr")
-        if path.is_file():
-            return imaging.read_exr(path), offset
+        cached = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+        if cached is not None:
+            return cached, offset
         scene = self.scene(side)
         scene.set_pose(p, theta)
         seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
         hdr = imaging.quantise_half(scene.render(offset, seed))
-        imaging.write_exr(path, hdr)
+        try:
+            imaging.write_exr(path, hdr, exclusive=True)
+        except FileExistsError:  # another process published this render first: share its copy
+            shared = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+            if shared is None:  # it was corrupt (and is now moved aside): publish ours
+                imaging.write_exr(path, hdr)
+            else:
+                hdr = shared
         return hdr, offset
 
     def frame_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
@@ -195,9 +211,10 @@ class VariantPipeline:
         png = self.cache.path("frames", key, ".png")
         meta = png.with_suffix(".json")
         if png.is_file() and meta.is_file():
-            offset = tuple(json.loads(meta.read_text())["offset"])
-            crop8 = cv2.cvtColor(cv2.imread(str(png), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
-            return Frame(crop8, offset, self.image_size)
+            offset = self.cache.read(meta, _read_offset)
+            crop8 = self.cache.read(png, imaging.read_png)
+            if offset is not None and crop8 is not None:
+                return Frame(crop8, offset, self.image_size)
         rendered = self.hdr(p, theta, render_repeat)
         if rendered is None:
             return None

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from simgap.analysis.fitting import geometric_effects
+from simgap.atomic import atomic_write
 from simgap.config import deep_merge
 from simgap.experiment import Configurations, Experiment, VariantSpec
 
@@ -266,7 +267,7 @@ def run_validation(
         },
         out_dir / "validation.json",
     )
-    (out_dir / "validation.md").write_text(validation_markdown(summary, trials))
+    atomic_write(out_dir / "validation.md", validation_markdown(summary, trials))
     return summary
 
 

@@ -220,7 +220,7 @@ def test_write_jpeg(tmp_path, sample_rgb, rig, sample):
 
 
 def test_write_capture_rejects_bad_frames(tmp_path):
-    cal = CameraModel(width=64, height=48)
+    cal = CameraModel(width=64, height=48, fx=60.0, fy=60.0, cx=31.5, cy=23.5)
     with pytest.raises(ValueError, match="expected uint8 48x64"):
         write_capture(tmp_path / "a", [(0, 0.0, 0, np.zeros((48, 64, 3), np.float32))], cal)
     frame = np.zeros((48, 64, 3), np.uint8)
@@ -416,10 +416,10 @@ def test_repeats_in_manifest(tmp_path, rig):
 
 
 def test_unreadable_frame_is_a_recorded_failure(tmp_path, rig, sample):
-    folder = tmp_path / "capture"  # the sample's real frames (linked): the other 8 detect
+    folder = tmp_path / "capture"  # the sample's real frames (copied): the other 8 detect
     (folder / "images").mkdir(parents=True)
-    for img in (sample / "images").iterdir():
-        (folder / "images" / img.name).symlink_to(img)
+    for img in (sample / "images").iterdir():  # copies: links leaving the folder are refused
+        (folder / "images" / img.name).write_bytes(img.read_bytes())
     for name in ("manifest.csv", "camera.yaml"):
         (folder / name).write_text((sample / name).read_text())
     bad = folder / "images" / "p00_t000.png"  # the first frame: the size check uses the next one

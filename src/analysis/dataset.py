@@ -1,22 +1,170 @@
 """The result dataset (DESIGN §3): names, dims and units are a contract other tools read.
 
-Build it with :func:`build_dataset`, write it with :func:`write_netcdf` (atomic) and read it with
-:func:`read_netcdf`.
+Build it with :func:`build_dataset`, write it with :func:`write_netcdf` (atomic), read it with
+:func:`read_netcdf` and check a dataset from elsewhere against the contract with
+:func:`check_dataset` before working on it.
 """
 
 from __future__ import annotations
 
-import os
-from collections.abc import Mapping
+import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from simgap.atomic import atomic_write
+from simgap.config import ConfigError
 from simgap.pose.image_stats import STATS
 
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 ERROR_UNITS = "m (tx, ty, tz); rad (rx, ry, rz)"
+FULL_DIMS = ("variant", "repeat", "tag", "p", "theta")
+#: The contract (DESIGN §3): variable -> (dims, kind), kind "number" or "boolean".
+#: ``visible`` may also have a leading ``variant`` dim.
+CONTRACT: dict[str, tuple[tuple[str, ...], str]] = {
+    "expected": (("tag", "p", "theta", "axis"), "number"),
+    "estimated": (FULL_DIMS + ("axis",), "number"),
+    "error": (FULL_DIMS + ("axis",), "number"),
+    "visible": (("tag", "p", "theta"), "boolean"),
+    "detected": (FULL_DIMS, "boolean"),
+    "reproj_px": (FULL_DIMS, "number"),
+    "corners": (FULL_DIMS + ("corner", "uv"), "number"),
+}
+#: Coordinates every result dataset has: name -> kind ("integer", "angle", "string").
+COORDS = {
+    "variant": "string",
+    "repeat": "integer",
+    "tag": "integer",
+    "p": "integer",
+    "theta": "angle",
+    "axis": "string",
+}
+#: Variables the analyses read unless they say otherwise.
+REQUIRED = ("error", "detected", "visible")
+
+
+class DatasetError(ConfigError):
+    """A result dataset does not follow the contract (DESIGN §3); names the file and variable."""
+
+
+def _kind_problem(da: xr.DataArray, kind: str) -> str | None:
+    """What is wrong with the values of ``da`` for ``kind`` (see :data:`CONTRACT`), or None."""
+    k = da.dtype.kind
+    if kind == "number":
+        return None if k in "fiu" else f"expected numbers, got dtype {da.dtype}"
+    if k == "b":
+        return None
+    if k in "iuf":
+        values = np.unique(da.values[~np.isnan(da.values)] if k == "f" else da.values)
+        if np.isin(values, (0, 1)).all():
+            return None
+        return f"expected boolean values (0/1), got {values[:5].tolist()}"
+    return f"expected booleans, got dtype {da.dtype}"
+
+
+def _coord_problem(values: np.ndarray, kind: str) -> str | None:
+    """What is wrong with a coordinate's values for ``kind`` (see :data:`COORDS`), or None."""
+    k = values.dtype.kind
+    if kind == "string":
+        if k == "U" or (k == "O" and all(isinstance(v, str) for v in values.tolist())):
+            return None
+        return f"expected strings, got dtype {values.dtype}"
+    if kind == "integer":
+        if k in "iu":
+            return None
+        return f"expected integers, got dtype {values.dtype}"
+    if k != "f":
+        return f"expected angles in radians (floats), got dtype {values.dtype}"
+    if not np.isfinite(values).all():
+        return "expected finite angles (rad), got NaN or infinity"
+    if values.min() < -1e-9 or values.max() > 2 * math.pi + 1e-6:
+        hint = " (degrees?)" if values.max() <= 360.0 + 1e-6 else ""
+        return (
+            f"expected angles in radians within [0, 2 pi], got {values.min():g}..{values.max():g}"
+            f"{hint}"
+        )
+    return None
+
+
+def check_dataset(
+    ds: xr.Dataset, path: str | Path | None = None, required: Sequence[str] = REQUIRED
+) -> xr.Dataset:
+    """Check a result dataset against the contract (DESIGN §3) before working on it.
+
+    Checks that the ``required`` variables and every coordinate are present, that every contract
+    variable present has the contract's dims (in order) and values (numbers; booleans or 0/1 for
+    ``visible`` and ``detected``), that coordinates have their types (integer ``tag``, ``p`` and
+    ``repeat``, string ``variant`` and ``axis`` with all six axes, ``theta`` in radians within
+    [0, 2 pi]), are non-empty and have no repeated values.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The dataset.
+    path : str or Path, optional
+        Its file, for messages (default: the file xarray read it from, else ``<dataset>``).
+    required : sequence of str
+        Variables the caller needs.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds`` itself (for chaining).
+
+    Raises
+    ------
+    DatasetError
+        ``"<file>: <variable>: expected ..., got ..."`` for the first problem found.
+    """
+    where = f"{path or ds.encoding.get('source') or '<dataset>'}: "
+    missing = [n for n in required if n not in ds.data_vars]
+    if missing:
+        raise DatasetError(
+            f"{where}{missing[0]}: required variable is missing (a simgap result dataset has "
+            f"{', '.join(CONTRACT)}; missing: {', '.join(missing)})"
+        )
+    for name, kind in COORDS.items():
+        if name not in ds.coords:
+            raise DatasetError(f"{where}{name}: required coordinate is missing")
+        values = np.asarray(ds[name].values)
+        if values.ndim != 1 or values.size == 0:
+            raise DatasetError(f"{where}{name}: expected a non-empty 1-d coordinate")
+        problem = _coord_problem(values, kind)
+        if problem:
+            raise DatasetError(f"{where}{name}: {problem}")
+        if len(np.unique(values)) != values.size:
+            raise DatasetError(f"{where}{name}: expected distinct values, got {values.tolist()}")
+    absent = [a for a in AXES if a not in ds["axis"].values.tolist()]
+    if absent:
+        raise DatasetError(f"{where}axis: expected the values {', '.join(AXES)}; lacks {absent}")
+    for name, (dims, kind) in CONTRACT.items():
+        if name not in ds.data_vars:
+            continue
+        allowed = [dims, ("variant",) + dims] if name == "visible" else [dims]
+        if ds[name].dims not in allowed:
+            raise DatasetError(f"{where}{name}: expected dims {dims}, got {ds[name].dims}")
+        problem = _kind_problem(ds[name], kind)
+        if problem:
+            raise DatasetError(f"{where}{name}: {problem}")
+    if "calibration_yaml" in ds.attrs:  # the calibration a capture was ingested with
+        _check_calibration_attr(ds.attrs["calibration_yaml"], where)
+    return ds
+
+
+def _check_calibration_attr(text: object, where: str) -> None:
+    from simgap.config import from_mapping, parse_yaml
+    from simgap.rig import CameraModel
+
+    label = f"{where}attrs.calibration_yaml"
+    data = parse_yaml(text, label) if isinstance(text, str) else None
+    if not isinstance(data, dict):
+        raise DatasetError(f"{label}: expected a CameraModel mapping (YAML text), got {text!r:.60}")
+    try:
+        from_mapping(CameraModel, data, where=label)
+    except ConfigError as exc:
+        raise DatasetError(str(exc)) from exc
 
 
 def empty_results(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
@@ -29,6 +177,16 @@ def empty_results(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
         "corners": np.full(shape + (4, 2), np.nan),
         "image_stats": np.full(shape + (len(STATS),), np.nan),
     }
+
+
+def result_nbytes(n_configurations: int) -> int:
+    """Bytes of the :func:`empty_results` arrays for ``n_configurations`` entries.
+
+    An entry is one (variant, repeat, tag, p, theta): 169 B (flag, two poses, reprojection error,
+    four corners).
+    """
+    per = sum(a.nbytes for a in empty_results((1,)).values())
+    return int(n_configurations) * per
 
 
 def build_dataset(
@@ -153,23 +311,34 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     """Write ``ds`` as netCDF4 atomically (temporary file + rename); return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4"))
 
 
 def read_netcdf(path: str | Path) -> xr.Dataset:
-    """Read a result dataset fully into memory (the file is closed afterwards)."""
+    """Read a result dataset fully into memory (the file is closed afterwards).
+
+    ``visible`` and ``detected`` are converted to booleans when they are stored as numbers; the
+    rest of the contract is checked by :func:`check_dataset`.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file does not exist.
+    DatasetError
+        If it cannot be read as netCDF.
+    """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: result dataset not found")
-    with xr.open_dataset(path, engine="netcdf4") as ds:
-        out = ds.load()
+    try:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
+            out = ds.load()
+    except (OSError, ValueError, RuntimeError, KeyError) as exc:
+        raise DatasetError(
+            f"{path}: cannot read result dataset (expected a netCDF4 file written by simgap): "
+            f"{type(exc).__name__}: {exc}"
+        ) from exc
     for name in ("visible", "detected"):
-        if name in out:
-            out[name] = out[name].astype(bool)
+        if name in out and _kind_problem(out[name], "boolean") is None:
+            out[name] = out[name].fillna(0).astype(bool)
     return out

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import time
 import warnings
 from dataclasses import dataclass
@@ -29,6 +28,7 @@ import xarray as xr
 from simgap.analysis import evidence
 from simgap.analysis import gap as gapmod
 from simgap.analysis.appearance import appearance_candidates
+from simgap.analysis.dataset import check_dataset
 from simgap.analysis.fitting import (
     Items,
     default_candidates,
@@ -42,6 +42,7 @@ from simgap.analysis.selection import (
     Scored,
     bootstrap_reductions,
 )
+from simgap.atomic import atomic_write
 from simgap.cache import Cache, content_hash
 from simgap.effects import EFFECTS, make_effect
 from simgap.effects.state import VariantState
@@ -369,7 +370,14 @@ def diagnose(
     candidates=None,
     scheduler: str | None = None,
 ) -> tuple[dict[str, Any], Diagnosis]:
-    """Run the whole diagnosis; return the ``result.json`` mapping and the diagnosis state."""
+    """Run the whole diagnosis; return the ``result.json`` mapping and the diagnosis state.
+
+    Raises
+    ------
+    simgap.analysis.dataset.DatasetError
+        Before any simulation, when ``real`` does not follow the result dataset contract.
+    """
+    check_dataset(real, required=("error", "detected", "visible", "corners"))
     t0 = time.perf_counter()
     d = Diagnosis(real, exp, cache_dir, settings, scheduler)
     axes = d.where
@@ -471,7 +479,4 @@ def write_json(result: dict[str, Any], path: Path) -> Path:
     """Write ``result.json`` atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(result), indent=2))
-    os.replace(tmp, path)
-    return path
+    return atomic_write(path, json.dumps(_jsonable(result), indent=2))

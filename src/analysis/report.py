@@ -31,8 +31,6 @@ Examples
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,6 +45,8 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+
+from simgap.atomic import atomic_write
 
 from .image_evidence import plot_image_stats
 from .paper import AXES, AXIS_UNITS, TABLE2, threshold_for
@@ -733,17 +733,13 @@ def _observation_lines(summary: VariantSummary) -> list[str]:
 
 
 def _atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
-    """Write a file via a temporary file in the same folder and :func:`os.replace`."""
-    fd, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
+    """Write a file through :func:`simgap.atomic.atomic_write` (``write`` gets a binary handle)."""
+
+    def to_file(tmp: Path) -> None:
+        with open(tmp, "xb") as handle:
             write(handle)
-        os.chmod(tmp_name, 0o644)
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-    return path
+
+    return atomic_write(path, to_file)
 
 
 def _save_figure(fig: Figure, path: Path) -> Path:

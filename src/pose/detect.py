@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -16,7 +17,91 @@ REFINEMENTS = {
     "CONTOUR": cv2.aruco.CORNER_REFINE_CONTOUR,
     "APRILTAG": cv2.aruco.CORNER_REFINE_APRILTAG,
 }
-_PARAM_NAMES = {n for n in dir(cv2.aruco.DetectorParameters()) if not n.startswith("_")}
+#: OpenCV's predefined ArUco / AprilTag dictionaries: the ``cv2.aruco.DICT_*`` constants that
+#: ``getPredefinedDictionary`` accepts (other ``cv2.aruco`` names, e.g. ``ArucoDetector`` or
+#: ``CORNER_REFINE_NONE``, are not dictionaries).
+DICTIONARIES: frozenset[str] = frozenset(
+    n for n in dir(cv2.aruco) if n.startswith("DICT_") and type(getattr(cv2.aruco, n)) is int
+)
+_DEFAULT_PARAMS = cv2.aruco.DetectorParameters()
+#: Numeric ``cv2.aruco.DetectorParameters`` attributes and their types (int, float or bool).
+PARAM_TYPES: dict[str, type] = {
+    n: type(getattr(_DEFAULT_PARAMS, n))
+    for n in dir(_DEFAULT_PARAMS)
+    if not n.startswith("_") and type(getattr(_DEFAULT_PARAMS, n)) in (int, float, bool)
+}
+#: Parameters set through DetectorSettings' own fields (``extra`` may not override them).
+_OWN_PARAMS = {
+    "cornerRefinementMethod": "corner_refinement",
+    "cornerRefinementWinSize": "subpix_window_px",
+    "cornerRefinementMaxIterations": "subpix_max_iterations",
+    "cornerRefinementMinAccuracy": "subpix_min_accuracy_px",
+}
+#: Parameters that may be negative (the adaptive threshold's constant); all others are >= 0.
+_SIGNED_PARAMS = {"adaptiveThreshConstant"}
+
+
+def check_dictionary(name: str) -> None:
+    """Refuse a name that is not an OpenCV predefined dictionary (:data:`DICTIONARIES`).
+
+    Raises
+    ------
+    ValueError
+        ``"dictionary: ..."`` listing the valid names.
+    """
+    require(
+        name in DICTIONARIES,
+        f"dictionary: expected a cv2.aruco predefined dictionary name, got {name!r} (one of "
+        f"{', '.join(sorted(DICTIONARIES))})",
+    )
+
+
+def _check_extra(extra: dict[str, float | bool]) -> None:
+    """Names, types and ranges of ``DetectorSettings.extra`` (OpenCV's own checks included)."""
+    for name, value in extra.items():
+        require(
+            name in PARAM_TYPES,
+            f"extra.{name}: not a numeric cv2.aruco.DetectorParameters attribute; expected one of "
+            f"{', '.join(sorted(set(PARAM_TYPES) - set(_OWN_PARAMS)))}",
+        )
+        require(
+            name not in _OWN_PARAMS,
+            f"extra.{name}: set by detector.{_OWN_PARAMS.get(name)}, not by extra",
+        )
+        kind = PARAM_TYPES[name]
+        if kind is bool:
+            require(value in (0, 1), f"extra.{name}: expected true/false (or 1/0), got {value!r}")
+            continue
+        require(
+            not isinstance(value, bool) and math.isfinite(value),
+            f"extra.{name}: expected a finite number, got {value!r}",
+        )
+        require(
+            kind is float or float(value).is_integer(),
+            f"extra.{name}: expected an integer (OpenCV's type is int), got {value!r}",
+        )
+        require(
+            kind is float or abs(value) < 2**31,
+            f"extra.{name}: expected a 32-bit integer, got {value!r}",
+        )
+        require(
+            name in _SIGNED_PARAMS or value >= 0,
+            f"extra.{name}: expected a value >= 0, got {value!r}",
+        )
+
+
+def _check_with_opencv(settings: DetectorSettings) -> None:
+    """Run the detector once on a synthetic marker so OpenCV's own parameter checks run now."""
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, settings.dictionary))
+    side = 8 * (dictionary.markerSize + 2)
+    img = np.full((4 * side, 4 * side), 255, np.uint8)
+    img[side : 2 * side, side : 2 * side] = cv2.aruco.generateImageMarker(dictionary, 0, side)
+    try:
+        Detector(settings).detect(img)
+    except cv2.error as exc:
+        lines = [s.strip() for s in str(exc).splitlines() if s.strip()]
+        reason = lines[-1] if lines else str(exc)
+        raise ValueError(f"extra: OpenCV refuses these detector parameters ({reason})") from None
 
 
 @dataclass(frozen=True)
@@ -35,8 +120,10 @@ class DetectorSettings:
         Maximum SUBPIX iterations.
     subpix_min_accuracy_px : float
         SUBPIX stopping accuracy (px).
-    extra : dict of str to float
-        Any other ``cv2.aruco.DetectorParameters`` attribute, by its OpenCV name.
+    extra : dict of str to float or bool
+        Any other numeric ``cv2.aruco.DetectorParameters`` attribute, by its OpenCV name: finite,
+        integral where OpenCV's type is int, ``>= 0`` (except ``adaptiveThreshConstant``), and
+        accepted by OpenCV's own checks (a detection is run on a synthetic marker to make sure).
     """
 
     dictionary: str = "DICT_ARUCO_MIP_36H12"
@@ -44,19 +131,19 @@ class DetectorSettings:
     subpix_window_px: int = 5
     subpix_max_iterations: int = 100
     subpix_min_accuracy_px: float = 0.01
-    extra: dict[str, float] = field(default_factory=dict)
+    extra: dict[str, float | bool] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        require(
-            hasattr(cv2.aruco, self.dictionary),
-            f"dictionary: unknown cv2.aruco dictionary {self.dictionary!r}",
-        )
+        check_dictionary(self.dictionary)
         require(self.subpix_window_px >= 1, "subpix_window_px: expected an integer >= 1")
-        unknown = sorted(set(self.extra) - _PARAM_NAMES)
+        require(self.subpix_max_iterations >= 1, "subpix_max_iterations: expected an integer >= 1")
         require(
-            not unknown,
-            f"extra.{unknown[0] if unknown else ''}: not a cv2.aruco.DetectorParameters attribute",
+            math.isfinite(self.subpix_min_accuracy_px) and self.subpix_min_accuracy_px > 0,
+            "subpix_min_accuracy_px: expected a positive accuracy (px)",
         )
+        if self.extra:
+            _check_extra(self.extra)
+            _check_with_opencv(self)
 
 
 class Detector:

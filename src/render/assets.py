@@ -19,13 +19,13 @@ Run ``simgap assets`` (or ``python -m simgap.render.assets``) to regenerate them
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import cv2
 import numpy as np
 import trimesh
 
+from simgap.atomic import atomic_write
 from simgap.paths import assets_dir
 from simgap.rig import Rig, _marker_cells, load_rig
 
@@ -90,15 +90,15 @@ def write_assets(rig: Rig | None = None, out: Path | None = None) -> list[Path]:
     written = []
     for name, mesh in fixture_meshes(rig).items():
         path = out / f"{name}.ply"
-        tmp = path.with_suffix(".tmp.ply")
-        mesh.export(tmp, file_type="ply", encoding="binary")
-        os.replace(tmp, path)
+        atomic_write(path, lambda tmp, m=mesh: m.export(tmp, file_type="ply", encoding="binary"))
         written.append(path)
     for face in rig.tags.faces:
         path = out / f"tag_{face.id}.png"
-        tmp = path.with_suffix(".tmp.png")
-        cv2.imwrite(str(tmp), tag_texture(rig.tags.dictionary, face.id, rig.tags.quiet_zone_cells))
-        os.replace(tmp, path)
+        texture = tag_texture(rig.tags.dictionary, face.id, rig.tags.quiet_zone_cells)
+        ok, buf = cv2.imencode(".png", texture)
+        if not ok:
+            raise OSError(f"{path}: could not encode the tag texture")
+        atomic_write(path, buf.tobytes())
         written.append(path)
     return written
 

@@ -7,7 +7,6 @@ rendering) so that a run served from cache gives bit-identical frames.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import colour
@@ -15,26 +14,53 @@ import cv2
 import numpy as np
 import OpenEXR
 
+from simgap.atomic import atomic_write
+
 
 def quantise_half(hdr: np.ndarray) -> np.ndarray:
     """Round linear RGB to half precision (as stored in EXR) and return float32."""
     return np.asarray(hdr, dtype=np.float16).astype(np.float32)
 
 
-def write_exr(path: Path, hdr: np.ndarray) -> None:
-    """Write linear RGB (H, W, 3) as a half-float, ZIP-compressed EXR, atomically."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp.exr")
+def write_exr(path: Path, hdr: np.ndarray, exclusive: bool = False) -> None:
+    """Write linear RGB (H, W, 3) as a half-float, ZIP-compressed EXR, atomically.
+
+    With ``exclusive``, only when ``path`` does not exist yet (FileExistsError otherwise; see
+    :func:`simgap.atomic.atomic_write`).
+    """
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, {"RGB": np.ascontiguousarray(hdr, dtype=np.float16)}) as f:
-        f.write(str(tmp))
-    os.replace(tmp, path)
+
+    def write(tmp: Path) -> None:
+        with OpenEXR.File(header, {"RGB": np.ascontiguousarray(hdr, dtype=np.float16)}) as f:
+            f.write(str(tmp))
+
+    atomic_write(Path(path), write, exclusive=exclusive)
 
 
-def read_exr(path: Path) -> np.ndarray:
-    """Read an RGB EXR written by :func:`write_exr` as float32 (H, W, 3)."""
+def read_exr(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
+    """Read an RGB EXR written by :func:`write_exr` as float32 (H, W, 3).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    size : tuple of int, optional
+        Expected ``(width, height)`` (px); a file of another size is an error.
+
+    Raises
+    ------
+    ValueError, RuntimeError
+        If the file is truncated, corrupt, has no RGB channels or the wrong size.
+    """
     with OpenEXR.File(str(path)) as f:
-        return np.asarray(f.channels()["RGB"].pixels, dtype=np.float32)
+        hdr = np.asarray(f.channels()["RGB"].pixels, dtype=np.float32)
+    if hdr.ndim != 3 or hdr.shape[2] != 3:
+        raise ValueError(f"{path}: expected RGB pixels (H, W, 3), got shape {hdr.shape}")
+    if size is not None and hdr.shape[:2] != (size[1], size[0]):
+        raise ValueError(
+            f"{path}: expected {size[0]}x{size[1]} px, got {hdr.shape[1]}x{hdr.shape[0]}"
+        )
+    return hdr
 
 
 def encode_srgb8(linear: np.ndarray) -> np.ndarray:
@@ -62,12 +88,58 @@ def paste(crop: np.ndarray, offset: tuple[int, int], size: tuple[int, int]) -> n
 def write_png(path: Path, rgb8: np.ndarray) -> None:
     """Write an 8-bit RGB frame as PNG, atomically."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp.png")
-    if not cv2.imwrite(
-        str(tmp), cv2.cvtColor(rgb8, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
-    ):
+    ok, buf = cv2.imencode(
+        ".png", cv2.cvtColor(rgb8, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
+    )
+    if not ok:
         raise OSError(f"could not write {path}")
-    os.replace(tmp, path)
+    atomic_write(path, buf.tobytes())
+
+
+#: Signatures and end markers of the encoded frames simgap reads (PNG spec §5.2, §11.2.5;
+#: JPEG ITU-T T.81 Table B.1).
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_IEND_CHUNK = b"\x00\x00\x00\x00IEND\xaeB`\x82"
+JPEG_SOI, JPEG_EOI = b"\xff\xd8", b"\xff\xd9"
+
+
+def truncation(data: bytes) -> str | None:
+    """Why an encoded PNG or JPEG is incomplete, or None when it ends as its format requires.
+
+    Decoders fill a truncated image with grey or return what they have with a warning on
+    stderr, so truncation is checked on the bytes: a PNG must end with its ``IEND`` chunk and a
+    JPEG with the end-of-image marker ``FF D9`` (trailing zero padding allowed). Other formats
+    are left to the decoder.
+    """
+    end = data.rstrip(b"\x00")
+    if data.startswith(PNG_SIGNATURE) and not end.endswith(PNG_IEND_CHUNK):
+        return "truncated PNG (no IEND chunk at the end)"
+    if data.startswith(JPEG_SOI) and not end.endswith(JPEG_EOI):
+        return "truncated JPEG (no end-of-image marker FF D9 at the end)"
+    return None
+
+
+def png_bit_depth(data: bytes) -> int | None:
+    """Bit depth per sample of a PNG (from its IHDR chunk), or None for other data."""
+    if not data.startswith(PNG_SIGNATURE) or len(data) < 25 or data[12:16] != b"IHDR":
+        return None
+    return data[24]
+
+
+def read_png(path: Path) -> np.ndarray:
+    """Read an 8-bit RGB PNG written by :func:`write_png` (complete files only).
+
+    Raises
+    ------
+    ValueError
+        If the file is not a PNG, is truncated or cannot be decoded.
+    """
+    data = Path(path).read_bytes()
+    why = truncation(data) if data.startswith(PNG_SIGNATURE) else "not a PNG file"
+    bgr = None if why else cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise ValueError(f"{path}: {why or 'cannot be decoded'}")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
 def to_gray(rgb8: np.ndarray) -> np.ndarray:

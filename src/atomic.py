@@ -1,0 +1,97 @@
+"""Atomic file writes: a temporary file beside the target, then :func:`os.replace`.
+
+Every file simgap writes (cache entries, datasets, reports, capture folders, assets) goes through
+:func:`atomic_write`, so a reader sees either the old file or the complete new one, never a partial
+file, and two processes writing the same target at once cannot collide: each writer has its own
+temporary name (process id and a random suffix) in the target's folder (the same file system, so
+the rename is atomic). On failure the temporary file is removed and the target left untouched.
+
+Examples
+--------
+>>> atomic_write(Path("out/table.md"), "# Table 2")                        # doctest: +SKIP
+>>> atomic_write(Path("x.exr"), lambda tmp: exr_file.write(str(tmp)))       # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = ["atomic_write", "temporary_name"]
+
+
+def temporary_name(path: Path) -> Path:
+    """A temporary path beside ``path``, unique to this writer.
+
+    The name is ``.<name>.<pid>-<12 random hex digits>.tmp``: hidden, in the same folder (so the
+    final rename stays on one file system), and ending in ``.tmp`` so that leftovers of a killed
+    writer are easy to recognise. Writers must therefore not choose the format by the extension.
+    """
+    path = Path(path)
+    return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp")
+
+
+def atomic_write(
+    path: str | Path,
+    content: bytes | str | Callable[[Path], object],
+    *,
+    fsync: bool = False,
+    exclusive: bool = False,
+) -> Path:
+    """Write ``path`` atomically and return it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The target file. Its folder must exist.
+    content : bytes, str or callable
+        The file's bytes, its text (written as UTF-8), or a function that writes the file at the
+        temporary path it is given (for writers that need a file name: OpenEXR, netCDF, ...).
+    fsync : bool
+        Flush the temporary file to disk before the rename (durability across power loss; costs
+        a disk sync, so caches leave it off).
+    exclusive : bool
+        Publish only if ``path`` does not exist yet (first writer wins: a hard link, which is
+        atomic and fails on an existing target), instead of replacing it.
+
+    Raises
+    ------
+    FileExistsError
+        With ``exclusive``, when another writer published ``path`` first (nothing is changed).
+    OSError
+        If the file cannot be written; the target is then unchanged and no temporary file is
+        left behind.
+    """
+    path = Path(path)
+    tmp = temporary_name(path)
+    try:
+        if callable(content):
+            content(tmp)
+            if not tmp.is_file():
+                raise OSError(f"{path}: the writer did not create the file")
+        else:
+            data = content.encode("utf-8") if isinstance(content, str) else bytes(content)
+            with open(tmp, "xb") as handle:
+                handle.write(data)
+        if fsync:
+            with open(tmp, "rb+") as handle:
+                os.fsync(handle.fileno())
+        if exclusive:
+            _link_or_replace(tmp, path)
+        else:
+            os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def _link_or_replace(tmp: Path, path: Path) -> None:
+    """Hard-link ``tmp`` to ``path`` (FileExistsError if it exists); rename where links fail."""
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        raise
+    except OSError:  # a file system without hard links: last writer wins instead
+        os.replace(tmp, path)
