@@ -226,14 +226,18 @@ class VariantPipeline:
         imaging.write_png(png, crop8)
         return Frame(crop8, offset, self.image_size)
 
-    def run(self, p: int, theta: float, repeat: int, render_repeat: int) -> ConfigResult:
-        """Result of one configuration and repeat, from cache or computed (and then cached)."""
-        key = content_hash(
+    def result_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
+        """Cache key of the detection, pose and image-evidence result of one frame."""
+        return content_hash(
             self.frame_key(p, theta, repeat, render_repeat),
             self.state.estimation,
             self.tags,
             RESULT_VERSION,
         )
+
+    def run(self, p: int, theta: float, repeat: int, render_repeat: int) -> ConfigResult:
+        """Result of one configuration and repeat, from cache or computed (and then cached)."""
+        key = self.result_key(p, theta, repeat, render_repeat)
         cached = self.cache.load_arrays("results", key)
         if cached is not None:
             return ConfigResult(**cached)

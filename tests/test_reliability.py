@@ -21,7 +21,7 @@ from typer.testing import CliRunner
 
 from simgap.analysis.dataset import DatasetError, read_netcdf, write_netcdf
 from simgap.atomic import atomic_write, temporary_name
-from simgap.cache import CacheWarning, content_hash
+from simgap.cache import CacheWarning
 from simgap.capture import CaptureWarning, ingest, read_capture, write_capture
 from simgap.cli import app
 from simgap.config import ConfigError
@@ -95,7 +95,7 @@ def test_truncated_cache_files_of_every_kind_heal(tiny, tmp_path):
     (pipe,) = experiment_pipelines(exp, copy)
     p, theta = 7, float(np.deg2rad(30.0))
     frame_key = pipe.frame_key(p, theta, 0, 0)
-    result_key = content_hash(frame_key, pipe.state.estimation, pipe.tags)
+    result_key = pipe.result_key(p, theta, 0, 0)
     png = pipe.cache.path("frames", frame_key, ".png")
     entries = [
         pipe.cache.path("renders", pipe.render_key(p, theta, 0), ".exr"),
