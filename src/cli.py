@@ -67,6 +67,9 @@ def run(
 def report(
     result: Path = typer.Argument(..., help="Result dataset (netCDF) from `simgap run`."),
     output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
+    model: Path | None = typer.Option(
+        None, "--model", help="Error model (.nc or .json): draw its bands over the data."
+    ),
 ) -> None:
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
     from simgap.analysis.dataset import read_netcdf
@@ -84,7 +87,11 @@ def report(
             from simgap.analysis.compare import write_comparison
 
             paths += write_comparison(ds, output)
-    except ValueError as exc:
+        if model is not None:
+            from simgap.analysis.errormodel_report import write_error_model_bands
+
+            paths.append(write_error_model_bands(model, ds, output))
+    except (ValueError, FileNotFoundError) as exc:
         _fail(f"{result}: {exc}")
     for p in paths:
         typer.echo(str(p))
@@ -216,6 +223,41 @@ def export_bag(
     typer.echo(f"wrote {path} ({fmt})")
 
 
+@app.command("errormodel")
+def errormodel(
+    result: Path = typer.Argument(..., help="Result dataset (netCDF): simulated or ingested."),
+    output: Path = typer.Option(..., "-o", "--output", help="Model to write (.nc; and .json)."),
+    variant: str | None = typer.Option(
+        None, "--variant", help="Variant to model (default: first)."
+    ),
+    check: bool = typer.Option(
+        True, "--check/--no-check", help="Also fit on half the configurations, test on the rest."
+    ),
+) -> None:
+    """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
+    from simgap.analysis.dataset import read_netcdf
+    from simgap.analysis.errormodel import check_error_model, fit_error_model
+
+    try:
+        ds = read_netcdf(result)
+        model = fit_error_model(ds, variant=variant, source=str(result))
+        summary = check_error_model(ds, variant=variant) if check else None
+    except FileNotFoundError as exc:
+        _fail(str(exc))
+    except (OSError, ValueError, KeyError) as exc:
+        _fail(f"{result}: {exc}")
+    for path in model.save(output):
+        typer.echo(str(path))
+    if summary is not None:
+        cover = ", ".join(f"{a} {v:.0%}" for a, v in summary["coverage"].items())
+        det = summary["detection"]
+        typer.echo(
+            f"held-out half: 90 % interval coverage {cover} ({summary['n_errors']} errors, "
+            f"{summary['n_outside']} outside the range); detection predicted "
+            f"{det['predicted_rate']:.1%} vs observed {det['observed_rate']:.1%}"
+        )
+
+
 def _load_sim(sim: Path):
     """An experiment from YAML, or the experiment a result dataset was made with."""
     from simgap.experiment import experiment_from_yaml
@@ -334,7 +376,7 @@ def study(
     name = _experiment(experiment).name
     nc = output / f"{name}.nc"
     run(experiment, nc, cache, True, scheduler)
-    report(nc, output / f"{name}-report")
+    report(nc, output / f"{name}-report", None)
 
 
 if __name__ == "__main__":
