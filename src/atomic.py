@@ -16,10 +16,12 @@ from __future__ import annotations
 
 import os
 import secrets
-from collections.abc import Callable
+import shutil
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_write", "temporary_name"]
+__all__ = ["atomic_write", "staged_path", "temporary_name"]
 
 
 def temporary_name(path: Path) -> Path:
@@ -95,3 +97,25 @@ def _link_or_replace(tmp: Path, path: Path) -> None:
         raise
     except OSError:  # a file system without hard links: last writer wins instead
         os.replace(tmp, path)
+
+
+@contextmanager
+def staged_path(path: Path) -> Iterator[Path]:
+    """Yield a path that does not exist yet, in a temporary sibling folder; on success install it.
+
+    For writers that create a folder themselves (a ROS 2 bag) or insist on a fresh path. On normal
+    exit the staged file or folder replaces ``path`` (an existing folder is first moved aside and
+    then deleted); on an exception nothing is installed and the temporary folder is removed.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    stage = temporary_name(path)
+    stage.mkdir()
+    try:
+        staged = stage / path.name
+        yield staged
+        if path.is_dir() and not path.is_symlink():
+            os.replace(path, stage / "replaced")
+        os.replace(staged, path)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

@@ -1,6 +1,7 @@
 """simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
 
-Commands: run, report, compare, study, ingest, diagnose, validate, effects, assets.
+Commands: run, report, compare, study, ingest, export-bag, errormodel, diagnose, validate, effects,
+assets.
 
 Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
 shows the traceback instead).
@@ -125,6 +126,9 @@ def run(
 def report(
     result: Path = typer.Argument(..., help="Result dataset (netCDF) from `simgap run`."),
     output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
+    model: Path | None = typer.Option(
+        None, "--model", help="Error model (.nc or .json): draw its bands over the data."
+    ),
 ) -> None:
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
     from simgap.analysis.dataset import check_dataset, read_netcdf
@@ -136,6 +140,10 @@ def report(
         from simgap.analysis.compare import write_comparison
 
         paths += write_comparison(ds, output)
+    if model is not None:
+        from simgap.analysis.errormodel_report import write_error_model_bands
+
+        paths.append(write_error_model_bands(model, ds, output))
     for p in paths:
         typer.echo(str(p))
 
@@ -160,14 +168,31 @@ def compare(
 
 @app.command()
 def ingest(
-    capture: Path = typer.Argument(..., help="Capture folder (camera.yaml, manifest.csv, images)."),
+    capture: Path = typer.Argument(
+        ..., help="Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag."
+    ),
     output: Path = typer.Option(..., "-o", "--output", help="Result dataset to write (netCDF)."),
     experiment: Path | None = typer.Option(
         None, "--experiment", help="Take rig, detector and PnP settings from this experiment YAML."
     ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+    ranges: Path | None = typer.Option(
+        None,
+        "--ranges",
+        help="Bag only: CSV start_ns,end_ns,p,theta_rad giving each frame's p, theta.",
+    ),
+    image_topic: str | None = typer.Option(None, "--image-topic", help="Bag only: frames topic."),
+    camera_info_topic: str | None = typer.Option(
+        None, "--camera-info-topic", help="Bag only: CameraInfo topic."
+    ),
+    fixture_topic: str | None = typer.Option(
+        None, "--fixture-topic", help="Bag only: JointState topic (default /simgap/fixture)."
+    ),
+    keep_capture: Path | None = typer.Option(
+        None, "--keep-capture", help="Bag only: keep the intermediate capture folder here."
+    ),
 ) -> None:
-    """Detect markers and estimate poses in a real capture; write its result dataset."""
+    """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
     from simgap.analysis.dataset import write_netcdf
     from simgap.capture import ingest as ingest_capture
 
@@ -175,7 +200,19 @@ def ingest(
     if experiment is not None:
         exp = _experiment(experiment)
         kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
-    ds = ingest_capture(capture, show_progress=progress, **kwargs)
+    from simgap.bag import ingest_bag, is_bag
+
+    if is_bag(capture):
+        bag_options = {
+            "ranges_csv": ranges,
+            "image_topic": image_topic,
+            "camera_info_topic": camera_info_topic,
+            "fixture_topic": fixture_topic,
+            "keep_capture": keep_capture,
+        }
+        ds = ingest_bag(capture, show_progress=progress, **bag_options, **kwargs)
+    else:
+        ds = ingest_capture(capture, show_progress=progress, **kwargs)
     write_netcdf(ds, output)
     vis = ds.visible.values
     det = ds.detected.values[0].any(axis=0)
@@ -183,6 +220,74 @@ def ingest(
         f"wrote {output}: {ds.attrs['frames']} frame(s), {ds.attrs['frames_unreadable']} "
         f"unreadable; {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
     )
+
+
+@app.command("export-bag")
+def export_bag(
+    source: Path = typer.Argument(
+        ..., help="Experiment YAML, simulated result dataset (.nc) or capture folder."
+    ),
+    output: Path = typer.Option(..., "-o", "--output", help="Bag to write: .bag file or folder."),
+    fmt: str | None = typer.Option(
+        None, "--format", help="ros1 or ros2 (default: ros1 for a .bag output, else ros2)."
+    ),
+    compressed: bool = typer.Option(
+        False, "--compressed/--raw", help="CompressedImage (PNG, or the file's bytes) or raw bgr8."
+    ),
+    variant: str | None = typer.Option(
+        None, "--variant", help="Variant to export (default: first)."
+    ),
+    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+) -> None:
+    """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
+    from simgap.bag import BAG_FORMATS, capture_to_bag, experiment_to_bag
+    from simgap.paths import default_cache_dir
+
+    fmt = fmt or ("ros1" if output.suffix == ".bag" else "ros2")
+    if fmt not in BAG_FORMATS:
+        _fail(f"--format: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
+    if source.is_dir():
+        path = capture_to_bag(source, output, fmt, compressed=compressed)
+    else:
+        dataset = None
+        if source.suffix == ".nc":
+            from simgap.analysis.dataset import check_dataset, read_netcdf
+
+            dataset = check_dataset(read_netcdf(source), source)
+        exp = _load_sim(source)
+        cache_dir = cache or default_cache_dir()
+        path = experiment_to_bag(exp, cache_dir, output, fmt, dataset, variant, compressed)
+    typer.echo(f"wrote {path} ({fmt})")
+
+
+@app.command("errormodel")
+def errormodel(
+    result: Path = typer.Argument(..., help="Result dataset (netCDF): simulated or ingested."),
+    output: Path = typer.Option(..., "-o", "--output", help="Model to write (.nc; and .json)."),
+    variant: str | None = typer.Option(
+        None, "--variant", help="Variant to model (default: first)."
+    ),
+    check: bool = typer.Option(
+        True, "--check/--no-check", help="Also fit on half the configurations, test on the rest."
+    ),
+) -> None:
+    """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
+    from simgap.analysis.dataset import check_dataset, read_netcdf
+    from simgap.analysis.errormodel import check_error_model, fit_error_model
+
+    ds = check_dataset(read_netcdf(result), result)
+    model = fit_error_model(ds, variant=variant, source=str(result))
+    summary = check_error_model(ds, variant=variant) if check else None
+    for path in model.save(output):
+        typer.echo(str(path))
+    if summary is not None:
+        cover = ", ".join(f"{a} {v:.0%}" for a, v in summary["coverage"].items())
+        det = summary["detection"]
+        typer.echo(
+            f"held-out half: 90 % interval coverage {cover} ({summary['n_errors']} errors, "
+            f"{summary['n_outside']} outside the range); detection predicted "
+            f"{det['predicted_rate']:.1%} vs observed {det['observed_rate']:.1%}"
+        )
 
 
 def _load_sim(sim: Path):
@@ -299,7 +404,7 @@ def study(
     name = _experiment(experiment).name
     nc = output / f"{name}.nc"
     run(experiment, nc, cache, True, scheduler)
-    report(nc, output / f"{name}-report")
+    report(nc, output / f"{name}-report", None)
 
 
 if __name__ == "__main__":

@@ -340,9 +340,7 @@ class Rig:
 
     def view_angle(self, tag: int, p: float, theta: float, err: FixtureErrors = NOMINAL) -> float:
         """Angle between the line of sight and the tag plane (rad); negative when facing away."""
-        m = self.eyepoint_from_tag(tag, p, theta, err)
-        to_camera = -m[:3, 3] / np.linalg.norm(m[:3, 3])
-        return float(np.arcsin(np.clip(to_camera @ m[:3, 2], -1.0, 1.0)))
+        return float(view_angles(self.eyepoint_from_tag(tag, p, theta, err)))
 
     def is_visible(self, tag: int, p: float, theta: float) -> bool:
         """Whether the tag is expected to be detectable (faces the camera steeply enough)."""
@@ -364,6 +362,18 @@ class Rig:
         """Side of the white sticker including the quiet zone (m)."""
         cells = self.marker_cells()
         return self.tags.size * (cells + 2 * self.tags.quiet_zone_cells) / cells
+
+
+def view_angles(eyepoint_from_tags: np.ndarray) -> np.ndarray:
+    """Angle between the line of sight and the tag plane (rad) of tag poses, shape (..., 4, 4).
+
+    Positive when the tag faces the camera (pi/2 when it faces it squarely), negative when it
+    faces away; the definition behind :meth:`Rig.view_angle` and :meth:`Rig.is_visible`.
+    """
+    m = np.asarray(eyepoint_from_tags, dtype=float)
+    t = m[..., :3, 3]
+    to_camera = -t / np.linalg.norm(t, axis=-1, keepdims=True)
+    return np.arcsin(np.clip(np.sum(to_camera * m[..., :3, 2], axis=-1), -1.0, 1.0))
 
 
 def _marker_cells(dictionary: str) -> int:
