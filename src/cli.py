@@ -332,12 +332,11 @@ def diagnose(
     if json_path:
         typer.echo(str(write_json(result, json_path)))
     minor = result.get("minor", [])
-    major = [e for e in result["selected"] if e not in minor]
     if not result["where"]["significant"]:
         verdict = "no significant gap"
     else:
-        verdict = "selected: " + (", ".join(major) or "-")
-        verdict += f"; minor: {', '.join(minor)}" if minor else ""
+        named = [f"{e} (minor)" if e in minor else e for e in result["selected"]]
+        verdict = "selected: " + (", ".join(named) or "-")
         if result["unexplained"]:
             verdict += f"; unexplained: {', '.join(result['unexplained_evidence'])}"
     typer.echo(f"diagnosis: {verdict}")

@@ -88,7 +88,7 @@ NUISANCE_EFFECTS: dict[str, dict[str, Any]] = {
 }
 #: ... and another image formation and background (scene-template overrides) ...
 NUISANCE_SCENE: dict[str, Any] = {
-    "rfilter": {"type": "gaussian", "stddev": 0.5},
+    "rfilter": {"type": "gaussian", "stddev": 0.3},
     "materials": {
         "tag": {"texture_filter": "bilinear"},
         "table": {"type": "diffuse", "reflectance": 0.6},

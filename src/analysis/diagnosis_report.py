@@ -174,12 +174,11 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
         lines.append("**Unexplained**: no effect of the catalogue explains the held-out evidence.")
     else:
         minor = result.get("minor", [])
-        major = [e for e in result["selected"] if e not in minor]
-        lines.append(f"**Selected**: {', '.join(major) or '-'}.")
+        named = [f"{e} (minor)" if e in minor else e for e in result["selected"]]
+        lines.append(f"**Selected** (most important first): {', '.join(named) or '-'}.")
         if minor:
             lines.append(
-                f"**Minor** (seen in the evidence, no pose change beyond the floor): "
-                f"{', '.join(minor)}."
+                "Minor: seen in the corners or images, no pose change beyond the practical floor."
             )
         if result["unexplained"]:
             lines.append(

@@ -464,8 +464,8 @@ class ModelSearch:
         An effect is added while the combined held-out misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`). Effects are returned most important
-        first: effects that move the pose beyond the floor before minor ones (:meth:`minor`),
-        each group by how much its removal hurts the held-out residual.
+        first: by how much their removal worsens the combined held-out evidence (an effect may
+        matter most for the image evidence and move no pose: it is then also :meth:`minor`).
         """
         if not ranking or not improves_on_nothing(ranking[0]):
             return None
@@ -489,16 +489,12 @@ class ModelSearch:
         current = self.prune(current)
         if len(current.fits) > 1:
             model = [c for c, _ in current.fits]
-            minor = set(self.minor(current))
             loss = {
                 c.effect: self.evaluate(tuple(m for m in model if m is not c)).evidence_after
                 for c in model
             }
             current = dataclasses.replace(
-                current,
-                fits=sorted(
-                    current.fits, key=lambda cf: (cf[1].effect in minor, -loss[cf[1].effect])
-                ),
+                current, fits=sorted(current.fits, key=lambda cf: -loss[cf[1].effect])
             )
         return current
 

@@ -162,7 +162,7 @@ def load_scene_spec(overrides: dict | None = None, template: str | Path | None =
 
 
 #: Upsampling of the one-texel-per-cell marker texture before bilinear filtering.
-BILINEAR_UPSAMPLE = 8
+BILINEAR_UPSAMPLE = 16
 
 
 def _tag_material(spec: dict[str, Any], texture: np.ndarray, mi) -> dict[str, Any]:
