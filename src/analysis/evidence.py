@@ -3,7 +3,8 @@
 Three families of tests compare a real dataset with its simulation (aligned configurations):
 
 scatter
-    Per axis and distance region, the spread of the pose error around its smooth course. With
+    Per axis, over all configurations and per distance region, the spread of the pose error
+    around its smooth course. With
     repeats, the deviations of each repeat from its configuration's mean; otherwise the residual
     of each value from the straight line through its two neighbours along the carriage (exact
     for any linear trend, also for unevenly spaced pin holes), scaled to unit noise. Real and
@@ -135,11 +136,12 @@ def distance_regions(ps: np.ndarray) -> list[tuple[str, np.ndarray]]:
 
 
 def scatter_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
-    """Brown-Forsythe tests of real vs simulated pose scatter per axis and distance region."""
+    """Brown-Forsythe tests of real vs simulated pose scatter per axis, overall and per region."""
     real, sim = align(real, sim)
     res_r, res_s = noise_residuals(real), noise_residuals(sim)
     rows = []
     regions = distance_regions(res_r.p.values) if res_r.p.size else []
+    regions = [("all", res_r.p.values)] + regions if regions else []
     n_tests = max(len(regions) * len(AXES), 1)
     for axis in AXES:
         unit = axis_unit(axis)
