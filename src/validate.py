@@ -95,8 +95,8 @@ NUISANCE_SCENE: dict[str, Any] = {
         "node": {"type": "diffuse", "reflectance": 0.55},
     },
 }
-#: ... rendered with more samples per pixel (supersampling).
-NUISANCE_SPP = 32
+#: ... rendered with more samples per pixel (supersampling; a square number for multijitter).
+NUISANCE_SPP = 25
 
 
 @dataclass(frozen=True)
