@@ -27,9 +27,13 @@ from simgap.rig import load_rig
 
 
 def _items(
-    rig, effects: dict[str, dict], noise_px: float = 0.0, seed: int = 0
+    rig, effects: dict[str, dict], noise_px: float = 0.0, seed: int = 0, shrink_px: float = 0.0
 ) -> tuple[Items, VariantState]:
-    """Exact corners of visible tags: 'sim' nominal, 'real' with the effects (+ noise, px)."""
+    """Exact corners of visible tags: 'sim' nominal, 'real' with the effects (+ noise, px).
+
+    ``shrink_px`` moves the real corners that far towards the marker's centre (a detector edge
+    bias, as a softer camera gives).
+    """
     base = VariantState(scene=VariantState().scene.__class__(camera=rig.camera))
     true = base
     for effect, params in effects.items():
@@ -59,6 +63,10 @@ def _items(
     sim = project_items(rig, rig.camera, base.scene.errors, 1.0, items)
     real = project_items(rig, true.camera, true.errors, true.tag_scale, items)
     real += np.random.default_rng(seed).normal(0.0, noise_px, real.shape)
+    if shrink_px:
+        centre = real.mean(axis=1, keepdims=True)
+        d = real - centre
+        real = centre + d * (1 - shrink_px / np.linalg.norm(d, axis=-1, keepdims=True))
     cal = rig.camera
 
     def errors(corners):
@@ -153,10 +161,9 @@ def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():
     judged focal_length irrelevant and reported tag_scale alone (held-out corners 4.26 px
     instead of 0.19 px)."""
     rig = load_rig()
-    items, base = _items(rig, {"focal_length": {"scale": -0.03}}, noise_px=0.1, seed=1)
-    centre = items.real_corners.mean(axis=1, keepdims=True)
-    d = items.real_corners - centre
-    items.real_corners = centre + d * (1 - 0.6 / np.linalg.norm(d, axis=-1, keepdims=True))
+    items, base = _items(
+        rig, {"focal_length": {"scale": -0.03}}, noise_px=0.1, seed=1, shrink_px=0.6
+    )
     idx = np.arange(len(items))
     train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
     axes = np.array([False, True, False, False, False, False])

@@ -23,6 +23,7 @@ pose, statistics and detections comes from the full pipeline, like every candida
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -31,7 +32,6 @@ from scipy.optimize import least_squares, minimize_scalar
 
 from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
 from simgap.analysis.fitting import Fit, Items, SimulationCandidate
-from simgap.effects import make_effect
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX
 
@@ -90,7 +90,7 @@ class AppearanceCandidate(SimulationCandidate):
     n_params = 1
 
     def __init__(self, effect: str, param: str, bounds: tuple[float, float], xatol: float):
-        super().__init__(effect, [])
+        super().__init__(effect)
         self.param, self.bounds, self.xatol = param, bounds, xatol
 
     def params(self, x: float) -> dict[str, Any]:
@@ -103,7 +103,7 @@ class AppearanceCandidate(SimulationCandidate):
         stats = FIT_STATS[self.effect]
 
         def misfit(x: float) -> float:
-            state = make_effect(self.effect, self.params(x)).apply(base)
+            state = self.apply(base, self.params(x))
             return evidence_misfit(stats, items.real_stats, runner.stats(state, items))
 
         # the misfit is capped and can be flat far from its minimum: a coarse scan brackets the
@@ -183,10 +183,21 @@ class DefocusCandidate(AppearanceCandidate):
     """
 
     n_params = 2
+    #: Samples per pixel of its renders: the thin lens adds Monte Carlo noise that a 16-spp
+    #: render turns into corner noise the real camera does not have.
+    SPP = 32
 
     def __init__(self, focal_px: float) -> None:
         super().__init__("defocus", "aperture_radius_m", (0.0, 0.005), 0.0)
         self.focal_px = focal_px
+
+    def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
+        """The state with the thin lens, rendered at :data:`SPP` samples per pixel."""
+        state = super().apply(base, params)
+        quality = dataclasses.replace(
+            state.scene.quality, spp=max(state.scene.quality.spp, self.SPP)
+        )
+        return dataclasses.replace(state, scene=dataclasses.replace(state.scene, quality=quality))
 
     def fit(self, runner, base: VariantState, items: Items, target=None, axes=None) -> Fit:
         """Least squares of the thin-lens edge-width model."""

@@ -41,10 +41,11 @@ from simgap.analysis.selection import (
     ModelSearch,
     Scored,
     bootstrap_reductions,
+    corner_unit,
 )
 from simgap.atomic import atomic_write
 from simgap.cache import Cache, content_hash
-from simgap.effects import EFFECTS, make_effect
+from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState
 from simgap.experiment import Experiment
 from simgap.pose.image_stats import STAT_NAMES
@@ -305,6 +306,7 @@ class Diagnosis:
             self.sim_train,
             self.axes,
             self.runner,
+            corner_unit(real.reproj_px.isel(variant=0).values),
         )
 
     # ------------------------------------------------------------------ which
@@ -314,8 +316,8 @@ class Diagnosis:
     def confirm(self, chosen: Scored) -> dict[str, Any]:
         """Re-run the pipeline (re-render) with all selected effects; report-split gap after."""
         state = self.base
-        for _, fit in chosen.fits:
-            state = make_effect(fit.effect, fit.params).apply(state)
+        for cand, fit in chosen.fits:
+            state = cand.apply(state, fit.params)
         h = self.items.subset(self.report)
         t0 = time.perf_counter()
         pred = self.runner(state, h)

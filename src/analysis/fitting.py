@@ -8,16 +8,15 @@ Two kinds of candidate:
     ``turntable_offset``, ``carriage_pitch``, ``tag_scale``, ``tag_offset``). The simulated
     detected corners are moved by the exact change of the projected corners and the pose is solved
     again, so the simulated detector's own bias is kept. Parameters are fitted by robust least
-    squares on the *real* detected corners (px), then scored in pose space.
+    squares on the *real* detected corners (px). Several are fitted jointly
+    (:class:`ProjectionSet`).
 :class:`SimulationCandidate`
-    Everything else (``defocus``, ``tag_gloss``, ``lighting``, ``exposure``, ``sensor_noise``,
-    ``jpeg``, ``blur``, ``detector_refinement``): each value of a small grid is run through the real
-    pipeline (cached renders are reused; only the stages the effect touches are recomputed) on a
-    subsample of the training configurations; the best value is kept.
+    Effects whose change of the evidence comes from running the pipeline with them (cached renders
+    are reused; only the stages the effect touches are recomputed): the appearance effects of
+    :mod:`simgap.analysis.appearance`, fitted continuously on the image evidence.
 
 Every candidate predicts the simulated error *with* the effect as the baseline simulated error
-plus the effect's change. Several projection effects are fitted jointly (:class:`ProjectionSet`);
-simulation effects add their changes on top (``simgap.analysis.selection``).
+plus the effect's change; model choice is ``simgap.analysis.selection``.
 """
 
 from __future__ import annotations
@@ -198,8 +197,12 @@ class ProjectionCandidate:
                 out[name] = float(value)
         return out
 
+    def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
+        """The simulation's state with the effect at ``params``."""
+        return make_effect(self.effect, params).apply(base)
+
     def _state(self, base: VariantState, x: np.ndarray) -> VariantState:
-        return make_effect(self.effect, self.effect_params(x)).apply(base)
+        return self.apply(base, self.effect_params(x))
 
     def corner_shift(self, rig: Rig, base: VariantState, x: np.ndarray, items: Items) -> np.ndarray:
         """Change of the projected corners (N, 4, 2) caused by the effect (px)."""
@@ -296,42 +299,31 @@ class ProjectionSet(ProjectionCandidate):
 
 
 class SimulationCandidate:
-    """An effect fitted by running the pipeline on a grid of parameter values.
+    """An effect whose change of the evidence comes from running the pipeline with it.
+
+    Subclasses fit the parameters (:class:`simgap.analysis.appearance.AppearanceCandidate` on
+    the image evidence); this class turns fitted parameters into a variant state and the change
+    of the simulated errors.
 
     Parameters
     ----------
     effect : str
         Catalogue name.
-    grid : list of dict
-        Effect parameter mappings to try.
     """
 
     kind = "simulation"
-    #: one choice among the grid values
     n_params = 1
 
-    def __init__(self, effect: str, grid: list[dict[str, Any]]) -> None:
+    def __init__(self, effect: str) -> None:
         self.effect = effect
-        self.grid = grid
 
-    def fit(self, runner, base: VariantState, items: Items, target: np.ndarray, axes=None) -> Fit:
-        """Pick the grid value whose simulated errors best match ``target`` on ``items``."""
-        t0 = time.perf_counter()
-        sim0 = runner(base, items)
-        best = None
-        for params in self.grid:
-            pred = items.sim_err + (
-                runner(make_effect(self.effect, params).apply(base), items) - sim0
-            )
-            score = gap_score(target, pred, items.scale, axes)
-            if best is None or score < best[0]:
-                best = (score, params)
-        return Fit(self.effect, dict(best[1]), time.perf_counter() - t0, {"train_score": best[0]})
+    def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
+        """The simulation's state with the effect at ``params``."""
+        return make_effect(self.effect, params).apply(base)
 
     def delta(self, runner, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
         """Change of the simulated error (N, 6) with the fitted effect (m, rad)."""
-        state = make_effect(self.effect, fit.params).apply(base)
-        return runner(state, items) - runner(base, items)
+        return runner(self.apply(base, fit.params), items) - runner(base, items)
 
 
 def default_candidates() -> list:
