@@ -57,7 +57,7 @@ from simgap.capture import (
     ingest,
     read_calibration,
     read_capture,
-    snap_theta,
+    turntable_stop,
 )
 from simgap.config import ConfigError
 from simgap.pose.detect import DetectorSettings
@@ -188,7 +188,7 @@ def read_time_ranges(path: Path, rig: Rig) -> list[TimeRange]:
         p = _int_field(rec["p"], where, "p")
         if p not in rig.grid.p:
             raise ConfigError(f"{where}: p: expected a pin hole of the rig, got {p}")
-        theta = _stop(rec["theta_rad"], rig, f"{where}: theta_rad")
+        theta = turntable_stop(rec["theta_rad"], rig, f"{where}: theta_rad")
         ranges.append(TimeRange(start, end, p, theta, row))
     if not ranges:
         raise ConfigError(f"{path}: no rows (expected one time range per fixture configuration)")
@@ -197,21 +197,6 @@ def read_time_ranges(path: Path, rig: Rig) -> list[TimeRange]:
         if b.start_ns <= a.end_ns:
             raise ConfigError(f"{path}: row {b.row}: overlaps row {a.row}")
     return ranges
-
-
-def _stop(value: Any, rig: Rig, where: str) -> float:
-    """The rig's turntable stop for an angle (rad) given as text or number."""
-    try:
-        theta = float(value)
-    except (TypeError, ValueError):
-        theta = math.nan
-    stop = snap_theta(theta, rig) if math.isfinite(theta) else None
-    if stop is None:
-        raise ConfigError(
-            f"{where}: expected a turntable stop (a multiple of {rig.grid.theta_step_deg:g} deg "
-            f"in rad), got {value!r}"
-        )
-    return stop
 
 
 def _stamp_ns(msg: Any, record_ns: int) -> int:
@@ -310,7 +295,9 @@ def _fixture_from_joints(reader: Any, conns: list, bag: Path, rig: Rig) -> list[
                 f"{where}: {CARRIAGE_JOINT}: expected the travel of a pin hole (a multiple of "
                 f"{rig.links.pin_pitch} m within {PIN_TOLERANCE} pitch), got {travel} m"
             )
-        theta = _stop(msg.position[names.index(TURNTABLE_JOINT)], rig, f"{where}: turntable")
+        theta = turntable_stop(
+            msg.position[names.index(TURNTABLE_JOINT)], rig, f"{where}: turntable"
+        )
         out.append((_stamp_ns(msg, t), p, theta))
     if not out:
         raise ConfigError(f"{bag}: topic {topic}: no messages (expected JointState)")

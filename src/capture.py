@@ -387,6 +387,29 @@ def snap_theta(theta: float, rig: Rig) -> float | None:
     return float(stops[i]) if dist[i] <= THETA_TOLERANCE_RAD else None
 
 
+def turntable_stop(value: Any, rig: Rig, where: str) -> float:
+    """The rig's turntable stop (rad) for an angle given as text or number (rad).
+
+    Raises
+    ------
+    simgap.config.ConfigError
+        ``where`` and the expected stops when ``value`` is not within
+        :data:`THETA_TOLERANCE_RAD` of one.
+    """
+    try:
+        theta = float(value)
+    except (TypeError, ValueError):
+        theta = math.nan
+    stop = snap_theta(theta, rig) if math.isfinite(theta) else None
+    if stop is None:
+        step = rig.grid.theta_step_deg
+        raise ConfigError(
+            f"{where}: expected a turntable stop (a multiple of {step:g} deg = "
+            f"{math.radians(step):.6f} rad, within {THETA_TOLERANCE_RAD:g} rad), got {value!r}"
+        )
+    return stop
+
+
 def _parse_int(text: str) -> int | None:
     try:
         return int(text)
@@ -489,7 +512,6 @@ def _read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
                 f"(required: {', '.join(REQUIRED_COLUMNS)}; "
                 f"optional: {', '.join(OPTIONAL_COLUMNS)})"
             )
-    step_deg = rig.grid.theta_step_deg
     frames: list[CaptureFrame] = []
     seen: dict[tuple[int, float, int], int] = {}
     row = 0
@@ -507,17 +529,7 @@ def _read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
                 f"{where}: p: expected a pin hole of the rig ({_holes(rig.grid.p)}), "
                 f"got {rec['p']!r}"
             )
-        try:
-            theta_in = float(rec["theta_rad"])
-        except ValueError:
-            theta_in = math.nan
-        theta = snap_theta(theta_in, rig) if math.isfinite(theta_in) else None
-        if theta is None:
-            raise ConfigError(
-                f"{where}: theta_rad: expected a turntable stop (a multiple of {step_deg:g} deg = "
-                f"{math.radians(step_deg):.6f} rad, within {THETA_TOLERANCE_RAD:g} rad), "
-                f"got {rec['theta_rad']!r}"
-            )
+        theta = turntable_stop(rec["theta_rad"], rig, f"{where}: theta_rad")
         repeat = _parse_int(rec["repeat"]) if "repeat" in rec else 0
         if repeat is None or repeat < 0:
             raise ConfigError(f"{where}: repeat: expected an integer >= 0, got {rec['repeat']!r}")

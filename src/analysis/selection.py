@@ -83,22 +83,16 @@ class Scored:
         Corners (:attr:`corner_unit_px`), pose over all axes (:func:`gap_score`, noise or
         practical floor), detection (:data:`DETECTION_UNIT`), then each image statistic (floors).
         """
-        head = [
-            _finite(self.corner_after) / self.corner_unit_px,
-            _finite(self.after_all),
-            self.detection_after,
-        ]
-        return np.concatenate([head, self.image_after])
+        return self._channels(self.corner_after, self.after_all, self.detection_after, True)
 
     @property
     def channels_before(self) -> np.ndarray:
         """Held-out misfit per evidence channel without the model's effects."""
-        head = [
-            _finite(self.corner_before) / self.corner_unit_px,
-            _finite(self.before_all),
-            self.detection_before,
-        ]
-        return np.concatenate([head, self.image_before])
+        return self._channels(self.corner_before, self.before_all, self.detection_before, False)
+
+    def _channels(self, corner_px: float, pose: float, detection: float, after: bool) -> np.ndarray:
+        head = [_finite(corner_px) / self.corner_unit_px, _finite(pose), detection]
+        return np.concatenate([head, self.image_after if after else self.image_before])
 
     @property
     def evidence_after(self) -> float:
@@ -413,9 +407,7 @@ class ModelSearch:
             if not getattr(EFFECTS[cand.effect], "stochastic", False):
                 # a stochastic effect (sensor noise) leaves the expected corners where they are;
                 # one noisy realisation is no prediction of them (its evidence is the noise)
-                corners += np.nan_to_num(
-                    runner.corners(state, items) - runner.corners(base, items)
-                )
+                corners += np.nan_to_num(runner.corners(state, items) - runner.corners(base, items))
             if has_stats:
                 change = np.nan_to_num(runner.stats(state, items) - runner.stats(base, items))
                 if not getattr(EFFECTS[cand.effect], "stochastic", False):
@@ -700,4 +692,3 @@ def bootstrap_reductions(
         "pose_reduction": [float(v) for v in np.nanpercentile(pose, q)],
         "evidence_reduction": [float(v) for v in np.nanpercentile(evidence, q)],
     }
-
