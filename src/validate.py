@@ -277,7 +277,11 @@ def _share(flags: list[bool]) -> float | None:
 
 def summarize(trials: list[Trial]) -> dict[str, Any]:
     """Scores over trials (DESIGN §5 item 4; issue 8's done-when)."""
-    scores = [t.score() for t in trials]
+    return summarize_scores([t.score() for t in trials])
+
+
+def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
+    """Scores over trials from each trial's :meth:`Trial.score` (as validation.json keeps)."""
     outside = [s for s in scores if s["hidden"] and set(s["hidden"]) <= set(OUTSIDE)]
     inside = [s for s in scores if s["hidden"] and s not in outside]
     single = [s for s in inside if len(s["hidden"]) == 1]
