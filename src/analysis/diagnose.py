@@ -357,7 +357,7 @@ def unexplained_evidence(
     ):
         out.append("detection")
     noisy = chosen is not None and any(
-        getattr(EFFECTS[e], "stochastic", False) for e in chosen.effects
+        EFFECTS[e].stochastic for e in chosen.effects
     )
     if any(r["significant"] for r in where["scatter_tests"]) and not noisy:
         out.append("scatter")

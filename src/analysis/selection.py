@@ -404,13 +404,16 @@ class ModelSearch:
             if isinstance(cand, ProjectionCandidate):
                 continue
             state = cand.apply(base, fit.params)
-            if not getattr(EFFECTS[cand.effect], "stochastic", False):
+            stochastic = EFFECTS[cand.effect].stochastic
+            if not stochastic:
                 # a stochastic effect (sensor noise) leaves the expected corners where they are;
                 # one noisy realisation is no prediction of them (its evidence is the noise)
-                corners += np.nan_to_num(runner.corners(state, items) - runner.corners(base, items))
+                corners += np.nan_to_num(
+                    runner.corners(state, items) - runner.corners(base, items)
+                )
             if has_stats:
                 change = np.nan_to_num(runner.stats(state, items) - runner.stats(base, items))
-                if not getattr(EFFECTS[cand.effect], "stochastic", False):
+                if not stochastic:
                     # a deterministic effect does not change the camera's noise; the change of
                     # the simulation's noise statistics is its render noise being smoothed
                     change[:, NOISE_STATS] = 0.0
@@ -432,7 +435,7 @@ class ModelSearch:
             if isinstance(cand, ProjectionCandidate):
                 continue
             delta = np.nan_to_num(cand.delta(runner, base, fit, h))
-            if getattr(EFFECTS[cand.effect], "stochastic", False):
+            if EFFECTS[cand.effect].stochastic:
                 delta[:] = 0.0  # expected pose unchanged, as for the corners
             simulation_deltas[cand.effect] = delta
             off_h += delta

@@ -32,6 +32,9 @@ class Effect(abc.ABC):
     name: ClassVar[str]
     stage: ClassVar[Stage]
     Params: ClassVar[type]
+    #: Whether the effect draws random numbers (sensor noise): repeats then differ, and one
+    #: realisation is no prediction of the expected corners or pose.
+    stochastic: ClassVar[bool] = False
 
     def __init__(self, params: Any) -> None:
         self.params = params

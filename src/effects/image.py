@@ -41,7 +41,6 @@ class ImageEffect(Effect):
 
     stage = "image"
     order: ClassVar[int]
-    stochastic: ClassVar[bool] = False
 
     def apply(self, state: VariantState) -> VariantState:
         """Append this operation to the camera pipeline."""

@@ -77,7 +77,7 @@ class ImageState:
         """Whether the pipeline draws random numbers (then repeats differ)."""
         from simgap.effects.base import EFFECTS
 
-        return any(getattr(EFFECTS[name], "stochastic", False) for name, _ in self.ops)
+        return any(EFFECTS[name].stochastic for name, _ in self.ops)
 
 
 @dataclass(frozen=True)
