@@ -1,6 +1,7 @@
 """Time to diagnose a pseudo-real capture against the whole catalogue, from an empty cache.
 
-Renders a pseudo-real capture (another camera's image formation, see ``simgap.validate``; hidden:
+Renders a pseudo-real capture (another camera's image formation, see ``simgap.diagnosis.validate``;
+hidden:
 focal length +2 %), ingests it, and times ``diagnose``: simulation of the same configurations,
 the gap and its evidence, every candidate fitted and ranked, the greedy combination, the report
 split and the confirmation by re-rendering. ``--configs 48`` is the blind validation's capture
@@ -18,10 +19,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from simgap.analysis.diagnose import diagnose
-from simgap.capture import ingest
-from simgap.experiment import Configurations, load_experiment
-from simgap.validate import ValidateSettings, pseudo_real_experiment, render_capture
+from simgap.diagnosis.diagnose import diagnose
+from simgap.diagnosis.validate import ValidateSettings, pseudo_real_experiment, render_capture
+from simgap.pipeline.capture import ingest
+from simgap.pipeline.experiment import Configurations, load_experiment
 
 
 def main() -> None:

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simgap.analysis.dataset import read_netcdf
 from simgap.analysis.errormodel import AXES, check_error_model, fit_error_model
+from simgap.results.dataset import read_netcdf
 
 REPO = Path(__file__).resolve().parents[1]
 BASELINE = REPO / "results" / "baseline.nc"

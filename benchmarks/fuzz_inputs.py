@@ -34,8 +34,10 @@ import cv2
 import numpy as np
 import yaml
 
-from simgap.analysis.dataset import build_dataset, check_dataset, read_netcdf, write_netcdf
-from simgap.capture import (
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel, load_rig
+from simgap.effects import EFFECTS
+from simgap.pipeline.capture import (
     CaptureWarning,
     calibration_to_yaml,
     ingest,
@@ -43,10 +45,8 @@ from simgap.capture import (
     read_capture,
     write_capture,
 )
-from simgap.config import ConfigError
-from simgap.effects import EFFECTS
-from simgap.experiment import load_experiment
-from simgap.rig import CameraModel, load_rig
+from simgap.pipeline.experiment import load_experiment
+from simgap.results.dataset import build_dataset, check_dataset, read_netcdf, write_netcdf
 
 NAN, INF = float("nan"), float("inf")
 SMALL = CameraModel(64, 48, 60.0, 60.0, 31.5, 23.5)
@@ -568,7 +568,7 @@ def dataset_cases(tmp: Path, rng: random.Random) -> list[Case]:
     write_netcdf(base.drop_vars("corners"), diag)
 
     def diagnose_without_corners(p: Path = diag) -> Any:
-        from simgap.analysis.diagnose import diagnose
+        from simgap.diagnosis.diagnose import diagnose
 
         return diagnose(read_netcdf(p), None, tmp / "cache")  # fails before simulating
 

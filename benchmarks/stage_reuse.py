@@ -19,8 +19,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from simgap.experiment import VariantSpec, load_experiment
-from simgap.sweep import run_experiment
+from simgap.pipeline.experiment import VariantSpec, load_experiment
+from simgap.pipeline.sweep import run_experiment
 
 
 def timed(exp, cache: Path) -> float:

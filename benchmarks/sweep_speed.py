@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from simgap.experiment import load_experiment
+from simgap.pipeline.experiment import load_experiment
+from simgap.pipeline.sweep import config_seed, run_experiment
 from simgap.pose.detect import Detector
 from simgap.pose.estimate import estimate_pose
 from simgap.render import imaging
 from simgap.render.scene import FixtureScene, projected_sticker_boxes
-from simgap.sweep import config_seed, run_experiment
 
 
 def naive(exp, configs) -> float:

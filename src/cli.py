@@ -18,7 +18,7 @@ from typing import Any
 import click
 import typer
 
-from simgap.config import ConfigError
+from simgap.core.config import ConfigError
 
 _STATE = {"debug": False}
 
@@ -93,7 +93,7 @@ def _fail(message: str) -> None:
 
 def _experiment(path: Path):
     """Load an experiment file (errors name the file and key)."""
-    from simgap.experiment import load_experiment
+    from simgap.pipeline.experiment import load_experiment
 
     return load_experiment(path)
 
@@ -107,9 +107,9 @@ def run(
     scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
 ) -> None:
     """Run an experiment and write its result dataset."""
-    from simgap.analysis.dataset import write_netcdf
-    from simgap.paths import default_cache_dir
-    from simgap.sweep import run_experiment
+    from simgap.core.paths import default_cache_dir
+    from simgap.pipeline.sweep import run_experiment
+    from simgap.results.dataset import write_netcdf
 
     exp = _experiment(experiment)
     ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
@@ -131,8 +131,8 @@ def report(
     ),
 ) -> None:
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
-    from simgap.analysis.dataset import check_dataset, read_netcdf
     from simgap.analysis.report import write_report
+    from simgap.results.dataset import check_dataset, read_netcdf
 
     ds = check_dataset(read_netcdf(result), result)
     paths = write_report(ds, output)
@@ -158,7 +158,7 @@ def compare(
 ) -> None:
     """Compare each variant of a result dataset with the reference variant."""
     from simgap.analysis.compare import write_comparison
-    from simgap.analysis.dataset import check_dataset, read_netcdf
+    from simgap.results.dataset import check_dataset, read_netcdf
 
     ds = check_dataset(read_netcdf(result), result)
     paths = write_comparison(ds, output, baseline)
@@ -193,14 +193,14 @@ def ingest(
     ),
 ) -> None:
     """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
-    from simgap.analysis.dataset import write_netcdf
-    from simgap.capture import ingest as ingest_capture
+    from simgap.pipeline.capture import ingest as ingest_capture
+    from simgap.results.dataset import write_netcdf
 
     kwargs = {}
     if experiment is not None:
         exp = _experiment(experiment)
         kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
-    from simgap.bag import ingest_bag, is_bag
+    from simgap.pipeline.bag import ingest_bag, is_bag
 
     if is_bag(capture):
         bag_options = {
@@ -240,8 +240,8 @@ def export_bag(
     cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
 ) -> None:
     """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
-    from simgap.bag import BAG_FORMATS, capture_to_bag, experiment_to_bag
-    from simgap.paths import default_cache_dir
+    from simgap.core.paths import default_cache_dir
+    from simgap.pipeline.bag import BAG_FORMATS, capture_to_bag, experiment_to_bag
 
     fmt = fmt or ("ros1" if output.suffix == ".bag" else "ros2")
     if fmt not in BAG_FORMATS:
@@ -251,7 +251,7 @@ def export_bag(
     else:
         dataset = None
         if source.suffix == ".nc":
-            from simgap.analysis.dataset import check_dataset, read_netcdf
+            from simgap.results.dataset import check_dataset, read_netcdf
 
             dataset = check_dataset(read_netcdf(source), source)
         exp = _load_sim(source)
@@ -272,8 +272,8 @@ def errormodel(
     ),
 ) -> None:
     """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
-    from simgap.analysis.dataset import check_dataset, read_netcdf
     from simgap.analysis.errormodel import check_error_model, fit_error_model
+    from simgap.results.dataset import check_dataset, read_netcdf
 
     ds = check_dataset(read_netcdf(result), result)
     model = fit_error_model(ds, variant=variant, source=str(result))
@@ -292,11 +292,11 @@ def errormodel(
 
 def _load_sim(sim: Path):
     """An experiment from YAML, or the experiment a result dataset was made with."""
-    from simgap.experiment import experiment_from_yaml
+    from simgap.pipeline.experiment import experiment_from_yaml
 
     if sim.suffix in (".yaml", ".yml"):
         return _experiment(sim)
-    from simgap.analysis.dataset import read_netcdf
+    from simgap.results.dataset import read_netcdf
 
     ds = read_netcdf(sim)
     if "experiment_yaml" not in ds.attrs:
@@ -315,11 +315,11 @@ def diagnose(
     scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
 ) -> None:
     """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
-    from simgap.analysis.dataset import read_netcdf
-    from simgap.analysis.diagnose import DiagnoseSettings, write_json
-    from simgap.analysis.diagnose import diagnose as run_diagnosis
-    from simgap.analysis.diagnosis_report import write_diagnosis_report
-    from simgap.paths import default_cache_dir
+    from simgap.core.paths import default_cache_dir
+    from simgap.diagnosis.diagnose import DiagnoseSettings, write_json
+    from simgap.diagnosis.diagnose import diagnose as run_diagnosis
+    from simgap.diagnosis.diagnosis_report import write_diagnosis_report
+    from simgap.results.dataset import read_netcdf
 
     data = read_netcdf(real)
     exp = _load_sim(sim)
@@ -353,8 +353,8 @@ def validate(
     cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores."""
-    from simgap.paths import default_cache_dir
-    from simgap.validate import ValidateSettings, run_validation
+    from simgap.core.paths import default_cache_dir
+    from simgap.diagnosis.validate import ValidateSettings, run_validation
 
     exp = _experiment(experiment)
     settings = ValidateSettings(trials=trials, seed=seed)

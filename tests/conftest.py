@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from simgap.rig import load_rig
+from simgap.core.rig import load_rig
 
 REPO = Path(__file__).resolve().parents[1]
 #: The public sample capture (made by an independent generator), in ``shared/`` beside the

@@ -1,5 +1,5 @@
-"""Tests of ROS bags in and out (simgap.bag), without ROS: bags are written by rosbags itself
-(through simgap's exporter and directly in the tests), read back and ingested. The frames are
+"""Tests of ROS bags in and out (simgap.pipeline.bag), without ROS: bags are written by rosbags
+itself (through simgap's exporter and directly in the tests), read back and ingested. The frames are
 synthetic: the rig's tag textures warped to where the rig's geometry projects the stickers, so
 OpenCV's real detector finds the tags; one test renders a frame through the cached pipeline."""
 
@@ -16,7 +16,9 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag1 import Writer as Writer1
 from typer.testing import CliRunner
 
-from simgap.bag import (
+from simgap.cli import app
+from simgap.core.config import ConfigError
+from simgap.pipeline.bag import (
     CAMERA_INFO_TOPIC,
     FIXTURE_TOPIC,
     IMAGE_TOPIC,
@@ -25,9 +27,7 @@ from simgap.bag import (
     capture_to_bag,
     ingest_bag,
 )
-from simgap.capture import ingest, write_capture
-from simgap.cli import app
-from simgap.config import ConfigError
+from simgap.pipeline.capture import ingest, write_capture
 from simgap.pose.estimate import project_tag_corners
 from simgap.render.assets import tag_texture
 

@@ -1,4 +1,5 @@
-"""Tests of real captures (simgap.capture): reading and validating capture folders, ingesting the
+"""Tests of real captures (simgap.pipeline.capture): reading and validating capture folders,
+ingesting the
 shared sample capture (whose camera has a 2 % longer focal length than its calibration says),
 writing captures, and ``simgap ingest``. No rendering: the sample's frames, copies of them, and
 blank frames for the bad-folder checks."""
@@ -14,8 +15,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from simgap.analysis.dataset import read_netcdf
-from simgap.capture import (
+from simgap.cli import app
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel
+from simgap.pipeline.capture import (
     CaptureWarning,
     calibration_to_yaml,
     image_name,
@@ -25,10 +28,8 @@ from simgap.capture import (
     snap_theta,
     write_capture,
 )
-from simgap.cli import app
-from simgap.config import ConfigError
 from simgap.pose.estimate import project_tag_corners
-from simgap.rig import CameraModel
+from simgap.results.dataset import read_netcdf
 
 TRUE_FOCAL_PX = 1413.72  # the sample's README: the camera's true fx = fy (2 % over camera.yaml)
 #: the sample's configurations (p, theta in deg): the synthetic bad-folder captures use them too

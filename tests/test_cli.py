@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from simgap.analysis.dataset import build_dataset, write_netcdf
 from simgap.cli import app
-from simgap.rig import load_rig
+from simgap.core.rig import load_rig
+from simgap.results.dataset import build_dataset, write_netcdf
 
 TAGS = (0, 1)
 PS = (0, 7, 14)

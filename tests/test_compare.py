@@ -21,8 +21,8 @@ from simgap.analysis.compare import (
     variant_summary_table,
     write_comparison,
 )
-from simgap.analysis.dataset import build_dataset, write_netcdf
 from simgap.cli import app
+from simgap.results.dataset import build_dataset, write_netcdf
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOK = ROOT / "notebooks" / "compare_rendering_options.ipynb"

@@ -1,5 +1,5 @@
 """Tests of strict experiment loading: every error names the file, the key path and what was
-expected (simgap.experiment.load_experiment, simgap.config)."""
+expected (simgap.pipeline.experiment.load_experiment, simgap.core.config)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
-from simgap.config import ConfigError
-from simgap.experiment import Experiment, load_experiment
+from simgap.core.config import ConfigError
+from simgap.pipeline.experiment import Experiment, load_experiment
 
 # Exact float64 arithmetic (deg2rad of multiples of 10): a few ulp of O(1) numbers.
 EXACT_TOL = 1e-12

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.analysis.dataset import AXES, build_dataset, read_netcdf, write_netcdf
+from simgap.results.dataset import AXES, build_dataset, read_netcdf, write_netcdf
 
 TAGS = (0, 1)
 PS = (0, 7, 14)

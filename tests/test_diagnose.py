@@ -20,10 +20,10 @@ from simgap.analysis.fitting import (
 )
 from simgap.analysis.selection import ModelSearch, Scored, parsimonious
 from simgap.cli import app
+from simgap.core.rig import load_rig
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
 from simgap.pose.estimate import estimate_pose, pose_error
-from simgap.rig import load_rig
 
 
 def _items(
@@ -258,9 +258,9 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
 def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sample_null):
     """sample-null: nothing wrong, only another camera's image formation (softer edges, other
     lights and materials, sensor noise). Image evidence may differ; no geometric cause."""
-    from simgap.analysis.diagnose import diagnose
-    from simgap.capture import ingest
-    from simgap.experiment import load_experiment
+    from simgap.diagnosis.diagnose import diagnose
+    from simgap.pipeline.capture import ingest
+    from simgap.pipeline.experiment import load_experiment
 
     result, _ = diagnose(
         ingest(sample_null), load_experiment("experiments/baseline.yaml"), session_cache
@@ -277,8 +277,8 @@ def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sam
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table."""
-    from simgap.experiment import load_experiment
-    from simgap.validate import ValidateSettings, run_validation
+    from simgap.diagnosis.validate import ValidateSettings, run_validation
+    from simgap.pipeline.experiment import load_experiment
 
     settings = ValidateSettings(
         trials=2,
@@ -314,7 +314,7 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
 
 
 def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
-    from simgap.validate import confusion
+    from simgap.diagnosis.validate import confusion
 
     scores = [
         {

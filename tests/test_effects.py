@@ -7,12 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from simgap.config import ConfigError
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel
 from simgap.effects import EFFECTS, make_effect
 from simgap.effects.image import ImageContext, run_pipeline
 from simgap.effects.scene import cct_to_rgb
 from simgap.effects.state import ImageState, VariantState
-from simgap.rig import CameraModel
 
 CANONICAL = {
     "focal_length",

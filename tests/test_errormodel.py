@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from simgap.analysis.dataset import build_dataset, empty_results, write_netcdf
 from simgap.analysis.errormodel import (
     AXES,
     ErrorModel,
@@ -25,6 +24,7 @@ from simgap.analysis.errormodel import (
 )
 from simgap.cli import app
 from simgap.pose.estimate import pose_error
+from simgap.results.dataset import build_dataset, empty_results, write_netcdf
 
 #: The known truth: error std (m, rad) grows with distance; bias has a distance trend and an
 #: obliquity-odd part (like the lateral and yaw errors of the renders); tx and rz correlated.

@@ -19,7 +19,8 @@ import itertools
 import numpy as np
 import pytest
 
-from simgap import transforms as tf
+from simgap.core import transforms as tf
+from simgap.core.rig import FixtureErrors, load_rig
 from simgap.pose.estimate import (
     PNP_METHODS,
     PnPSettings,
@@ -28,7 +29,6 @@ from simgap.pose.estimate import (
     pose_error,
     project_tag_corners,
 )
-from simgap.rig import FixtureErrors, load_rig
 
 # Measured on these cases: IPPE/IPPE_SQUARE/SQPNP (where they work) recover the pose to <= 1e-14 m
 # and <= 1e-9 rad; ITERATIVE stops on its default termination criteria at <= 5e-8 m and 2e-6 rad

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from simgap.analysis import evidence
-from simgap.analysis.dataset import build_dataset, empty_results
-from simgap.analysis.diagnose import split_items
-from simgap.rig import load_rig
+from simgap.core.rig import load_rig
+from simgap.diagnosis.diagnose import split_items
+from simgap.results.dataset import build_dataset, empty_results
 
 PS = tuple(range(0, 15, 2))
 THETAS = np.deg2rad(np.arange(0, 360, 20.0))

@@ -14,14 +14,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from simgap.analysis.dataset import (
-    DatasetError,
-    build_dataset,
-    check_dataset,
-    read_netcdf,
-    write_netcdf,
-)
-from simgap.capture import (
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel, load_rig
+from simgap.pipeline.capture import (
     CaptureWarning,
     calibration_to_yaml,
     ingest,
@@ -29,10 +24,15 @@ from simgap.capture import (
     read_capture,
     write_capture,
 )
-from simgap.config import ConfigError
-from simgap.experiment import load_experiment
+from simgap.pipeline.experiment import load_experiment
 from simgap.pose.detect import DICTIONARIES
-from simgap.rig import CameraModel, load_rig
+from simgap.results.dataset import (
+    DatasetError,
+    build_dataset,
+    check_dataset,
+    read_netcdf,
+    write_netcdf,
+)
 
 FUZZ = settings(
     max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]

@@ -19,15 +19,15 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from simgap.analysis.dataset import DatasetError, read_netcdf, write_netcdf
-from simgap.atomic import atomic_write, temporary_name
-from simgap.cache import CacheWarning
-from simgap.capture import CaptureWarning, ingest, read_capture, write_capture
 from simgap.cli import app
-from simgap.config import ConfigError
-from simgap.experiment import load_experiment
-from simgap.rig import CameraModel
-from simgap.sweep import experiment_pipelines, run_experiment
+from simgap.core.atomic import atomic_write, temporary_name
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel
+from simgap.pipeline.cache import CacheWarning
+from simgap.pipeline.capture import CaptureWarning, ingest, read_capture, write_capture
+from simgap.pipeline.experiment import load_experiment
+from simgap.pipeline.sweep import experiment_pipelines, run_experiment
+from simgap.results.dataset import DatasetError, read_netcdf, write_netcdf
 
 TINY = "name: tiny\nconfigurations: {p: [7], theta_deg: [0, 30, 60, 90]}\nrender: {spp: 4}\n"
 CONTRACT = ("expected", "estimated", "error", "visible", "detected", "reproj_px", "corners")
@@ -212,7 +212,7 @@ def test_diagnose_without_error_fails_before_simulating(tiny, tmp_path):
     assert res.exit_code == 2, res.output
     assert "error: required variable is missing" in res.output and str(real) in res.output
     assert not cache.exists() or not list(cache.rglob("*.*"))  # nothing was simulated
-    from simgap.analysis.diagnose import diagnose
+    from simgap.diagnosis.diagnose import diagnose
 
     with pytest.raises(DatasetError, match="error: required variable"):
         diagnose(read_netcdf(real), None, cache)  # checked before the experiment is even used

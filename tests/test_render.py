@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.backend import mitsuba
+from simgap.pipeline.sweep import crop_offset
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import estimate_pose, pose_error, project_tag_corners
 from simgap.render import imaging
+from simgap.render.backend import mitsuba
 from simgap.render.camera import PLUGIN_NAME
 from simgap.render.scene import FixtureScene, load_scene_spec, projected_sticker_boxes
-from simgap.sweep import crop_offset
 
 
 def _sphere_scene(size, spp=64):

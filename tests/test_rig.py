@@ -1,4 +1,4 @@
-"""Tests of simgap.rig: the transform tree against the paper's Table 1, orientations, fixture
+"""Tests of simgap.core.rig: the transform tree against the paper's Table 1, orientations, fixture
 errors, visibility and strict loading of rig overrides."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import itertools
 import numpy as np
 import pytest
 
-from simgap import transforms as tf
-from simgap.config import ConfigError
-from simgap.rig import FixtureErrors, load_rig
+from simgap.core import transforms as tf
+from simgap.core.config import ConfigError
+from simgap.core.rig import FixtureErrors, load_rig
 
 # Table 1 of the paper (DESIGN §1), eyepoint to tag centre (m).
 TABLE1_X0 = 0.0325

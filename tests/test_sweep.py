@@ -7,11 +7,11 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from simgap.analysis.dataset import read_netcdf
 from simgap.cli import app
-from simgap.experiment import load_experiment
+from simgap.pipeline.experiment import load_experiment
+from simgap.pipeline.sweep import run_experiment
 from simgap.render.scene import FixtureScene, projected_sticker_boxes
-from simgap.sweep import run_experiment
+from simgap.results.dataset import read_netcdf
 
 
 def _write(tmp_path, name, **overrides):

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import yaml
 
-import simgap.sweep as sweep
-from simgap.config import ConfigError
-from simgap.experiment import load_experiment
+import simgap.pipeline.sweep as sweep
+from simgap.core.config import ConfigError
+from simgap.pipeline.experiment import load_experiment
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import project_tag_corners
 from simgap.render import imaging
@@ -200,7 +200,7 @@ def test_distorted_render_corners_match_projectpoints(rig, tag, p, theta_deg):
 
 def test_smoke_variants_dataset(smoke_variants_nc):
     """`experiments/smoke_variants.yaml` gives one dataset with the five named variants."""
-    from simgap.analysis.dataset import read_netcdf
+    from simgap.results.dataset import read_netcdf
 
     ds = read_netcdf(smoke_variants_nc)
     assert list(ds.variant.values) == ["baseline", "distortion", "glossy_tags", "defocus", "noise"]
@@ -214,7 +214,7 @@ def test_smoke_variants_dataset(smoke_variants_nc):
 
 def test_experiment_round_trips_through_its_dataset_yaml():
     """`diagnose --sim result.nc` rebuilds the experiment from the dataset's experiment_yaml."""
-    from simgap.experiment import experiment_from_yaml
+    from simgap.pipeline.experiment import experiment_from_yaml
 
     exp = load_experiment("experiments/smoke_variants.yaml")
     again = experiment_from_yaml(exp.to_yaml(), source="v.nc")

@@ -32,7 +32,7 @@ file                                content
 Examples
 --------
 >>> from pathlib import Path
->>> from simgap.analysis.dataset import read_netcdf
+>>> from simgap.results.dataset import read_netcdf
 >>> from simgap.analysis.compare import compare_variants, variant_summary_table, write_comparison
 >>> ds = read_netcdf("results/variants.nc")  # doctest: +SKIP
 >>> variant_summary_table(compare_variants(ds))  # doctest: +SKIP

@@ -2,8 +2,8 @@
 
 Pose error and detection probability of each tag as smooth functions of distance and obliquity.
 
-Covariates (the same geometry as :meth:`simgap.rig.Rig.view_angle`, from a tag pose in the global
-frame):
+Covariates (the same geometry as :meth:`simgap.core.rig.Rig.view_angle`, from a tag pose in the
+global frame):
 
 ``distance`` (m)
     Distance from the eyepoint to the tag centre, ``|t|``.
@@ -59,9 +59,9 @@ import xarray as xr
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
-from simgap.analysis.dataset import AXES, ERROR_UNITS, write_netcdf
-from simgap.atomic import atomic_write
-from simgap.rig import Rig, view_angles
+from simgap.core.atomic import atomic_write
+from simgap.core.rig import Rig, view_angles
+from simgap.results.dataset import AXES, ERROR_UNITS, write_netcdf
 
 SCHEMA = "simgap-errormodel/1"
 #: Two-sided 90 % interval of the standard normal.

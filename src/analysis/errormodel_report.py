@@ -10,9 +10,9 @@ from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from simgap.analysis.dataset import AXES
 from simgap.analysis.errormodel import Z90, ErrorModel, TagPoses, covariates
-from simgap.atomic import atomic_write
+from simgap.core.atomic import atomic_write
+from simgap.results.dataset import AXES
 
 #: Axis scale to display units: mm for translations, mrad for rotations.
 DISPLAY_SCALE = 1e3

@@ -30,11 +30,11 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from simgap import transforms as tf
+from simgap.core import transforms as tf
+from simgap.core.rig import Rig
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
 from simgap.pose.estimate import estimate_pose, marker_object_points, pose_error
-from simgap.rig import Rig
 
 
 @dataclass

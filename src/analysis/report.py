@@ -46,7 +46,7 @@ from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from simgap.atomic import atomic_write
+from simgap.core.atomic import atomic_write
 
 from .image_evidence import plot_image_stats
 from .paper import AXES, AXIS_UNITS, TABLE2, threshold_for
@@ -733,7 +733,7 @@ def _observation_lines(summary: VariantSummary) -> list[str]:
 
 
 def _atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
-    """Write a file through :func:`simgap.atomic.atomic_write` (``write`` gets a binary handle)."""
+    """Write a file through :func:`~simgap.core.atomic.atomic_write` (binary handle)."""
 
     def to_file(tmp: Path) -> None:
         with open(tmp, "xb") as handle:

@@ -30,10 +30,10 @@ from simgap.analysis.fitting import (
     gap_score,
 )
 from simgap.analysis.gap import AXES
+from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX
-from simgap.rig import Rig
 
 #: Noise statistics: only stochastic effects change them (see :meth:`ModelSearch.evaluate`).
 NOISE_STATS = [

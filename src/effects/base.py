@@ -7,7 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
-from simgap.config import ConfigError, from_mapping, require, to_mapping
+from simgap.core.config import ConfigError, from_mapping, require, to_mapping
 from simgap.effects.state import VariantState
 
 Stage = Literal["scene", "geometry", "image", "estimation"]
@@ -64,7 +64,7 @@ def make_effect(name: str, params: Mapping[str, Any] | None, where: str = "") ->
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         If ``name`` is unknown (the message lists the known names) or the parameters are invalid.
     """
     if name not in EFFECTS:

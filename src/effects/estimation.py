@@ -6,7 +6,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Literal
 
-from simgap.config import require
+from simgap.core.config import require
 from simgap.effects.base import Effect, register
 from simgap.effects.state import VariantState
 from simgap.pose.detect import DetectorSettings

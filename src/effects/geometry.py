@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from simgap.config import require
+from simgap.core.config import require
 from simgap.effects.base import Effect, RelativeScale, register
 from simgap.effects.state import VariantState
 

@@ -16,11 +16,11 @@ from typing import ClassVar, Literal
 import cv2
 import numpy as np
 
-from simgap.config import require
+from simgap.core.config import require
+from simgap.core.rig import CameraModel
 from simgap.effects.base import EFFECTS, Effect, register
 from simgap.effects.state import ImageState, VariantState
 from simgap.render import imaging
-from simgap.rig import CameraModel
 
 #: Crop offsets are multiples of this (px) so that JPEG's 8x8 blocks and 2x2 chroma subsampling of
 #: a crop align with those of the full frame.

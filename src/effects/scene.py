@@ -9,7 +9,7 @@ from typing import Literal
 import colour
 import numpy as np
 
-from simgap.config import deep_merge, require
+from simgap.core.config import deep_merge, require
 from simgap.effects.base import Effect, RelativeScale, register
 from simgap.effects.state import RenderQuality, VariantState
 

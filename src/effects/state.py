@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
-from simgap.rig import NOMINAL, CameraModel, FixtureErrors
 
 
 @dataclass(frozen=True)

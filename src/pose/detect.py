@@ -9,7 +9,7 @@ from typing import Literal
 import cv2
 import numpy as np
 
-from simgap.config import require
+from simgap.core.config import require
 
 REFINEMENTS = {
     "NONE": cv2.aruco.CORNER_REFINE_NONE,

@@ -13,7 +13,7 @@ from typing import Literal
 import cv2
 import numpy as np
 
-from simgap import transforms as tf
+from simgap.core import transforms as tf
 
 PNP_METHODS = {
     "IPPE_SQUARE": cv2.SOLVEPNP_IPPE_SQUARE,

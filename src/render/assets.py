@@ -1,6 +1,6 @@
 """Fixture meshes (trimesh) and ArUco tag textures, written to ``assets/``.
 
-Each mesh is modelled in the frame it is attached to (see :mod:`simgap.rig`), in metres:
+Each mesh is modelled in the frame it is attached to (see :mod:`simgap.core.rig`), in metres:
 
 ========================  ===========  ====================================================
 file                      frame        what
@@ -25,9 +25,9 @@ import cv2
 import numpy as np
 import trimesh
 
-from simgap.atomic import atomic_write
-from simgap.paths import assets_dir
-from simgap.rig import Rig, _marker_cells, load_rig
+from simgap.core.atomic import atomic_write
+from simgap.core.paths import assets_dir
+from simgap.core.rig import Rig, _marker_cells, load_rig
 
 #: Gap between a tag sticker and the node face behind it (m): the sticker's thickness.
 STICKER_STANDOFF = 0.0003

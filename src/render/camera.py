@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.backend import mitsuba
+from simgap.render.backend import mitsuba
 
 mi = mitsuba()
 import drjit as dr  # noqa: E402  (imported after the variant is set)

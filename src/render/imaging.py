@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import OpenEXR
 
-from simgap.atomic import atomic_write
+from simgap.core.atomic import atomic_write
 
 
 def quantise_half(hdr: np.ndarray) -> np.ndarray:
@@ -26,7 +26,7 @@ def write_exr(path: Path, hdr: np.ndarray, exclusive: bool = False) -> None:
     """Write linear RGB (H, W, 3) as a half-float, ZIP-compressed EXR, atomically.
 
     With ``exclusive``, only when ``path`` does not exist yet (FileExistsError otherwise; see
-    :func:`simgap.atomic.atomic_write`).
+    :func:`simgap.core.atomic.atomic_write`).
     """
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
 

@@ -15,12 +15,12 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from simgap import transforms as tf
-from simgap.backend import mitsuba
-from simgap.config import ConfigError, deep_merge, from_mapping, read_yaml, require
-from simgap.paths import assets_dir, scenes_dir
+from simgap.core import transforms as tf
+from simgap.core.config import ConfigError, deep_merge, from_mapping, read_yaml, require
+from simgap.core.paths import assets_dir, scenes_dir
+from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors, Rig
 from simgap.render import camera as _camera  # registers the sensor plugin
-from simgap.rig import NOMINAL, CameraModel, FixtureErrors, Rig
+from simgap.render.backend import mitsuba
 
 DEFAULT_TEMPLATE = "pass_fixture.yaml"
 Frame = Literal["rail", "carriage", "eyepoint", "turntable"]

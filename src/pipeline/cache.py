@@ -2,7 +2,7 @@
 
 Keys are SHA-256 hashes of everything that affects a product (settings, rig, scene, assets, code
 version), so rerunning an experiment reuses finished work and an interrupted sweep resumes. Every
-file is written atomically (:func:`simgap.atomic.atomic_write`: a temporary name unique to the
+file is written atomically (:func:`simgap.core.atomic.atomic_write`: a temporary name unique to the
 writer, then a rename), so processes sharing a cache never see each other's partial files. An
 entry that cannot be read (truncated or corrupt) is moved aside as ``<name>.corrupt``, reported by
 a :class:`CacheWarning` and recomputed (:meth:`Cache.read`).
@@ -20,8 +20,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from simgap.atomic import atomic_write
-from simgap.config import to_mapping
+from simgap.core.atomic import atomic_write
+from simgap.core.config import to_mapping
 
 T = TypeVar("T")
 

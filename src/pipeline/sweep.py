@@ -1,7 +1,7 @@
 """Run an experiment: for every (p, theta), every variant and repeat, render -> frame -> pose.
 
-Stages and their caches (:mod:`simgap.cache`), each keyed by a content hash of its inputs only, so a
-variant reuses everything upstream of the first stage it changes (DESIGN §2):
+Stages and their caches (:mod:`simgap.pipeline.cache`), each keyed by a content hash of its inputs
+only, so a variant reuses everything upstream of the first stage it changes (DESIGN §2):
 
 =========  ===============================================  ====================================
 product    key depends on                                    stored as
@@ -32,18 +32,18 @@ import xarray as xr
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 import simgap
-from simgap.analysis.dataset import build_dataset, empty_results
-from simgap.cache import Cache, content_hash, file_hash, write_text
+from simgap.core.paths import assets_dir
+from simgap.core.rig import Rig
 from simgap.effects.image import BLOCK_ALIGN_PX, ImageContext, run_pipeline
 from simgap.effects.state import VariantState
-from simgap.experiment import Experiment
-from simgap.paths import assets_dir
+from simgap.pipeline.cache import Cache, content_hash, file_hash, write_text
+from simgap.pipeline.experiment import Experiment
 from simgap.pose.detect import Detector
 from simgap.pose.estimate import estimate_pose, pose_error, project_tag_corners
 from simgap.pose.image_stats import MarkerLayout, tag_stats
 from simgap.render import imaging
 from simgap.render.scene import projected_sticker_boxes
-from simgap.rig import Rig
+from simgap.results.dataset import build_dataset, empty_results
 
 #: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
 CROP_STEP_PX = 32
@@ -376,10 +376,10 @@ def preflight(exp: Experiment) -> None:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         Naming the variant whose scene Mitsuba cannot build.
     """
-    from simgap.config import ConfigError
+    from simgap.core.config import ConfigError
     from simgap.render.scene import FixtureScene
 
     seen = set()
@@ -489,7 +489,7 @@ def dataset_attrs(exp: Experiment, scheduler: str | None) -> dict[str, str]:
     import drjit
     import mitsuba
 
-    from simgap.backend import choose_variant
+    from simgap.render.backend import choose_variant
 
     states = exp.variant_states()
     return {

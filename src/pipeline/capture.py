@@ -12,13 +12,13 @@ pseudo-real data is written as::
 :func:`read_capture` validates a folder against a rig, :func:`ingest` turns it into a result
 dataset with the same contract as a simulated sweep (variant ``"real"``), and
 :func:`write_capture` writes one. Every problem with a folder raises
-:class:`~simgap.config.ConfigError` naming the file, the row or key, and what was expected; a frame
-that cannot be decoded is not an error but a recorded detection failure (and a
+:class:`~simgap.core.config.ConfigError` naming the file, the row or key, and what was expected; a
+frame that cannot be decoded is not an error but a recorded detection failure (and a
 :class:`CaptureWarning`).
 
 Examples
 --------
->>> from simgap.capture import ingest
+>>> from simgap.pipeline.capture import ingest
 >>> ds = ingest(Path("captures/run-2024-05-01"))           # doctest: +SKIP
 >>> ds.error.sel(axis="ty").mean().item()                   # doctest: +SKIP
 """
@@ -40,12 +40,12 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from simgap.atomic import atomic_write
-from simgap.config import ConfigError, parse_yaml, read_text, to_mapping
+from simgap.core.atomic import atomic_write
+from simgap.core.config import ConfigError, parse_yaml, read_text, to_mapping
+from simgap.core.rig import MAX_IMAGE_SIDE_PX, CameraModel, Rig, load_rig
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.render.imaging import png_bit_depth, truncation
-from simgap.rig import MAX_IMAGE_SIDE_PX, CameraModel, Rig, load_rig
 
 CALIBRATION_FILE = "camera.yaml"
 MANIFEST_FILE = "manifest.csv"
@@ -322,7 +322,7 @@ def read_calibration(
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         Naming the file, the key and what was expected, e.g.
         ``capture/camera.yaml: camera_matrix.data: expected 9 numbers, got 8``; also for a
         distortion model other than ``plumb_bob`` and for a camera matrix with skew.
@@ -392,7 +392,7 @@ def turntable_stop(value: Any, rig: Rig, where: str) -> float:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         ``where`` and the expected stops when ``value`` is not within
         :data:`THETA_TOLERANCE_RAD` of one.
     """
@@ -449,7 +449,7 @@ def _image_path(folder: Path, name: str, where: str) -> Path:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         For an empty, absolute or ``..`` path, one that resolves outside the folder (through a
         symbolic link), a missing or unreadable file, or a 16-bit PNG (simgap reads 8-bit frames,
         DESIGN §3: the scaling of 16-bit data depends on the sensor's bit depth, so it is not
@@ -587,7 +587,7 @@ def read_capture(folder: Path, rig: Rig) -> Capture:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         If the folder, ``camera.yaml``, ``manifest.csv`` or an image is missing; the manifest
         has an unknown or missing column, a ``p`` that is not a pin hole, a ``theta_rad`` that
         is not a turntable stop (within :data:`THETA_TOLERANCE_RAD`), a bad ``repeat`` or a
@@ -648,7 +648,7 @@ def ingest(
     coords ``p``, ``theta`` and ``repeat`` are the sorted unique values of the manifest,
     ``tag`` the rig's tag ids; configurations absent from the manifest are not detected (NaN).
     Poses are estimated with the capture's calibration, exactly as
-    :func:`simgap.sweep.measure_tags` does for renders (image evidence included).
+    :func:`simgap.pipeline.sweep.measure_tags` does for renders (image evidence included).
 
     Parameters
     ----------
@@ -677,7 +677,7 @@ def ingest(
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         As :func:`read_capture`.
 
     Warns
@@ -687,10 +687,10 @@ def ingest(
     """
     import cv2
 
-    from simgap.analysis.dataset import build_dataset, empty_results
     from simgap.effects.state import EstimationState, VariantState
+    from simgap.pipeline.sweep import measure_tags
     from simgap.pose.detect import Detector
-    from simgap.sweep import measure_tags
+    from simgap.results.dataset import build_dataset, empty_results
 
     rig = rig or load_rig()
     cap = read_capture(folder, rig)
@@ -779,7 +779,7 @@ def _version() -> str:
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
-    """Write a file atomically (:func:`simgap.atomic.atomic_write`)."""
+    """Write a file atomically (:func:`simgap.core.atomic.atomic_write`)."""
     atomic_write(path, data)
 
 

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from simgap.atomic import atomic_write
-from simgap.config import ConfigError
+from simgap.core.atomic import atomic_write
+from simgap.core.config import ConfigError
 from simgap.pose.image_stats import STATS
 
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
@@ -154,8 +154,8 @@ def check_dataset(
 
 
 def _check_calibration_attr(text: object, where: str) -> None:
-    from simgap.config import from_mapping, parse_yaml
-    from simgap.rig import CameraModel
+    from simgap.core.config import from_mapping, parse_yaml
+    from simgap.core.rig import CameraModel
 
     label = f"{where}attrs.calibration_yaml"
     data = parse_yaml(text, label) if isinstance(text, str) else None

@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 
 from simgap.analysis.fitting import geometric_effects
-from simgap.atomic import atomic_write
-from simgap.config import deep_merge
-from simgap.experiment import Configurations, Experiment, VariantSpec
+from simgap.core.atomic import atomic_write
+from simgap.core.config import deep_merge
+from simgap.pipeline.experiment import Configurations, Experiment, VariantSpec
 
 Sampler = Callable[[np.random.Generator], dict[str, Any]]
 
@@ -208,8 +208,8 @@ def pseudo_real_experiment(
 
 def render_capture(exp: Experiment, cache_dir: Path, folder: Path) -> Path:
     """Run ``exp`` and write its frames as a capture folder (what a rig operator records)."""
-    from simgap.capture import write_capture
-    from simgap.sweep import experiment_pipelines, run_experiment
+    from simgap.pipeline.capture import write_capture
+    from simgap.pipeline.sweep import experiment_pipelines, run_experiment
 
     run_experiment(exp, cache_dir, show_progress=False)
     pipe = experiment_pipelines(exp, cache_dir)[0]
@@ -229,8 +229,8 @@ def run_validation(
     base: Experiment, out_dir: Path, cache_dir: Path, settings: ValidateSettings, log=print
 ) -> dict[str, Any]:
     """Run the trials and write ``validation.md`` and ``validation.json`` into ``out_dir``."""
-    from simgap.analysis.diagnose import diagnose, write_json
-    from simgap.capture import ingest
+    from simgap.diagnosis.diagnose import diagnose, write_json
+    from simgap.pipeline.capture import ingest
 
     rng = np.random.default_rng(settings.seed)
     out_dir = Path(out_dir)

@@ -1,8 +1,8 @@
 """ROS bags in and out, without a ROS installation (the ``rosbags`` and ``rosbags-image`` packages).
 
 In: a ROS 1 ``.bag`` file or a ROS 2 bag folder (``metadata.yaml`` + storage files) is converted
-into a capture folder (DESIGN §3), the common interchange, which :func:`simgap.capture.ingest`
-then turns into a result dataset: there is one ingest path.
+into a capture folder (DESIGN §3), the common interchange, which
+:func:`simgap.pipeline.capture.ingest` then turns into a result dataset: there is one ingest path.
 
 - frames: one image topic, ``sensor_msgs/Image`` (any 8-bit encoding rosbags-image converts to
   ``bgr8``; written as lossless PNG) or ``sensor_msgs/CompressedImage`` (its original bytes are
@@ -26,8 +26,8 @@ camera's optical frame (x right, y down, z forward; what aruco_ros publishes):
 ``/simgap/tag<ID>/estimated``. :func:`capture_to_bag` exports a capture folder,
 :func:`experiment_to_bag` the cached renders of an experiment or a simulated result dataset.
 
-Every problem with a bag or a CSV raises :class:`~simgap.config.ConfigError` naming the file, the
-topic or row, and what was expected.
+Every problem with a bag or a CSV raises :class:`~simgap.core.config.ConfigError` naming the file,
+the topic or row, and what was expected.
 """
 
 from __future__ import annotations
@@ -45,9 +45,11 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from simgap import transforms as tf
-from simgap.atomic import atomic_write, staged_path
-from simgap.capture import (
+from simgap.core import transforms as tf
+from simgap.core.atomic import atomic_write, staged_path
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel, Rig, load_rig
+from simgap.pipeline.capture import (
     CALIBRATION_FILE,
     DEFAULT_DETECTOR,
     DEFAULT_PNP,
@@ -59,10 +61,8 @@ from simgap.capture import (
     read_capture,
     turntable_stop,
 )
-from simgap.config import ConfigError
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
-from simgap.rig import CameraModel, Rig, load_rig
 
 BagFormat = Literal["ros1", "ros2"]
 BAG_FORMATS: tuple[str, ...] = ("ros1", "ros2")
@@ -120,7 +120,7 @@ def bag_format(path: Path) -> BagFormat:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         If ``path`` is neither.
     """
     path = Path(path)
@@ -156,7 +156,7 @@ def read_time_ranges(path: Path, rig: Rig) -> list[TimeRange]:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         Naming the file, row and column: missing or unknown column, a non-integer time,
         ``end_ns < start_ns``, a ``p`` that is not a pin hole, a ``theta_rad`` that is not a
         turntable stop, overlapping ranges, or no rows.
@@ -364,7 +364,7 @@ def bag_to_capture(
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         Naming the bag and topic, or the CSV and row, and what was expected.
     """
     from rosbags.highlevel import AnyReader
@@ -465,14 +465,14 @@ def ingest_bag(
     keep_capture: Path | None = None,
     show_progress: bool = False,
 ) -> xr.Dataset:
-    """Ingest a ROS bag: convert it to a capture folder, then :func:`simgap.capture.ingest` it.
+    """Ingest a ROS bag: convert it to a capture folder, then ingest that folder.
 
     Parameters
     ----------
     bag : Path
         ROS 1 ``.bag`` file or ROS 2 bag folder.
     rig, detector, pnp
-        As :func:`simgap.capture.ingest`.
+        As :func:`simgap.pipeline.capture.ingest`.
     ranges_csv, image_topic, camera_info_topic, fixture_topic
         As :func:`bag_to_capture`.
     keep_capture : Path, optional
@@ -483,14 +483,14 @@ def ingest_bag(
     Returns
     -------
     xarray.Dataset
-        The result dataset of :func:`simgap.capture.ingest`, with the attrs ``source = "bag"``,
-        ``bag``, ``bag_format``, ``bag_image_topic``, ``bag_camera_info_topic``,
+        The result dataset of :func:`simgap.pipeline.capture.ingest`, with the attrs
+        ``source = "bag"``, ``bag``, ``bag_format``, ``bag_image_topic``, ``bag_camera_info_topic``,
         ``bag_fixture_source``, ``bag_frames_skipped`` and ``bag_ranges_without_frames``.
 
     Raises
     ------
-    simgap.config.ConfigError
-        As :func:`bag_to_capture` and :func:`simgap.capture.ingest`.
+    simgap.core.config.ConfigError
+        As :func:`bag_to_capture` and :func:`simgap.pipeline.capture.ingest`.
     """
     rig = rig or load_rig()
     with tempfile.TemporaryDirectory(prefix="simgap-bag-") as tmp:
@@ -701,14 +701,15 @@ def capture_to_bag(
 ) -> Path:
     """Export a capture folder as a bag (frames in manifest order, ground truth from the rig).
 
-    With ``compressed`` the image files' bytes are kept (PNG or JPEG); otherwise frames are
-    decoded to raw ``bgr8``. Either way :func:`ingest_bag` of the bag gives the same data as
-    :func:`simgap.capture.ingest` of the folder (repeats renumbered 0, 1, ... in manifest order).
+    With ``compressed`` the image files' bytes are kept (PNG or JPEG); otherwise frames
+    are decoded to raw ``bgr8``. Either way :func:`ingest_bag` of the bag gives the same data as
+    :func:`simgap.pipeline.capture.ingest` of the folder (repeats renumbered 0, 1, ... in
+    manifest order).
 
     Raises
     ------
-    simgap.config.ConfigError
-        As :func:`simgap.capture.read_capture`.
+    simgap.core.config.ConfigError
+        As :func:`simgap.pipeline.capture.read_capture`.
     """
     rig = rig or load_rig()
     cap = read_capture(Path(folder), rig)
@@ -734,7 +735,7 @@ def experiment_to_bag(
 
     Parameters
     ----------
-    exp : simgap.experiment.Experiment
+    exp : simgap.pipeline.experiment.Experiment
         The experiment; its configurations are exported, or the dataset's when given.
     cache_dir : Path
         Render cache.
@@ -751,10 +752,10 @@ def experiment_to_bag(
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         If ``variant`` is not a variant of the experiment.
     """
-    from simgap.sweep import experiment_pipelines
+    from simgap.pipeline.sweep import experiment_pipelines
 
     names = [name for name, _ in exp.variant_states()]
     variant = variant or names[0]

@@ -28,7 +28,6 @@ import xarray as xr
 from simgap.analysis import evidence
 from simgap.analysis import gap as gapmod
 from simgap.analysis.appearance import appearance_candidates
-from simgap.analysis.dataset import check_dataset
 from simgap.analysis.fitting import (
     Items,
     default_candidates,
@@ -43,12 +42,13 @@ from simgap.analysis.selection import (
     bootstrap_reductions,
     corner_unit,
 )
-from simgap.atomic import atomic_write
-from simgap.cache import Cache, content_hash
+from simgap.core.atomic import atomic_write
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState
-from simgap.experiment import Experiment
+from simgap.pipeline.cache import Cache, content_hash
+from simgap.pipeline.experiment import Experiment
 from simgap.pose.image_stats import STAT_NAMES
+from simgap.results.dataset import check_dataset
 
 AXES = gapmod.AXES
 
@@ -91,7 +91,7 @@ def calibration_from_attrs(real: xr.Dataset):
     """The calibration a capture was ingested with (``calibration_yaml`` attr), or None."""
     import yaml
 
-    from simgap.rig import CameraModel
+    from simgap.core.rig import CameraModel
 
     text = real.attrs.get("calibration_yaml")
     if not text:
@@ -103,8 +103,8 @@ def calibration_from_attrs(real: xr.Dataset):
 
 def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
     """``exp`` restricted to the real dataset's configurations, imaging with its calibration."""
-    from simgap.config import to_mapping
-    from simgap.experiment import Configurations
+    from simgap.core.config import to_mapping
+    from simgap.pipeline.experiment import Configurations
 
     rig = dict(exp.rig)
     cal = calibration_from_attrs(real)
@@ -163,7 +163,7 @@ class SimRunner:
     """Runs variant states through the cached pipeline for a set of items (in process)."""
 
     def __init__(self, exp: Experiment, cache_dir: Path) -> None:
-        from simgap.sweep import _assets_hash
+        from simgap.pipeline.sweep import _assets_hash
 
         self.exp, self.cache = exp, Cache(cache_dir)
         self.rig = exp.rig_model
@@ -174,7 +174,7 @@ class SimRunner:
 
     def pipeline(self, state: VariantState):
         """The (memoised) pipeline of a state."""
-        from simgap.sweep import VariantPipeline
+        from simgap.pipeline.sweep import VariantPipeline
 
         key = content_hash(state)
         if key not in self._pipes:
@@ -277,7 +277,7 @@ class Diagnosis:
         settings: DiagnoseSettings,
         scheduler=None,
     ):
-        from simgap.sweep import run_experiment
+        from simgap.pipeline.sweep import run_experiment
 
         self.settings = settings
         self.real = real
@@ -376,7 +376,7 @@ def diagnose(
 
     Raises
     ------
-    simgap.analysis.dataset.DatasetError
+    simgap.results.dataset.DatasetError
         Before any simulation, when ``real`` does not follow the result dataset contract.
     """
     check_dataset(real, required=("error", "detected", "visible", "corners"))

@@ -29,8 +29,8 @@ from typing import Literal
 
 import numpy as np
 
-from simgap import transforms as tf
-from simgap.config import deep_merge, from_mapping, read_yaml, require
+from simgap.core import transforms as tf
+from simgap.core.config import deep_merge, from_mapping, read_yaml, require
 
 DEFAULT_RIG_FILE = Path(__file__).with_name("rig.yaml")
 #: Largest image side accepted (px).
@@ -393,7 +393,7 @@ def load_rig(
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         Naming the file and key path of any unknown key, wrong type or out-of-range value.
     """
     path = Path(path) if path else DEFAULT_RIG_FILE

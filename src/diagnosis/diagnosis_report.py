@@ -15,11 +15,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from simgap.analysis import compare
-from simgap.analysis.diagnose import AXES, Diagnosis, write_json
 from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report import _save_figure, _save_text
 from simgap.analysis.selection import EQUIVALENT_PX, EQUIVALENT_REL
+from simgap.diagnosis.diagnose import AXES, Diagnosis, write_json
 
 
 def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:

@@ -20,7 +20,8 @@ An experiment YAML holds (all optional but ``name``)::
       blur.sigma_px: [0.5, 1.0]
     repeats: 3                                 # Monte Carlo repeats (image-stage noise)
 
-Unknown keys, wrong types and out-of-range values raise :class:`~simgap.config.ConfigError` naming
+Unknown keys, wrong types and out-of-range values raise :class:`~simgap.core.config.ConfigError`
+naming
 the file and key path; a value set in an inherited file is reported against that (parent) file. An
 empty or comment-only file is an error (it does not mean "the full study": write ``name: ...``).
 Configurations must be distinct (``theta_deg: [0, 360]`` names one stop twice), and an experiment
@@ -41,7 +42,7 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
-from simgap.config import (
+from simgap.core.config import (
     ConfigError,
     deep_merge,
     from_mapping,
@@ -50,6 +51,7 @@ from simgap.config import (
     require,
     to_mapping,
 )
+from simgap.core.rig import Rig, load_rig
 from simgap.effects import make_effect
 from simgap.effects.state import (
     EstimationState,
@@ -61,7 +63,6 @@ from simgap.effects.state import (
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.render.scene import SceneSpec, load_scene_spec
-from simgap.rig import Rig, load_rig
 
 #: Share of the machine's physical memory one run may plan to use for its result arrays.
 MEMORY_SHARE = 0.5
@@ -203,7 +204,7 @@ class Experiment:
             ``(bytes, key, shape)``: the estimate (bytes), the key path of the largest factor
             (what to reduce) and the shape in words.
         """
-        from simgap.analysis.dataset import result_nbytes
+        from simgap.results.dataset import result_nbytes
 
         rig, c = self.rig_model, self.configurations
         n_variants = len(self.variants) + ("baseline" not in [v.name for v in self.variants])
@@ -231,7 +232,7 @@ class Experiment:
 
         Raises
         ------
-        simgap.config.ConfigError
+        simgap.core.config.ConfigError
             Naming the largest factor's key path, the estimate and the machine's memory.
         """
         need, key, shape = self.memory_estimate()
@@ -281,7 +282,7 @@ class Experiment:
 
         Raises
         ------
-        simgap.config.ConfigError
+        simgap.core.config.ConfigError
             Naming the file and key path of an unknown effect or a bad parameter.
         """
         base = self.base_state()
@@ -446,7 +447,7 @@ def experiment_from_yaml(text: str, source: str = "<dataset>") -> Experiment:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         Naming ``source`` when the text is not a valid experiment.
     """
     data = parse_yaml(text, f"{source}: experiment_yaml")
@@ -461,7 +462,7 @@ def load_experiment(path: str | Path) -> Experiment:
 
     Raises
     ------
-    simgap.config.ConfigError
+    simgap.core.config.ConfigError
         Naming the file and key path of what is wrong.
     """
     path = Path(path)

@@ -13,7 +13,7 @@ def project_root() -> Path:
     (editable install, as the README's set-up does).
     """
     env = os.environ.get("SIMGAP_ROOT")
-    return Path(env) if env else Path(__file__).resolve().parent.parent
+    return Path(env) if env else Path(__file__).resolve().parents[2]
 
 
 def assets_dir() -> Path:

@@ -1,0 +1,60 @@
+"""Robust statistics used across the package, with the source of every constant.
+
+The estimators come from :mod:`scipy.stats` where it has them; this module only names the
+Gaussian consistency constants so that no module retypes them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+from scipy import stats
+
+MAD_TO_SIGMA: Final[float] = float(1.0 / stats.norm.ppf(0.75))
+"""MAD to Gaussian sigma, 1 / Phi^-1(3/4) = 1.4826 (Rousseeuw & Croux 1993)."""
+
+MEDIAN_SE_FACTOR: Final[float] = math.sqrt(math.pi / 2.0)
+"""Standard error of a Gaussian sample's median over that of its mean, sqrt(pi/2) = 1.2533."""
+
+Z95_WIDTH: Final[float] = float(2.0 * stats.norm.ppf(0.975))
+"""Width of a two-sided 95 % Gaussian interval in sigmas, 2 x 1.96 = 3.92."""
+
+
+def mad_sigma(values: np.ndarray) -> float:
+    """Gaussian-consistent robust scale: the median absolute deviation times 1.4826.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Sample (any shape; NaN ignored), in any unit.
+
+    Returns
+    -------
+    float
+        Scale in the unit of ``values``; NaN for an empty sample.
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return float("nan")
+    return float(stats.median_abs_deviation(v, scale="normal"))
+
+
+def median_standard_error(scale: float, n: int) -> float:
+    """Standard error of the median of ``n`` Gaussian values of sigma ``scale``.
+
+    Parameters
+    ----------
+    scale : float
+        Sigma of the values (their unit).
+    n : int
+        Number of values.
+
+    Returns
+    -------
+    float
+        ``1.2533 * scale / sqrt(n)``, in the unit of ``scale``.
+    """
+    return MEDIAN_SE_FACTOR * scale / math.sqrt(n)

@@ -1,0 +1,1 @@
+"""Pipeline: experiments, stage caches, the sweep, capture folders and ROS bags."""

@@ -1,0 +1,1 @@
+"""Results: the dataset contract shared by simulation and capture (xarray / netCDF)."""
