@@ -18,7 +18,8 @@ from simgap.analysis.fitting import (
     geometric_effects,
     project_items,
 )
-from simgap.analysis.selection import ModelSearch, Scored, parsimonious
+from simgap.analysis.scoring import Scored, parsimonious
+from simgap.analysis.selection import ModelSearch
 from simgap.cli import app
 from simgap.core.rig import load_rig
 from simgap.effects import make_effect

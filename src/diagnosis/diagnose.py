@@ -35,13 +35,8 @@ from simgap.analysis.fitting import (
     gap_score,
 )
 from simgap.analysis.image_evidence import repeat_median_stats
-from simgap.analysis.selection import (
-    SCORED_STATS,
-    ModelSearch,
-    Scored,
-    bootstrap_reductions,
-    corner_unit,
-)
+from simgap.analysis.scoring import SCORED_STATS, Scored, bootstrap_reductions, corner_unit
+from simgap.analysis.selection import ModelSearch
 from simgap.core.atomic import atomic_write
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState

@@ -18,7 +18,7 @@ from simgap.analysis import compare
 from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report import _save_figure, _save_text
-from simgap.analysis.selection import EQUIVALENT_PX, EQUIVALENT_REL
+from simgap.analysis.scoring import EQUIVALENT_PX, EQUIVALENT_REL
 from simgap.diagnosis.diagnose import AXES, Diagnosis, write_json
 
 
