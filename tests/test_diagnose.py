@@ -340,3 +340,22 @@ def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
         "none": {"none": 1, "tag_scale": 1},
         "motion_blur": {"unexplained": 1},
     }
+
+
+def test_hidden_effects_are_valid_and_lighting_is_scored_as_exposure():
+    """Every hidden sampler makes a valid effect; a dimmer key light reported as exposure hits."""
+    from simgap.diagnosis.validate import HIDDEN, REPORTED_AS, Trial
+    from simgap.effects import make_effect
+
+    rng = np.random.default_rng(0)
+    for name, (sampler, key) in HIDDEN.items():
+        for _ in range(5):
+            params = sampler(rng)
+            make_effect(name, params)  # raises on an invalid parameter
+            assert key is None or key in params
+    assert REPORTED_AS["lighting"] in HIDDEN
+    light = HIDDEN["lighting"][0](rng)
+    hit = Trial(0, {"lighting": light}, {"selected": ["exposure", "sensor_noise"]}).score()
+    assert hit["correct"] and hit["recall"] == 1.0
+    miss = Trial(0, {"lighting": light}, {"selected": ["tag_scale", "exposure"]}).score()
+    assert not miss["correct"] and miss["recall"] == 1.0

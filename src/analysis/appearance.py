@@ -14,11 +14,14 @@ effect              parameters (bounds)                    fitted on
                                                            variance (EMVA 1288), closed form
 ``defocus``         ``aperture_radius_m``,                 edge width against tag depth, thin-
                     ``focus_distance_m``                   lens blur circle, least squares
+``jpeg``            ``quality`` (5 - 100, integer)         blockiness on the 8 px block grid;
+                                                           pipeline re-run per value
 ==================  =====================================  =====================================
 
-Image-stage effects (blur, exposure, noise) re-process the cached renders; defocus is fitted on
-the evidence with the thin-lens model and then rendered once for scoring (its change of corners,
-pose, statistics and detections comes from the full pipeline, like every candidate's).
+Image-stage effects (blur, exposure, noise, JPEG) re-process the cached renders; defocus is
+fitted on the evidence with the thin-lens model and then rendered once for scoring (its change
+of corners, pose, statistics and detections comes from the full pipeline, like every
+candidate's).
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ FIT_STATS: dict[str, tuple[str, ...]] = {
     "exposure": ("paper_linear",),
     "sensor_noise": ("noise_paper_linear", "noise_ink_linear"),
     "defocus": ("edge_width_x_px", "edge_width_y_px"),
+    "jpeg": ("blockiness",),
 }
 #: 10-90 % width of the edge-spread function of a uniform disk of radius R, in units of R
 #: (the area of a disk left of a chord at -u R is 10 % of the disk for u = 0.68705).
@@ -235,6 +239,17 @@ class DefocusCandidate(AppearanceCandidate):
         )
 
 
+class JpegCandidate(AppearanceCandidate):
+    """JPEG compression: the integer quality (libjpeg scale) that matches the blockiness."""
+
+    def __init__(self) -> None:
+        super().__init__("jpeg", "quality", (5.0, 100.0), 1.0)
+
+    def params(self, x: float) -> dict[str, Any]:
+        """Effect parameters: the quality rounded to an integer."""
+        return {"quality": int(round(float(x)))}
+
+
 def appearance_candidates(focal_px: float) -> list[AppearanceCandidate]:
     """The appearance part of the diagnosis catalogue (``focal_px``: the calibration's fx)."""
     return [
@@ -242,4 +257,5 @@ def appearance_candidates(focal_px: float) -> list[AppearanceCandidate]:
         AppearanceCandidate("exposure", "ev", (-4.0, 4.0), 0.02),
         SensorNoiseCandidate(),
         DefocusCandidate(focal_px),
+        JpegCandidate(),
     ]

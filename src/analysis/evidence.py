@@ -67,6 +67,7 @@ IMAGE_FLOORS: dict[str, tuple[str, float | None]] = {
     "clipped_fraction": ("diff", 0.02),
     "highlight_fraction": ("diff", 0.02),
     "rejected_candidates": ("diff", None),
+    "blockiness": ("log2", 0.25),
 }
 
 

@@ -31,6 +31,7 @@ PLOTTED_STATS: tuple[str, ...] = (
     "clipped_fraction",
     "highlight_fraction",
     "rejected_candidates",
+    "blockiness",
 )
 
 

@@ -258,7 +258,9 @@ class ModelSearch:
         improves distinguishably (:func:`improves`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`). Effects are returned most important
         first: by how much their removal worsens the combined held-out evidence (an effect may
-        matter most for the image evidence and move no pose: it is then also :meth:`minor`).
+        matter most for the image evidence and move no pose: it is then also :meth:`minor`),
+        stochastic effects (sensor noise) after the others: they explain noise and scatter, not
+        the systematic gap, and every real camera has some, so they lead only when alone.
         """
         if not ranking or not improves_on_nothing(ranking[0]):
             return None
@@ -287,7 +289,11 @@ class ModelSearch:
                 for c in model
             }
             current = dataclasses.replace(
-                current, fits=sorted(current.fits, key=lambda cf: -loss[cf[1].effect])
+                current,
+                fits=sorted(
+                    current.fits,
+                    key=lambda cf: (EFFECTS[cf[1].effect].stochastic, -loss[cf[1].effect]),
+                ),
             )
         return current
 

@@ -38,6 +38,21 @@ def _signed(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(rng.choice([-1.0, 1.0]) * rng.uniform(lo, hi))
 
 
+#: Key light of the scene template (mitsuba_scenes/pass_fixture.yaml): position, aim (m, rail).
+KEY_LIGHT = {"position": [0.12, -0.30, 0.40], "target": [0.036749, 0.321749, 0.06]}
+
+
+def _lighting(rng: np.random.Generator) -> dict[str, Any]:
+    """Another key light: dim or harsh.
+
+    Dim: the template's area light at a quarter to a half of its radiance (8 W m^-2 sr^-1).
+    Harsh: a point light in its place, intensity 2-4 W/sr (hard shading, brighter paper).
+    """
+    if rng.uniform() < 0.5:
+        return {"type": "area", **KEY_LIGHT, "power": float(rng.uniform(2.0, 4.0))}
+    return {"type": "point", **KEY_LIGHT, "power": float(rng.uniform(2.0, 4.0))}
+
+
 #: Hidden effects and how their magnitudes are drawn (realistic hardware ranges), with the
 #: parameter whose fitted value is scored (None: not a magnitude effect).
 HIDDEN: dict[str, tuple[Sampler, str | None]] = {
@@ -71,9 +86,16 @@ HIDDEN: dict[str, tuple[Sampler, str | None]] = {
         },
         "aperture_radius_m",
     ),
+    "jpeg": (lambda r: {"quality": int(r.integers(25, 76))}, "quality"),
+    "lighting": (_lighting, None),
 }
 #: Appearance effects among :data:`HIDDEN` (scored per effect).
-APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus")
+APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg", "lighting")
+#: Hidden effects the diagnosis reports as another catalogue effect that leaves the same
+#: evidence: a grey camera sees a dimmer or harsher key light as a change of the ink and paper
+#: levels, which is an exposure change (one image-stage parameter) unless the shading across
+#: tags changes beyond the level floors. Scored as correct when that effect is reported.
+REPORTED_AS: dict[str, str] = {"lighting": "exposure"}
 #: Effects outside the diagnosis catalogue: the answer must be "unexplained". Motion blur of the
 #: turntable still turning while the shutter is open (horizontal).
 OUTSIDE: dict[str, Sampler] = {
@@ -157,8 +179,9 @@ class Trial:
         if set(hidden) <= set(OUTSIDE):
             out["correct"] = bool(self.result.get("unexplained")) and not geometric
             return out
-        out["correct"] = bool(sel) and sel[0] in hidden
-        out["recall"] = len(set(sel) & set(hidden)) / len(hidden)
+        accepted = set(hidden) | {REPORTED_AS[h] for h in hidden if h in REPORTED_AS}
+        out["correct"] = bool(sel) and sel[0] in accepted
+        out["recall"] = sum(found(h, sel) for h in hidden) / len(hidden)
         fitted = {
             e["effect"]: e["params"] for e in self.result.get("combined", {}).get("effects", [])
         }
@@ -174,6 +197,11 @@ class Trial:
         out["reduction"] = self.result.get("confirmed", combined).get("reduction")
         out["reduction_interval_90"] = combined.get("reduction_interval_90")
         return out
+
+
+def found(hidden: str, selected: list[str]) -> bool:
+    """Whether a hidden effect is among the selected ones (itself or as :data:`REPORTED_AS`)."""
+    return hidden in selected or REPORTED_AS.get(hidden) in selected
 
 
 def draw_hidden(rng: np.random.Generator, settings: ValidateSettings) -> dict[str, dict[str, Any]]:
@@ -298,7 +326,7 @@ def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
             "single_trials": len(alone),
             "top1_single": _share([s["correct"] for s in alone]),
             "trials": len(anywhere),
-            "recall": _share([name in s["selected"] for s in anywhere]),
+            "recall": _share([found(name, s["selected"]) for s in anywhere]),
             "magnitude_error_median": float(np.median(errors)) if errors else None,
         }
     appearance = [s for s in single if s["hidden"][0] in APPEARANCE]
@@ -323,8 +351,9 @@ def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
 def confusion(scores: list[dict]) -> dict[str, dict[str, int]]:
     """Counts of (hidden effect -> answer), one count per hidden effect of each trial.
 
-    The answer is the hidden effect itself when the diagnosis selected it (a hit, on the
-    diagonal), else the diagnosis' top-1 (or ``none``). For an effect-free trial the answer is
+    The answer is the hidden effect itself when the diagnosis selected it or the effect it is
+    reported as (:data:`REPORTED_AS`; a hit, on the diagonal), else the diagnosis' top-1 (or
+    ``none``). For an effect-free trial the answer is
     ``none`` unless a geometric or calibration effect was selected (then the first of those);
     for an effect outside the catalogue it is ``unexplained`` when reported so.
     """
@@ -336,7 +365,7 @@ def confusion(scores: list[dict]) -> dict[str, dict[str, int]]:
             elif h in OUTSIDE:
                 answer = "unexplained" if s["correct"] else s["top1"]
             else:
-                answer = h if h in s["selected"] else s["top1"]
+                answer = h if found(h, s["selected"]) else s["top1"]
             row = table.setdefault(h, {})
             row[answer] = row.get(answer, 0) + 1
     return table

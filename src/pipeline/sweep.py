@@ -49,7 +49,7 @@ from simgap.results.dataset import build_dataset, empty_results
 CROP_STEP_PX = 32
 RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners", "image_stats")
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
-RESULT_VERSION = "image-stats-3"
+RESULT_VERSION = "image-stats-4"
 
 
 @dataclass(frozen=True)
