@@ -35,8 +35,10 @@ import numpy as np
 import xarray as xr
 from scipy import stats as sps
 
-from simgap.analysis.gap import AXES, PRACTICAL_FLOOR, align, axis_unit
+from simgap.analysis.gap import PRACTICAL_FLOOR, align
 from simgap.analysis.image_evidence import repeat_median_stats, tag_distance_and_view_angle
+from simgap.core.axes import AXES, axis_unit
+from simgap.core.robust import mad_sigma
 
 #: Family-wise false-alarm rate of each family of tests.
 ALPHA = 0.01
@@ -48,8 +50,6 @@ SCATTER_FLOOR_SHARE = 0.5
 DETECTION_MIN_DIFFERENCE = 0.05
 #: View-angle bands (deg) for the detection tests: oblique, intermediate, frontal.
 VIEW_BANDS_DEG = ((0.0, 35.0), (35.0, 60.0), (60.0, 90.1))
-#: Consistency constant of the median absolute deviation for a normal distribution.
-MAD_TO_SIGMA = 1.4826
 #: Added to linear levels before taking log2 ratios (a tenth of an 8-bit step near black).
 LEVEL_EPSILON = 0.002
 
@@ -74,10 +74,7 @@ IMAGE_FLOORS: dict[str, tuple[str, float | None]] = {
 def robust_scale(values: np.ndarray) -> float:
     """Normal-consistent median absolute deviation of the finite values (NaN if fewer than 3)."""
     v = np.asarray(values, float)
-    v = v[np.isfinite(v)]
-    if v.size < 3:
-        return float("nan")
-    return float(MAD_TO_SIGMA * np.median(np.abs(v - np.median(v))))
+    return mad_sigma(v) if np.isfinite(v).sum() >= 3 else float("nan")
 
 
 def line_residuals(field: np.ndarray, x: np.ndarray) -> np.ndarray:
