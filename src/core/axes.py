@@ -47,16 +47,8 @@ def axis_unit(axis: str) -> str:
 
 
 def display_unit(axis: str) -> tuple[str, float]:
-    """Display unit of an axis' error and the factor from its SI unit.
+    """Display unit of an axis' error (one of :data:`AXES`) and the factor from its SI unit.
 
-    Parameters
-    ----------
-    axis : str
-        One of :data:`AXES`.
-
-    Returns
-    -------
-    tuple of (str, float)
-        ``("mm", 1000.0)`` for translation axes, ``("mrad", 1000.0)`` for rotation axes.
+    ``("mm", 1e3)`` for translation axes, ``("mrad", 1e3)`` for rotation axes.
     """
     return DISPLAY_UNITS[axis_unit(axis)]
