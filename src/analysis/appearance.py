@@ -188,8 +188,9 @@ class DefocusCandidate(AppearanceCandidate):
 
     n_params = 2
     #: Samples per pixel of its renders: the thin lens adds Monte Carlo noise that a 16-spp
-    #: render turns into corner noise the real camera does not have.
-    SPP = 32
+    #: render turns into corner noise the real camera does not have. 36 = 6 x 6 is a count the
+    #: multijitter sampler takes as it is (32 would be rounded up to 35, with a warning).
+    SPP = 36
 
     def __init__(self, focal_px: float) -> None:
         super().__init__("defocus", "aperture_radius_m", (0.0, 0.005), 0.0)
