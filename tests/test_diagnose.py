@@ -359,3 +359,16 @@ def test_hidden_effects_are_valid_and_lighting_is_scored_as_exposure():
     assert hit["correct"] and hit["recall"] == 1.0
     miss = Trial(0, {"lighting": light}, {"selected": ["tag_scale", "exposure"]}).score()
     assert not miss["correct"] and miss["recall"] == 1.0
+
+
+def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
+    """Losing as many tags as the capture in the same group matches, whichever ones they are."""
+    from simgap.analysis.scoring import DETECTION_UNIT, detection_score
+
+    real = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 1.0])
+    swapped = np.array([0.0, 1.0, 0.0, 1.0, 1.0, 1.0])  # the same losses, other tags
+    views = np.array([0, 0, 1, 1, 2, 2])
+    assert detection_score(real, swapped) == pytest.approx(4 / 6 / DETECTION_UNIT)
+    assert detection_score(real, swapped, [views]) == pytest.approx(0.0)
+    nothing_lost = np.ones(6)
+    assert detection_score(real, nothing_lost, [views]) == pytest.approx(2 / 6 / DETECTION_UNIT)

@@ -30,6 +30,7 @@ from simgap.analysis.scoring import (
     NOISE_STATS,
     Scored,
     as_good,
+    detection_groups,
     detection_score,
     equivalent_models,
     image_misfits,
@@ -179,6 +180,7 @@ class ModelSearch:
             corner_h = corner_h + np.nan_to_num(joint.corner_shift(rig, base, fit.extra["x"], h))
         pred = h.sim_err + off_h
         has_evidence = h.real_stats is not None and stats_h is not None
+        groups = detection_groups(h)
         return Scored(
             fits,
             gap_score(h.real_err, h.sim_err, h.scale, self.axes),
@@ -194,8 +196,8 @@ class ModelSearch:
             simulation_deltas,
             image_misfits(h.real_stats, h.sim_stats),
             image_misfits(h.real_stats, h.sim_stats + stats_h if has_evidence else None),
-            detection_score(h.real_detected, h.sim_detected) if has_evidence else 0.0,
-            detection_score(h.real_detected, np.clip(h.sim_detected + det_h, 0.0, 1.0))
+            detection_score(h.real_detected, h.sim_detected, groups) if has_evidence else 0.0,
+            detection_score(h.real_detected, np.clip(h.sim_detected + det_h, 0.0, 1.0), groups)
             if has_evidence
             else 0.0,
             h,
