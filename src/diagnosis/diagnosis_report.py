@@ -19,7 +19,9 @@ from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report import _save_figure, _save_text
 from simgap.analysis.selection import EQUIVALENT_PX, EQUIVALENT_REL
-from simgap.diagnosis.diagnose import AXES, Diagnosis, write_json
+from simgap.core.axes import AXES, display_unit
+from simgap.diagnosis.diagnose import Diagnosis
+from simgap.diagnosis.result_json import write_json
 
 
 def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
@@ -36,10 +38,6 @@ def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
     return both
 
 
-def _unit(axis: str) -> tuple[str, float]:
-    return ("mm", 1e3) if axis.startswith("t") else ("mrad", 1e3)
-
-
 def where_markdown(where: dict[str, Any]) -> list[str]:
     """Markdown lines for the 'where' part."""
     lines = [
@@ -49,7 +47,7 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
         f"{where['comparable_configurations']}. "
         f"Significant gap: **{'yes' if where['significant'] else 'no'}**.",
         "",
-        "| axis | n | mean gap | RMS gap | trend per pin hole | noise | z (mean) | z (trend) "
+        "| axis | n | median gap | RMS gap | trend per pin hole | noise | z (median) | z (trend) "
         "| significant |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
@@ -58,9 +56,9 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
         if not a.get("n"):
             lines.append(f"| {axis} | 0 | | | | | | | no |")
             continue
-        unit, k = _unit(axis)
+        unit, k = display_unit(axis)
         lines.append(
-            f"| {axis} | {a['n']} | {a['mean'] * k:+.3f} {unit} | {a['rms'] * k:.3f} {unit} | "
+            f"| {axis} | {a['n']} | {a['median'] * k:+.3f} {unit} | {a['rms'] * k:.3f} {unit} | "
             f"{a['slope_per_pin'] * k:+.4f} {unit} | {a['noise'] * k:.3f} {unit} | "
             f"{a['z_mean']:+.1f} | {a['z_slope']:+.1f} | "
             f"{'**yes**' if a['significant'] else 'no'} |"
@@ -74,9 +72,10 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
     ]
     lines += evidence_markdown(where)
     if where["regions"]:
-        lines += ["Significant regions (mean gap, z-score):", ""]
+        lines += ["Significant regions (median gap, z-score):", ""]
         for r in where["regions"]:
-            unit, k = _unit(r["axis"])
+            unit, k = display_unit(r["axis"])
+            # a region's result.json key "mean" holds its median gap (the key is kept)
             lines.append(
                 f"- {r['axis']}, {r['region']}: {r['mean'] * k:+.3f} {unit} "
                 f"(z = {r['z']:+.1f}, n = {r['n']})"
@@ -103,7 +102,7 @@ def evidence_markdown(where: dict[str, Any]) -> list[str]:
             "|---|---|---|---|---|---|",
         ]
         for r in scatter:
-            unit, k = _unit(r["axis"])
+            unit, k = display_unit(r["axis"])
             lines.append(
                 f"| {r['axis']} | {r['region']} | {r['real_scatter'] * k:.3f} {unit} | "
                 f"{r['sim_scatter'] * k:.3f} {unit} | {r['ratio']:.2f} | {r['p_value']:.2g} |"
@@ -245,11 +244,11 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
             "other effects held at their fitted values (median |change| over the noise or "
             "practical floor, largest significant axis); below 1 the effect is minor.",
             "",
-            "| axis | RMS gap before | after (fast) | after (confirmed) |",
+            "| axis | median abs gap before | after (fast) | after (confirmed) |",
             "|---|---|---|---|",
         ]
         for axis in AXES:
-            unit, k = _unit(axis)
+            unit, k = display_unit(axis)
             conf = result.get("confirmed", {}).get("heldout_gap_after_per_axis", {}).get(axis)
             lines.append(
                 f"| {axis} | {c['heldout_gap_before_per_axis'][axis] * k:.3f} {unit} | "
