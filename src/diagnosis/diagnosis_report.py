@@ -1,7 +1,9 @@
 """The diagnosis report: where the gap lies, the effect ranking, before/after, figures, JSON.
 
-The gap figures reuse :mod:`simgap.analysis.compare`: the simulation and the real data are put
-into one dataset as two variants, so a variant's signed shift against ``simulation`` is the gap.
+The gap figures reuse the comparison figures (:mod:`simgap.analysis.report.figures`): the
+simulation and the real data are put into one dataset as two variants, so the signed shift of
+``real`` against ``simulation`` is the gap, and the change of mean ``|error|`` is
+``mean |real error| - mean |simulated error|`` (not the gap; ``gap_by_distance.png`` says so).
 """
 
 from __future__ import annotations
@@ -14,14 +16,20 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from simgap.analysis import compare
 from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
-from simgap.analysis.report import _save_figure, _save_text
+from simgap.analysis.report.figures import plot_change_by_distance, plot_change_heatmap
+from simgap.analysis.report.output import save_figure, save_text
 from simgap.analysis.selection import EQUIVALENT_PX, EQUIVALENT_REL
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.diagnose import Diagnosis
 from simgap.diagnosis.result_json import write_json
+
+#: Title of ``gap_by_distance.png``: what it plots is a difference of absolute errors.
+GAP_BY_DISTANCE_TITLE = (
+    "mean |real error| − mean |simulated error| vs distance (a change of error size, not the "
+    "signed gap; paired configurations, both tags, all view angles)"
+)
 
 
 def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
@@ -305,15 +313,16 @@ def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     both = gap_dataset(d.real, d.sim)
-    paths = [_save_figure(plot_ranking(result), out_dir / "ranking.png")]
+    paths = [save_figure(plot_ranking(result), out_dir / "ranking.png")]
     paths.append(
-        _save_figure(
-            compare.plot_change_by_distance(both, "simulation"), out_dir / "gap_by_distance.png"
+        save_figure(
+            plot_change_by_distance(both, "simulation", title=GAP_BY_DISTANCE_TITLE),
+            out_dir / "gap_by_distance.png",
         )
     )
     paths.append(
-        _save_figure(
-            compare.plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png"
+        save_figure(
+            plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png"
         )
     )
     if "image_stats" in d.real and "image_stats" in d.sim:
@@ -321,12 +330,12 @@ def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) 
         images = {"real": real, "simulation": sim}
         for against in ("distance", "view_angle"):
             fig = plot_image_stats(images, against, title="Image evidence: real vs simulation")
-            paths.append(_save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
+            paths.append(save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
     lines = ["# Sim-to-real gap diagnosis", ""]
     lines += where_markdown(result["where"])
     lines += which_markdown(result)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]
     lines.append(f"Diagnosis time: {result['seconds']:.0f} s.")
-    paths.append(_save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))
+    paths.append(save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))
     paths.append(write_json(result, out_dir / "result.json"))
     return paths
