@@ -1,16 +1,9 @@
 """Compare the variants of a result dataset (rendering/estimation options) with a reference variant.
 
-A *variant* is one rendering or estimation option (``baseline``, ``distortion``, ``glossy_tags``,
-``defocus``, ``noise``, ...). The *reference* is the variant named ``baseline``, or the first
-variant if none is, unless another is named. Every other variant is compared with it,
-configuration by configuration:
-
-1. each variant is reduced by :func:`simgap.analysis.report.summaries.summarize_variant` (errors
-   averaged over repeats with NaN skipped, visible configurations only);
-2. a configuration ``(tag, p, theta)`` is *paired* when both the variant and the reference have an
-   estimate of every axis there; all error statistics use paired configurations only, so a change
-   of detection does not masquerade as a change of error (detection rates are reported apart);
-3. the spread over repeats (sample standard deviation, ``ddof=1``) is the noise level.
+The reference is the variant named ``baseline`` (or the first), unless another is named; every
+other variant is compared with it over *paired* configurations (both have an estimate of every
+axis), with the spread over repeats as the noise level
+(:mod:`simgap.analysis.report.comparisons` says how).
 
 :func:`compare_variants` returns all of this as one :class:`xarray.Dataset` in SI units (m, rad);
 the tables (:func:`variant_summary_table`, :func:`binned_change_table`) convert to mm and mrad. The

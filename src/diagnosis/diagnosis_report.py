@@ -20,6 +20,7 @@ from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report.figures import plot_change_by_distance, plot_change_heatmap
 from simgap.analysis.report.output import save_figure, save_text
+from simgap.analysis.report.tables import markdown_table
 from simgap.analysis.selection import EQUIVALENT_PX, EQUIVALENT_REL
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.diagnose import Diagnosis
@@ -92,6 +93,10 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _yes(flag: bool) -> str:
+    return "**yes**" if flag else "no"
+
+
 def evidence_markdown(where: dict[str, Any]) -> list[str]:
     """Markdown lines for the scatter, detection and image-evidence tests."""
     found = where.get("significant_evidence", [])
@@ -103,51 +108,56 @@ def evidence_markdown(where: dict[str, Any]) -> list[str]:
     ]
     scatter = [r for r in where.get("scatter_tests", []) if r["significant"]]
     if scatter:
-        lines += [
-            "Pose scatter (Brown-Forsythe, robust scales):",
-            "",
-            "| axis | region | real | simulation | ratio | p |",
-            "|---|---|---|---|---|---|",
-        ]
+        rows = []
         for r in scatter:
             unit, k = display_unit(r["axis"])
-            lines.append(
-                f"| {r['axis']} | {r['region']} | {r['real_scatter'] * k:.3f} {unit} | "
-                f"{r['sim_scatter'] * k:.3f} {unit} | {r['ratio']:.2f} | {r['p_value']:.2g} |"
+            rows.append(
+                [
+                    r["axis"],
+                    r["region"],
+                    f"{r['real_scatter'] * k:.3f} {unit}",
+                    f"{r['sim_scatter'] * k:.3f} {unit}",
+                    f"{r['ratio']:.2f}",
+                    f"{r['p_value']:.2g}",
+                ]
             )
-        lines.append("")
+        header = ["axis", "region", "real", "simulation", "ratio", "p"]
+        lines += ["Pose scatter (Brown-Forsythe, robust scales):", ""]
+        lines += markdown_table(header, rows) + [""]
     detection = where.get("detection_tests", [])
     if detection:
-        lines += [
-            "Detection (Fisher's exact test):",
-            "",
-            "| region | real | simulation | difference | p | significant |",
-            "|---|---|---|---|---|---|",
-        ]
-        lines += [
-            f"| {r['region']} | {r['real_detected']}/{r['real_attempts']} | "
-            f"{r['sim_detected']}/{r['sim_attempts']} | {r['difference']:+.1%} | "
-            f"{r['p_value']:.2g} | {'**yes**' if r['significant'] else 'no'} |"
+        header = ["region", "real", "simulation", "difference", "p", "significant"]
+        rows = [
+            [
+                r["region"],
+                f"{r['real_detected']}/{r['real_attempts']}",
+                f"{r['sim_detected']}/{r['sim_attempts']}",
+                f"{r['difference']:+.1%}",
+                f"{r['p_value']:.2g}",
+                _yes(r["significant"]),
+            ]
             for r in detection
         ]
-        lines.append("")
+        lines += ["Detection (Fisher's exact test):", ""]
+        lines += markdown_table(header, rows) + [""]
     image = where.get("image_tests", [])
     if image:
-        lines += [
-            "Image evidence (median real - simulated per tag, Wilcoxon signed-rank):",
-            "",
-            "| statistic | real median | simulation median | median difference | floor | p "
-            "| significant |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        lines += [
-            f"| {r['stat']} | {r['real_median']:.4g} | {r['sim_median']:.4g} | "
-            f"{r['median_difference']:+.3g} ({r['compared_as']}) | "
-            f"{'-' if r['floor'] is None else r['floor']} | {r['p_value']:.2g} | "
-            f"{'**yes**' if r['significant'] else 'no'} |"
+        header = ["statistic", "real median", "simulation median", "median difference"]
+        header += ["floor", "p", "significant"]
+        rows = [
+            [
+                r["stat"],
+                f"{r['real_median']:.4g}",
+                f"{r['sim_median']:.4g}",
+                f"{r['median_difference']:+.3g} ({r['compared_as']})",
+                "-" if r["floor"] is None else str(r["floor"]),
+                f"{r['p_value']:.2g}",
+                _yes(r["significant"]),
+            ]
             for r in image
         ]
-        lines.append("")
+        lines += ["Image evidence (median real - simulated per tag, Wilcoxon signed-rank):", ""]
+        lines += markdown_table(header, rows) + [""]
     return lines
 
 

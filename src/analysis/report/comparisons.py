@@ -250,7 +250,16 @@ def compare_variants(
 
 
 def as_comparison(data: xr.Dataset, baseline: str | None) -> xr.Dataset:
-    """Return `data` if it is a :func:`compare_variants` output, else compare its variants."""
+    """The comparison that the comparison tables and figures read.
+
+    Parameters
+    ----------
+    data : xarray.Dataset
+        A result dataset, or the output of :func:`compare_variants` (returned as it is, and then
+        `baseline` is ignored).
+    baseline : str or None
+        Reference variant (see :func:`resolve_baseline`).
+    """
     return data if "abs_change" in data.data_vars else compare_variants(data, baseline)
 
 
@@ -259,10 +268,8 @@ def change_by_p(data: xr.Dataset, baseline: str | None = None) -> xr.DataArray:
 
     Parameters
     ----------
-    data : xarray.Dataset
-        A result dataset, or the output of :func:`compare_variants` (then `baseline` is ignored).
-    baseline : str, optional
-        Reference variant (see :func:`resolve_baseline`).
+    data, baseline
+        What to compare, as in :func:`as_comparison`.
 
     Returns
     -------

@@ -77,9 +77,10 @@ def plot_error_vs_distance(summary: VariantSummary, tag: int) -> Figure:
     Parameters
     ----------
     summary : VariantSummary
-        Output of :func:`summarize_variant`.
+        One variant (:func:`~simgap.analysis.report.summaries.summarize_variant`): its
+        ``abs_error``, ``carriage_m`` and detections are drawn.
     tag : int
-        Tag id.
+        Tag id of the figure.
 
     Returns
     -------
@@ -167,9 +168,10 @@ def plot_error_heatmap(summary: VariantSummary, tag: int) -> Figure:
     Parameters
     ----------
     summary : VariantSummary
-        Output of :func:`summarize_variant`.
+        One variant (:func:`~simgap.analysis.report.summaries.summarize_variant`): its
+        ``signed_error`` is drawn, and its undetected cells marked.
     tag : int
-        Tag id.
+        Tag whose panels are drawn.
 
     Returns
     -------
@@ -231,11 +233,8 @@ def plot_change_by_distance(
 
     Parameters
     ----------
-    data : xarray.Dataset
-        A result dataset, or the output of
-        :func:`~simgap.analysis.report.comparisons.compare_variants` (then `baseline` is ignored).
-    baseline : str, optional
-        Reference variant (see :func:`~simgap.analysis.report.comparisons.resolve_baseline`).
+    data, baseline
+        What to compare, as in :func:`~simgap.analysis.report.comparisons.as_comparison`.
     title : str, optional
         Figure title; default names the variant - reference change of mean ``|error|``.
 
@@ -303,12 +302,12 @@ def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = N
     Parameters
     ----------
     data : xarray.Dataset
-        A result dataset, or the output of
-        :func:`~simgap.analysis.report.comparisons.compare_variants` (then `baseline` is ignored).
+        What to compare, with `baseline`, as in
+        :func:`~simgap.analysis.report.comparisons.as_comparison`.
     variant : str
         A compared (non-reference) variant.
     baseline : str, optional
-        Reference variant (see :func:`~simgap.analysis.report.comparisons.resolve_baseline`).
+        Reference variant.
 
     Returns
     -------
@@ -339,22 +338,8 @@ def plot_axis_change_heatmap(
 ) -> Figure:
     """Plot the mean signed error change of one variant and one axis, one panel per tag.
 
-    Parameters
-    ----------
-    data : xarray.Dataset
-        A result dataset, or the output of
-        :func:`~simgap.analysis.report.comparisons.compare_variants` (then `baseline` is ignored).
-    variant : str
-        A compared (non-reference) variant.
-    axis : str, optional
-        Pose axis, default ``"ty"`` (depth).
-    baseline : str, optional
-        Reference variant (see :func:`~simgap.analysis.report.comparisons.resolve_baseline`).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        One panel per tag, as in :func:`plot_change_heatmap`.
+    As :func:`plot_change_heatmap` (same `data`, `variant` and `baseline`) for the one pose
+    ``axis`` (default ``"ty"``, the depth): one panel per tag, in mm or mrad.
     """
     cmp = as_comparison(data, baseline)
     _check_compared(cmp, variant)

@@ -41,7 +41,7 @@ def table2_markdown(summary: VariantSummary) -> str:
     Parameters
     ----------
     summary : VariantSummary
-        Output of :func:`summarize_variant`.
+        The reported variant (:func:`~simgap.analysis.report.summaries.summarize_variant`).
 
     Returns
     -------
@@ -128,7 +128,7 @@ def summary_markdown(
     Parameters
     ----------
     summary : VariantSummary
-        Output of :func:`summarize_variant`.
+        The reported variant (:func:`~simgap.analysis.report.summaries.summarize_variant`).
     figures : sequence of pathlib.Path
         Figure files to embed, linked by file name (they sit beside the Markdown file).
     variants : sequence of str

@@ -220,7 +220,7 @@ def abs_error_envelope(summary: VariantSummary) -> xr.Dataset:
     Parameters
     ----------
     summary : VariantSummary
-        Output of :func:`summarize_variant`.
+        One variant's reduction (:func:`summarize_variant`); ``abs_error`` is read.
 
     Returns
     -------
@@ -245,16 +245,9 @@ def thresholds() -> xr.DataArray:
 def within_threshold_counts(summary: VariantSummary) -> xr.DataArray:
     """Count visible configurations whose absolute error is within the high-precision threshold.
 
-    Parameters
-    ----------
-    summary : VariantSummary
-        Output of :func:`summarize_variant`.
-
-    Returns
-    -------
-    xarray.DataArray
-        Integer counts, dims ``(tag, axis)``. A visible configuration without an estimate counts
-        as not within; divide by ``summary.n_visible`` for the fraction.
+    ``summary`` is one variant's reduction (:func:`summarize_variant`). Returns integer counts
+    (:class:`xarray.DataArray`), dims ``(tag, axis)``. A visible configuration without an
+    estimate counts as not within; divide by ``summary.n_visible`` for the fraction.
     """
     abs_error = summary.abs_error.sel(axis=list(AXES))
     return (abs_error <= thresholds()).sum(("p", "theta")).transpose("tag", "axis")

@@ -73,10 +73,8 @@ def variant_summary_table(data: xr.Dataset, baseline: str | None = None) -> pd.D
 
     Parameters
     ----------
-    data : xarray.Dataset
-        A result dataset, or the output of :func:`compare_variants` (then `baseline` is ignored).
-    baseline : str, optional
-        Reference variant (see :func:`resolve_baseline`).
+    data, baseline
+        What to compare, as in :func:`~simgap.analysis.report.comparisons.as_comparison`.
 
     Returns
     -------
@@ -178,13 +176,14 @@ def binned_change_table(
     Parameters
     ----------
     data : xarray.Dataset
-        A result dataset, or the output of :func:`compare_variants` (then `baseline` is ignored).
+        What to compare, with `baseline`, as in
+        :func:`~simgap.analysis.report.comparisons.as_comparison`.
     by : {"distance", "angle"}
         ``"distance"``: near, mid and far thirds of the rig's pin holes
         (:func:`simgap.analysis.gap.distance_thirds`); ``"angle"``: bins of the absolute view
         angle from facing the camera (:data:`ANGLE_BINS_DEG`).
     baseline : str, optional
-        Reference variant (see :func:`resolve_baseline`).
+        Reference variant.
     variable : str, optional
         Per-configuration change to average: ``"abs_change"`` (change of ``|error|``, default) or
         ``"signed_shift"``.
