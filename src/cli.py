@@ -316,17 +316,18 @@ def diagnose(
 ) -> None:
     """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
     from simgap.core.paths import default_cache_dir
-    from simgap.diagnosis.diagnose import DiagnoseSettings, write_json
     from simgap.diagnosis.diagnose import diagnose as run_diagnosis
     from simgap.diagnosis.diagnosis_report import write_diagnosis_report
+    from simgap.diagnosis.result_json import write_json
+    from simgap.diagnosis.settings import DiagnoseSettings
+    from simgap.pipeline.simulator import Simulator
     from simgap.results.dataset import read_netcdf
 
     data = read_netcdf(real)
     exp = _load_sim(sim)
     settings = DiagnoseSettings(seed=seed)
-    result, state = run_diagnosis(
-        data, exp, cache or default_cache_dir(), settings, None, scheduler
-    )
+    simulator = Simulator(cache or default_cache_dir(), scheduler=scheduler)
+    result, state = run_diagnosis(data, exp, settings=settings, simulator=simulator)
     for p in write_diagnosis_report(result, state, output):
         typer.echo(str(p))
     if json_path:

@@ -7,7 +7,7 @@ import pytest
 
 from simgap.analysis import evidence
 from simgap.core.rig import load_rig
-from simgap.diagnosis.diagnose import split_items
+from simgap.diagnosis.items import split_items
 from simgap.results.dataset import build_dataset, empty_results
 
 PS = tuple(range(0, 15, 2))

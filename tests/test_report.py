@@ -12,7 +12,8 @@ import pytest
 import xarray as xr
 
 from simgap.analysis.paper import AXES, TABLE2, threshold_for
-from simgap.analysis.report import fit_abs_error_slope, summarize_variant, write_report
+from simgap.analysis.report import write_report
+from simgap.analysis.report.summaries import fit_abs_error_slope, summarize_variant
 
 PITCH_M = 0.0254
 TAGS = [0, 1]

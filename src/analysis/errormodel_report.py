@@ -9,14 +9,13 @@ import xarray as xr
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from scipy.spatial.transform import Rotation
 
-from simgap.analysis.errormodel import Z90, ErrorModel, TagPoses, covariates
+from simgap.analysis.errormodel.geometry import covariates
+from simgap.analysis.errormodel.model import Z90, ErrorModel, TagPoses
 from simgap.core.atomic import atomic_write
-from simgap.results.dataset import AXES
+from simgap.core.axes import AXES, display_unit
 
-#: Axis scale to display units: mm for translations, mrad for rotations.
-DISPLAY_SCALE = 1e3
-DISPLAY_UNITS = {"tx": "mm", "ty": "mm", "tz": "mm", "rx": "mrad", "ry": "mrad", "rz": "mrad"}
 FIGURE_NAME = "errormodel_bands.png"
 
 
@@ -51,20 +50,21 @@ def plot_error_model_bands(model: ErrorModel, ds: xr.Dataset, slices: int = 3) -
             mean = model.error_mean(TagPoses(np.full(len(obl), tag), q), outside="nan")
             sd = model.std(TagPoses(np.full(len(obl), tag), q), outside="nan")
             for k, axis in enumerate(AXES):
+                unit, scale = display_unit(axis)
                 ax = axes[r, k]
                 x = np.degrees(obl)
                 ax.fill_between(
                     x,
-                    DISPLAY_SCALE * (mean[:, k] - Z90 * sd[:, k]),
-                    DISPLAY_SCALE * (mean[:, k] + Z90 * sd[:, k]),
+                    scale * (mean[:, k] - Z90 * sd[:, k]),
+                    scale * (mean[:, k] + Z90 * sd[:, k]),
                     color=colours[s],
                     alpha=0.2,
                     lw=0,
                 )
-                ax.plot(x, DISPLAY_SCALE * mean[:, k], color=colours[s], lw=1.2)
+                ax.plot(x, scale * mean[:, k], color=colours[s], lw=1.2)
                 ax.plot(
                     np.degrees(o[in_slice]),
-                    DISPLAY_SCALE * e[in_slice, k],
+                    scale * e[in_slice, k],
                     ".",
                     ms=3,
                     color=colours[s],
@@ -72,7 +72,7 @@ def plot_error_model_bands(model: ErrorModel, ds: xr.Dataset, slices: int = 3) -
                 )
                 ax.set_title(f"tag {tag} {axis}", fontsize=9)
                 ax.set_xlabel("obliquity (deg)", fontsize=8)
-                ax.set_ylabel(f"error ({DISPLAY_UNITS[axis]})", fontsize=8)
+                ax.set_ylabel(f"error ({unit})", fontsize=8)
                 ax.tick_params(labelsize=7)
         axes[r, 0].legend(fontsize=7, title="distance", title_fontsize=7)
     fig.suptitle(
@@ -87,8 +87,6 @@ def _poses_at(distance: float, obliquity: np.ndarray) -> np.ndarray:
 
     Marker frame as the rig's (z = normal towards the camera at obliquity 0, y = global +Z).
     """
-    from scipy.spatial.transform import Rotation
-
     base = np.column_stack([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
     rot = Rotation.from_rotvec(np.outer(obliquity, [0.0, 0.0, 1.0])) * Rotation.from_matrix(base)
     t = np.tile([0.0, distance, 0.0], (len(obliquity), 1))

@@ -111,14 +111,39 @@ def corner_score(real: np.ndarray, pred: np.ndarray) -> float:
     return float(np.sqrt(np.nanmedian(d2)))
 
 
-def gap_rms_per_axis(real: np.ndarray, pred: np.ndarray) -> np.ndarray:
-    """Robust gap size per axis, the median absolute gap (m, rad), shape (6,)."""
+def median_abs_gap(real: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """Robust gap size per axis: the median over items of ``|real - pred|``.
+
+    Parameters
+    ----------
+    real, pred : ndarray (N, 6)
+        Real and predicted errors (m, rad); NaN items are ignored.
+
+    Returns
+    -------
+    ndarray (6,)
+        Median absolute gap per axis (m for tx, ty, tz; rad for rx, ry, rz). Not an RMS.
+    """
     return np.nanmedian(np.abs(real - pred), axis=0)
+
 
 
 @dataclass
 class Fit:
-    """A fitted candidate: its effect parameters and predictions on the training items."""
+    """A fitted candidate: its effect parameters and what the solver left (no predictions).
+
+    Attributes
+    ----------
+    effect : str
+        Registered effect name (:data:`simgap.effects.EFFECTS`).
+    params : dict
+        Fitted effect parameters, in the units the effect's params declare.
+    seconds : float
+        Wall time of the fit (s).
+    extra : dict
+        Solver by-products: ``x`` (the solver's parameter vector, for joint fits and
+        projections), ``corner_rms_px`` (training corner residual, px), ``train_misfit``.
+    """
 
     effect: str
     params: dict[str, Any]

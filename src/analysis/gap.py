@@ -15,19 +15,26 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
-#: Smallest gap that matters, per axis unit: a tenth of the high-precision thresholds
-#: (0.005 m, 0.0873 rad). Smaller systematic differences (e.g. from another light or sensor noise
-#: changing the detector's edge bias) are reported but not called significant.
-PRACTICAL_FLOOR = {"m": 5e-4, "rad": 8.73e-3}
+from simgap.analysis.paper import THRESHOLD_BY_UNIT
+from simgap.core.axes import AXES, axis_unit
+from simgap.core.robust import (
+    MAD_TO_SIGMA,
+    MEDIAN_SE_FACTOR,
+    Z95_WIDTH,
+    mad_sigma,
+    median_standard_error,
+)
+
+#: Share of the paper's high-precision thresholds below which a gap does not matter.
+PRACTICAL_FLOOR_FRACTION = 0.1
+#: Smallest gap that matters, per axis unit (m, rad): :data:`PRACTICAL_FLOOR_FRACTION` of the
+#: high-precision thresholds (:data:`simgap.analysis.paper.THRESHOLD_BY_UNIT`, 0.005 m and
+#: 0.0873 rad). Smaller systematic differences (e.g. from another light or sensor noise changing
+#: the detector's edge bias) are reported but not called significant.
+PRACTICAL_FLOOR = {u: t * PRACTICAL_FLOOR_FRACTION for u, t in THRESHOLD_BY_UNIT.items()}
 #: Noise floor used when a field is too short to estimate its own roughness (m, rad).
 DEFAULT_NOISE = {"m": 2e-4, "rad": 4e-3}
 Z_SIGNIFICANT = 4.0
-
-
-def axis_unit(axis: str) -> str:
-    """``"m"`` for translation axes, ``"rad"`` for rotation axes."""
-    return "m" if axis.startswith("t") else "rad"
 
 
 def mean_error(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
@@ -42,7 +49,8 @@ def _roughness(field: np.ndarray) -> float:
     d2 = d2[np.isfinite(d2)]
     if d2.size < 8:
         return np.nan
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+    # a second difference of white noise has variance 6 sigma^2
+    return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
 def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
@@ -118,11 +126,13 @@ def axis_summary(field: GapField) -> dict[str, dict]:
     """Per axis: robust location and trend of the gap with distance, z-scores, significance.
 
     Rotation estimates of a square marker are heavy-tailed (planar pose ambiguity), so the
-    location is the median (standard error ``1.2533 * scale / sqrt(n)``) and the trend with the pin
-    hole is the Theil-Sen slope (its 95 % interval gives the z-score). The gap on an axis is
-    significant when its median or its trend is more than :data:`Z_SIGNIFICANT` standard errors
-    from zero *and* its systematic part (median and trend over the distance range) exceeds
-    :data:`PRACTICAL_FLOOR`.
+    location is the median (standard error :func:`simgap.core.robust.median_standard_error`) and
+    the trend with the pin hole is the Theil-Sen slope (its 95 % interval gives the z-score). The
+    z-score of the location is stored as ``z_mean`` (a ``result.json`` key kept for readers) but
+    is the median's; ``mean`` is the plain mean, ``median`` the location tested. The gap on an
+    axis is significant when its median or its trend is more than :data:`Z_SIGNIFICANT` standard
+    errors from zero *and* its systematic part (median and trend over the distance range)
+    exceeds :data:`PRACTICAL_FLOOR`.
     """
     from scipy.stats import theilslopes
 
@@ -140,16 +150,19 @@ def axis_summary(field: GapField) -> dict[str, dict]:
             continue
         x, y = dist[ok], g[ok]
         median = float(np.median(y))
-        scatter = max(float(1.4826 * np.median(np.abs(y - median))), sigma)
-        z_mean = median / (1.2533 * scatter / np.sqrt(n))
+        scatter = max(mad_sigma(y), sigma)
+        z_median = median / median_standard_error(scatter, n)
         slope = z_slope = 0.0
         if n >= 3 and np.ptp(x) > 0:
             slope, _, lo, hi = theilslopes(y, x)
-            half = max((hi - lo) / 3.92, 1.2533 * scatter / np.sqrt(np.sum((x - x.mean()) ** 2)))
+            half = max(
+                (hi - lo) / Z95_WIDTH,
+                MEDIAN_SE_FACTOR * scatter / np.sqrt(np.sum((x - x.mean()) ** 2)),
+            )
             z_slope = slope / half if half > 0 else 0.0
         trend = abs(slope) * np.ptp(x) / 2.0
         systematic = float(max(abs(median), trend))
-        significant = (abs(z_mean) > Z_SIGNIFICANT or abs(z_slope) > Z_SIGNIFICANT) and (
+        significant = (abs(z_median) > Z_SIGNIFICANT or abs(z_slope) > Z_SIGNIFICANT) and (
             systematic > PRACTICAL_FLOOR[unit]
         )
         out[axis] = {
@@ -159,7 +172,7 @@ def axis_summary(field: GapField) -> dict[str, dict]:
             "median": median,
             "rms": float(np.sqrt(np.mean(y**2))),
             "slope_per_pin": float(slope),
-            "z_mean": float(z_mean),
+            "z_mean": float(z_median),  # the median's z-score (key kept)
             "z_slope": float(z_slope),
             "noise": sigma,
             "systematic": systematic,
@@ -168,13 +181,35 @@ def axis_summary(field: GapField) -> dict[str, dict]:
     return out
 
 
-def region_summary(field: GapField) -> list[dict]:
-    """Mean gap per axis in distance (near/mid/far pin holes) and view-angle bins, with z-scores."""
-    p = field.gap.p.values
-    thirds = np.array_split(np.arange(p.size), 3)
-    dist_bins = {
-        name: p[idx] for name, idx in zip(("near", "mid", "far"), thirds, strict=True) if idx.size
+def distance_thirds(pins: np.ndarray) -> dict[str, np.ndarray]:
+    """Pin holes split into near, mid and far thirds, labelled ``"near (p 0-4)"`` and so on.
+
+    Parameters
+    ----------
+    pins : array of int
+        Pin holes, nearest first.
+
+    Returns
+    -------
+    dict of str to ndarray
+        Label -> the pin holes of that third (empty thirds left out).
+    """
+    pins = np.asarray(pins)
+    thirds = np.array_split(np.arange(pins.size), 3)
+    return {
+        f"{name} (p {pins[idx].min()}-{pins[idx].max()})": pins[idx]
+        for name, idx in zip(("near", "mid", "far"), thirds, strict=True)
+        if idx.size
     }
+
+
+def region_summary(field: GapField) -> list[dict]:
+    """Median gap per axis in near / mid / far thirds of the pin holes, with z-scores.
+
+    Each row's ``"mean"`` key holds the region's **median** gap (m or rad): the key is part of
+    ``result.json`` (``where.regions``) and is kept; the value and its z-score are the median's.
+    """
+    dist_bins = distance_thirds(field.gap.p.values)
     rows = []
     for axis in AXES:
         g = field.gap.sel(axis=axis)
@@ -185,14 +220,14 @@ def region_summary(field: GapField) -> list[dict]:
             if vals.size == 0:
                 continue
             med = float(np.median(vals))
-            scatter = max(float(1.4826 * np.median(np.abs(vals - med))), sigma)
-            z = med / (1.2533 * scatter / np.sqrt(vals.size))
+            scatter = max(mad_sigma(vals), sigma)
+            z = med / median_standard_error(scatter, vals.size)
             rows.append(
                 {
                     "axis": axis,
-                    "region": f"{name} (p {members.min()}-{members.max()})",
+                    "region": name,
                     "n": int(vals.size),
-                    "mean": med,
+                    "mean": med,  # the median (result.json key kept)
                     "z": float(z),
                     "significant": abs(z) > Z_SIGNIFICANT
                     and abs(med) > PRACTICAL_FLOOR[axis_unit(axis)],

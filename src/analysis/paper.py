@@ -23,25 +23,31 @@ from typing import Final
 import numpy as np
 import xarray as xr
 
-AXES: Final[tuple[str, ...]] = ("tx", "ty", "tz", "rx", "ry", "rz")
-"""Pose axes of the result dataset's ``axis`` coordinate, in contract order."""
+from simgap.core.axes import AXES, AXIS_UNITS, ROTATION_AXES, TRANSLATION_AXES
 
-TRANSLATION_AXES: Final[tuple[str, ...]] = ("tx", "ty", "tz")
-"""Translation axes (errors in metres)."""
-
-ROTATION_AXES: Final[tuple[str, ...]] = ("rx", "ry", "rz")
-"""Rotation axes (rotation-vector components, errors in radians)."""
-
-AXIS_UNITS: Final = MappingProxyType(
-    {**dict.fromkeys(TRANSLATION_AXES, "m"), **dict.fromkeys(ROTATION_AXES, "rad")}
-)
-"""Unit of each axis' error: ``"m"`` for translation, ``"rad"`` for rotation."""
+__all__ = [
+    "AXES",
+    "AXIS_UNITS",
+    "ROTATION_AXES",
+    "TABLE2",
+    "TAGS",
+    "THRESHOLD_BY_UNIT",
+    "TRANSLATION_AXES",
+    "PaperEnvelope",
+    "table2_dataarray",
+    "threshold_for",
+]
 
 TRANSLATION_THRESHOLD_M: Final[float] = 0.005
 """High-precision threshold on the absolute translation error per axis, in metres."""
 
 ROTATION_THRESHOLD_RAD: Final[float] = 0.0873
 """High-precision threshold on the absolute rotation error per axis, in radians (about 5 deg)."""
+
+THRESHOLD_BY_UNIT: Final = MappingProxyType(
+    {"m": TRANSLATION_THRESHOLD_M, "rad": ROTATION_THRESHOLD_RAD}
+)
+"""High-precision threshold per SI unit of the error (m, rad)."""
 
 TAGS: Final[tuple[int, ...]] = (0, 1)
 """Tag ids for which the paper reports errors."""

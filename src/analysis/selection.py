@@ -23,8 +23,8 @@ from simgap.analysis.fitting import (
     ProjectionCandidate,
     ProjectionSet,
     corner_score,
-    gap_rms_per_axis,
     gap_score,
+    median_abs_gap,
 )
 from simgap.analysis.scoring import (
     NOISE_STATS,
@@ -185,8 +185,8 @@ class ModelSearch:
             fits,
             gap_score(h.real_err, h.sim_err, h.scale, self.axes),
             gap_score(h.real_err, pred, h.scale, self.axes),
-            gap_rms_per_axis(h.real_err, h.sim_err),
-            gap_rms_per_axis(h.real_err, pred),
+            median_abs_gap(h.real_err, h.sim_err),
+            median_abs_gap(h.real_err, pred),
             gap_score(h.real_err, h.sim_err, h.scale),
             gap_score(h.real_err, pred, h.scale),
             corner_score(h.real_corners, h.sim_corners),

@@ -1,7 +1,9 @@
 """The diagnosis report: where the gap lies, the effect ranking, before/after, figures, JSON.
 
-The gap figures reuse :mod:`simgap.analysis.compare`: the simulation and the real data are put
-into one dataset as two variants, so a variant's signed shift against ``simulation`` is the gap.
+The gap figures reuse the comparison figures (:mod:`simgap.analysis.report.figures`): the
+simulation and the real data are put into one dataset as two variants, so the signed shift of
+``real`` against ``simulation`` is the gap, and the change of mean ``|error|`` is
+``mean |real error| - mean |simulated error|`` (not the gap; ``gap_by_distance.png`` says so).
 """
 
 from __future__ import annotations
@@ -14,12 +16,21 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from simgap.analysis import compare
 from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
-from simgap.analysis.report import _save_figure, _save_text
+from simgap.analysis.report.figures import plot_change_by_distance, plot_change_heatmap
+from simgap.analysis.report.output import save_figure, save_text
+from simgap.analysis.report.tables import markdown_table
 from simgap.analysis.scoring import EQUIVALENT_PX, EQUIVALENT_REL
-from simgap.diagnosis.diagnose import AXES, Diagnosis, write_json
+from simgap.core.axes import AXES, display_unit
+from simgap.diagnosis.diagnose import Diagnosis
+from simgap.diagnosis.result_json import write_json
+
+#: Title of ``gap_by_distance.png``: what it plots is a difference of absolute errors.
+GAP_BY_DISTANCE_TITLE = (
+    "mean |real error| − mean |simulated error| vs distance (a change of error size, not the "
+    "signed gap; paired configurations, both tags, all view angles)"
+)
 
 
 def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
@@ -36,10 +47,6 @@ def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
     return both
 
 
-def _unit(axis: str) -> tuple[str, float]:
-    return ("mm", 1e3) if axis.startswith("t") else ("mrad", 1e3)
-
-
 def where_markdown(where: dict[str, Any]) -> list[str]:
     """Markdown lines for the 'where' part."""
     lines = [
@@ -49,7 +56,7 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
         f"{where['comparable_configurations']}. "
         f"Significant gap: **{'yes' if where['significant'] else 'no'}**.",
         "",
-        "| axis | n | mean gap | RMS gap | trend per pin hole | noise | z (mean) | z (trend) "
+        "| axis | n | median gap | RMS gap | trend per pin hole | noise | z (median) | z (trend) "
         "| significant |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
@@ -58,9 +65,9 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
         if not a.get("n"):
             lines.append(f"| {axis} | 0 | | | | | | | no |")
             continue
-        unit, k = _unit(axis)
+        unit, k = display_unit(axis)
         lines.append(
-            f"| {axis} | {a['n']} | {a['mean'] * k:+.3f} {unit} | {a['rms'] * k:.3f} {unit} | "
+            f"| {axis} | {a['n']} | {a['median'] * k:+.3f} {unit} | {a['rms'] * k:.3f} {unit} | "
             f"{a['slope_per_pin'] * k:+.4f} {unit} | {a['noise'] * k:.3f} {unit} | "
             f"{a['z_mean']:+.1f} | {a['z_slope']:+.1f} | "
             f"{'**yes**' if a['significant'] else 'no'} |"
@@ -74,15 +81,20 @@ def where_markdown(where: dict[str, Any]) -> list[str]:
     ]
     lines += evidence_markdown(where)
     if where["regions"]:
-        lines += ["Significant regions (mean gap, z-score):", ""]
+        lines += ["Significant regions (median gap, z-score):", ""]
         for r in where["regions"]:
-            unit, k = _unit(r["axis"])
+            unit, k = display_unit(r["axis"])
+            # a region's result.json key "mean" holds its median gap (the key is kept)
             lines.append(
                 f"- {r['axis']}, {r['region']}: {r['mean'] * k:+.3f} {unit} "
                 f"(z = {r['z']:+.1f}, n = {r['n']})"
             )
         lines.append("")
     return lines
+
+
+def _yes(flag: bool) -> str:
+    return "**yes**" if flag else "no"
 
 
 def evidence_markdown(where: dict[str, Any]) -> list[str]:
@@ -96,51 +108,56 @@ def evidence_markdown(where: dict[str, Any]) -> list[str]:
     ]
     scatter = [r for r in where.get("scatter_tests", []) if r["significant"]]
     if scatter:
-        lines += [
-            "Pose scatter (Brown-Forsythe, robust scales):",
-            "",
-            "| axis | region | real | simulation | ratio | p |",
-            "|---|---|---|---|---|---|",
-        ]
+        rows = []
         for r in scatter:
-            unit, k = _unit(r["axis"])
-            lines.append(
-                f"| {r['axis']} | {r['region']} | {r['real_scatter'] * k:.3f} {unit} | "
-                f"{r['sim_scatter'] * k:.3f} {unit} | {r['ratio']:.2f} | {r['p_value']:.2g} |"
+            unit, k = display_unit(r["axis"])
+            rows.append(
+                [
+                    r["axis"],
+                    r["region"],
+                    f"{r['real_scatter'] * k:.3f} {unit}",
+                    f"{r['sim_scatter'] * k:.3f} {unit}",
+                    f"{r['ratio']:.2f}",
+                    f"{r['p_value']:.2g}",
+                ]
             )
-        lines.append("")
+        header = ["axis", "region", "real", "simulation", "ratio", "p"]
+        lines += ["Pose scatter (Brown-Forsythe, robust scales):", ""]
+        lines += markdown_table(header, rows) + [""]
     detection = where.get("detection_tests", [])
     if detection:
-        lines += [
-            "Detection (Fisher's exact test):",
-            "",
-            "| region | real | simulation | difference | p | significant |",
-            "|---|---|---|---|---|---|",
-        ]
-        lines += [
-            f"| {r['region']} | {r['real_detected']}/{r['real_attempts']} | "
-            f"{r['sim_detected']}/{r['sim_attempts']} | {r['difference']:+.1%} | "
-            f"{r['p_value']:.2g} | {'**yes**' if r['significant'] else 'no'} |"
+        header = ["region", "real", "simulation", "difference", "p", "significant"]
+        rows = [
+            [
+                r["region"],
+                f"{r['real_detected']}/{r['real_attempts']}",
+                f"{r['sim_detected']}/{r['sim_attempts']}",
+                f"{r['difference']:+.1%}",
+                f"{r['p_value']:.2g}",
+                _yes(r["significant"]),
+            ]
             for r in detection
         ]
-        lines.append("")
+        lines += ["Detection (Fisher's exact test):", ""]
+        lines += markdown_table(header, rows) + [""]
     image = where.get("image_tests", [])
     if image:
-        lines += [
-            "Image evidence (median real - simulated per tag, Wilcoxon signed-rank):",
-            "",
-            "| statistic | real median | simulation median | median difference | floor | p "
-            "| significant |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        lines += [
-            f"| {r['stat']} | {r['real_median']:.4g} | {r['sim_median']:.4g} | "
-            f"{r['median_difference']:+.3g} ({r['compared_as']}) | "
-            f"{'-' if r['floor'] is None else r['floor']} | {r['p_value']:.2g} | "
-            f"{'**yes**' if r['significant'] else 'no'} |"
+        header = ["statistic", "real median", "simulation median", "median difference"]
+        header += ["floor", "p", "significant"]
+        rows = [
+            [
+                r["stat"],
+                f"{r['real_median']:.4g}",
+                f"{r['sim_median']:.4g}",
+                f"{r['median_difference']:+.3g} ({r['compared_as']})",
+                "-" if r["floor"] is None else str(r["floor"]),
+                f"{r['p_value']:.2g}",
+                _yes(r["significant"]),
+            ]
             for r in image
         ]
-        lines.append("")
+        lines += ["Image evidence (median real - simulated per tag, Wilcoxon signed-rank):", ""]
+        lines += markdown_table(header, rows) + [""]
     return lines
 
 
@@ -245,11 +262,11 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
             "other effects held at their fitted values (median |change| over the noise or "
             "practical floor, largest significant axis); below 1 the effect is minor.",
             "",
-            "| axis | RMS gap before | after (fast) | after (confirmed) |",
+            "| axis | median abs gap before | after (fast) | after (confirmed) |",
             "|---|---|---|---|",
         ]
         for axis in AXES:
-            unit, k = _unit(axis)
+            unit, k = display_unit(axis)
             conf = result.get("confirmed", {}).get("heldout_gap_after_per_axis", {}).get(axis)
             lines.append(
                 f"| {axis} | {c['heldout_gap_before_per_axis'][axis] * k:.3f} {unit} | "
@@ -306,15 +323,16 @@ def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     both = gap_dataset(d.real, d.sim)
-    paths = [_save_figure(plot_ranking(result), out_dir / "ranking.png")]
+    paths = [save_figure(plot_ranking(result), out_dir / "ranking.png")]
     paths.append(
-        _save_figure(
-            compare.plot_change_by_distance(both, "simulation"), out_dir / "gap_by_distance.png"
+        save_figure(
+            plot_change_by_distance(both, "simulation", title=GAP_BY_DISTANCE_TITLE),
+            out_dir / "gap_by_distance.png",
         )
     )
     paths.append(
-        _save_figure(
-            compare.plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png"
+        save_figure(
+            plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png"
         )
     )
     if "image_stats" in d.real and "image_stats" in d.sim:
@@ -322,12 +340,12 @@ def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) 
         images = {"real": real, "simulation": sim}
         for against in ("distance", "view_angle"):
             fig = plot_image_stats(images, against, title="Image evidence: real vs simulation")
-            paths.append(_save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
+            paths.append(save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
     lines = ["# Sim-to-real gap diagnosis", ""]
     lines += where_markdown(result["where"])
     lines += which_markdown(result)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]
     lines.append(f"Diagnosis time: {result['seconds']:.0f} s.")
-    paths.append(_save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))
+    paths.append(save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))
     paths.append(write_json(result, out_dir / "result.json"))
     return paths

@@ -29,97 +29,42 @@ import numpy as np
 from simgap.analysis.fitting import geometric_effects
 from simgap.core.atomic import atomic_write
 from simgap.core.config import deep_merge
+from simgap.diagnosis.diagnose import diagnose
+from simgap.diagnosis.hidden_effects import (
+    APPEARANCE,
+    HIDDEN,
+    NUISANCE_EFFECTS,
+    NUISANCE_SCENE,
+    NUISANCE_SPP,
+    OUTSIDE,
+    REPORTED_AS,
+    Sampler,
+)
+from simgap.diagnosis.result_json import write_json
+from simgap.pipeline.capture import ingest, write_capture
 from simgap.pipeline.experiment import Configurations, Experiment, VariantSpec
+from simgap.pipeline.simulator import Simulator
 
-Sampler = Callable[[np.random.Generator], dict[str, Any]]
-
-
-def _signed(rng: np.random.Generator, lo: float, hi: float) -> float:
-    return float(rng.choice([-1.0, 1.0]) * rng.uniform(lo, hi))
-
-
-#: Key light of the scene template (mitsuba_scenes/pass_fixture.yaml): position, aim (m, rail).
-KEY_LIGHT = {"position": [0.12, -0.30, 0.40], "target": [0.036749, 0.321749, 0.06]}
-
-
-def _lighting(rng: np.random.Generator) -> dict[str, Any]:
-    """Another key light: dim or harsh.
-
-    Dim: the template's area light at a quarter to a half of its radiance (8 W m^-2 sr^-1).
-    Harsh: a point light in its place, intensity 2-4 W/sr (hard shading, brighter paper).
-    """
-    if rng.uniform() < 0.5:
-        return {"type": "area", **KEY_LIGHT, "power": float(rng.uniform(2.0, 4.0))}
-    return {"type": "point", **KEY_LIGHT, "power": float(rng.uniform(2.0, 4.0))}
-
-
-#: Hidden effects and how their magnitudes are drawn (realistic hardware ranges), with the
-#: parameter whose fitted value is scored (None: not a magnitude effect).
-HIDDEN: dict[str, tuple[Sampler, str | None]] = {
-    "focal_length": (lambda r: {"scale": _signed(r, 0.01, 0.03)}, "scale"),
-    "principal_point": (
-        lambda r: {"dx_px": _signed(r, 4, 12), "dy_px": _signed(r, 4, 12)},
-        "dx_px",
-    ),
-    "lens_distortion": (lambda r: {"k1": _signed(r, 0.08, 0.2)}, "k1"),
-    "camera_mount": (
-        lambda r: {"translation_m": (_signed(r, 0.001, 0.003), 0.0, _signed(r, 0.001, 0.003))},
-        "translation_m",
-    ),
-    "turntable_offset": (lambda r: {"angle_rad": _signed(r, 0.015, 0.04)}, "angle_rad"),
-    "carriage_pitch": (lambda r: {"scale": _signed(r, 0.01, 0.03)}, "scale"),
-    "tag_scale": (lambda r: {"scale": _signed(r, 0.015, 0.04)}, "scale"),
-    # appearance: the paper's own suspects (lighting, focus, the camera's image formation)
-    "blur": (lambda r: {"sigma_px": float(r.uniform(0.9, 1.8))}, "sigma_px"),
-    "exposure": (lambda r: {"ev": _signed(r, 0.8, 2.0)}, "ev"),
-    "sensor_noise": (
-        lambda r: {
-            "full_well_e": float(r.uniform(400, 1500)),
-            "read_noise_e": float(r.uniform(8, 20)),
-        },
-        "full_well_e",
-    ),
-    "defocus": (
-        lambda r: {
-            "aperture_radius_m": float(r.uniform(6e-4, 1.2e-3)),
-            "focus_distance_m": float(r.uniform(1.0, 2.5)),
-        },
-        "aperture_radius_m",
-    ),
-    "jpeg": (lambda r: {"quality": int(r.integers(25, 76))}, "quality"),
-    "lighting": (_lighting, None),
-}
-#: Appearance effects among :data:`HIDDEN` (scored per effect).
-APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg", "lighting")
-#: Hidden effects the diagnosis reports as another catalogue effect that leaves the same
-#: evidence: a grey camera sees a dimmer or harsher key light as a change of the ink and paper
-#: levels, which is an exposure change (one image-stage parameter) unless the shading across
-#: tags changes beyond the level floors. Scored as correct when that effect is reported.
-REPORTED_AS: dict[str, str] = {"lighting": "exposure"}
-#: Effects outside the diagnosis catalogue: the answer must be "unexplained". Motion blur of the
-#: turntable still turning while the shutter is open (horizontal).
-OUTSIDE: dict[str, Sampler] = {
-    "motion_blur": lambda r: {"length_px": float(r.uniform(4.0, 7.0)), "angle_deg": 0.0},
-}
-
-#: What makes the pseudo-real data "other hardware" even without a hidden effect: another light
-#: and sensor noise ...
-NUISANCE_EFFECTS: dict[str, dict[str, Any]] = {
-    "lighting": {"type": "area", "position": [0.2, -0.25, 0.45], "power": 7.0, "cct_k": 4500},
-    "sensor_noise": {"full_well_e": 9000, "read_noise_e": 3},
-}
-#: ... and another image formation and background (scene-template overrides) ...
-NUISANCE_SCENE: dict[str, Any] = {
-    "rfilter": {"type": "gaussian", "stddev": 0.3},
-    "materials": {
-        "tag": {"texture_filter": "bilinear"},
-        "table": {"type": "diffuse", "reflectance": 0.6},
-        "node": {"type": "diffuse", "reflectance": 0.55},
-    },
-}
-#: ... rendered with more samples per pixel (supersampling; a square number for multijitter).
-NUISANCE_SPP = 25
-
+__all__ = [
+    "APPEARANCE",
+    "HIDDEN",
+    "NUISANCE_EFFECTS",
+    "NUISANCE_SCENE",
+    "NUISANCE_SPP",
+    "OUTSIDE",
+    "REPORTED_AS",
+    "Sampler",
+    "ValidateSettings",
+    "Trial",
+    "draw_hidden",
+    "pseudo_real_experiment",
+    "render_capture",
+    "run_validation",
+    "summarize",
+    "summarize_scores",
+    "confusion",
+    "validation_markdown",
+]
 
 @dataclass(frozen=True)
 class ValidateSettings:
@@ -234,32 +179,39 @@ def pseudo_real_experiment(
     )
 
 
-def render_capture(exp: Experiment, cache_dir: Path, folder: Path) -> Path:
-    """Run ``exp`` and write its frames as a capture folder (what a rig operator records)."""
-    from simgap.pipeline.capture import write_capture
-    from simgap.pipeline.sweep import experiment_pipelines, run_experiment
+def render_capture(exp: Experiment, simulator: Simulator | Path, folder: Path) -> Path:
+    """Render ``exp``'s frames and write them as a capture folder (what a rig operator records).
 
-    run_experiment(exp, cache_dir, show_progress=False)
-    pipe = experiment_pipelines(exp, cache_dir)[0]
-    ps, thetas, _ = exp.configuration_axes()
-    frames = []
-    for p in ps:
-        for theta in thetas:
-            frame = pipe.frame(int(p), float(theta), 0, 0)
-            if frame is not None:
-                frames.append((int(p), float(theta), 0, frame.rgb()))
+    Parameters
+    ----------
+    exp : Experiment
+        The pseudo-real experiment (:func:`pseudo_real_experiment`).
+    simulator : Simulator or Path
+        The simulator, or a cache folder to build one on.
+    folder : Path
+        Capture folder to write.
+    """
+    if not isinstance(simulator, Simulator):
+        simulator = Simulator(simulator, show_progress=False)
+    frames = [(p, theta, 0, rgb) for p, theta, rgb in simulator.frames(exp)]
     # the operator's calibration is the nominal camera, whatever the true one is
     write_capture(folder, frames, exp.rig_model.camera)
     return folder
 
 
 def run_validation(
-    base: Experiment, out_dir: Path, cache_dir: Path, settings: ValidateSettings, log=print
+    base: Experiment,
+    out_dir: Path,
+    cache_dir: Path,
+    settings: ValidateSettings,
+    log: Callable[[str], object] = print,
+    simulator: Simulator | None = None,
 ) -> dict[str, Any]:
-    """Run the trials and write ``validation.md`` and ``validation.json`` into ``out_dir``."""
-    from simgap.diagnosis.diagnose import diagnose, write_json
-    from simgap.pipeline.capture import ingest
+    """Run the trials and write ``validation.md`` and ``validation.json`` into ``out_dir``.
 
+    ``simulator`` renders the captures and runs the diagnoses (default: one on ``cache_dir``).
+    """
+    simulator = simulator or Simulator(cache_dir)
     rng = np.random.default_rng(settings.seed)
     out_dir = Path(out_dir)
     sim_exp = dataclasses.replace(
@@ -271,9 +223,9 @@ def run_validation(
         t0 = time.perf_counter()
         folder = out_dir / "captures" / f"trial_{i:03d}"
         exp = pseudo_real_experiment(base, hidden, 1000 + settings.seed * 1000 + i, settings)
-        render_capture(exp, cache_dir, folder)
+        render_capture(exp, simulator, folder)
         real = ingest(folder, exp.rig_model)
-        result, _ = diagnose(real, sim_exp, cache_dir)
+        result, _ = diagnose(real, sim_exp, simulator=simulator)
         trial = Trial(i, hidden, result, time.perf_counter() - t0)
         trials.append(trial)
         s = trial.score()

@@ -1,0 +1,119 @@
+"""Error-model files: the netCDF dataset and its JSON form (readable without simgap).
+
+The JSON schema is in the README: grid coordinates, units, ``min_support``, provenance attrs and
+per tag the nested lists of every tabulated variable, NaN as null.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from simgap.core.atomic import atomic_write
+from simgap.core.axes import AXES
+from simgap.results.dataset import ERROR_UNITS, write_netcdf
+
+SCHEMA = "simgap-errormodel/1"
+"""Schema name of error-model files (netCDF attr ``schema``, JSON key ``schema``)."""
+
+#: Per-tag variables of the JSON form.
+JSON_VARIABLES = (
+    "bias", "spread", "bias_se", "correlation", "p_detect", "p_detect_lo", "p_detect_hi",
+    "support_error", "support_detection",
+)  # fmt: skip
+
+
+def read_model_dataset(path: str | Path) -> xr.Dataset:
+    """The model dataset from its netCDF (``.nc``) or JSON (``.json``) file.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` is not a file.
+    ValueError
+        If the file is not a simgap error model (schema).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: error model not found")
+    if path.suffix == ".json":
+        return dataset_from_json(json.loads(path.read_text()))
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        ds = ds.load()
+    if ds.attrs.get("schema") != SCHEMA:
+        raise ValueError(f"{path}: not a simgap error model (schema {SCHEMA!r})")
+    return ds
+
+
+def write_model_dataset(ds: xr.Dataset, path: str | Path) -> tuple[Path, Path]:
+    """Write ``path`` (netCDF) and the same name with ``.json``, atomically; return both."""
+    path = Path(path)
+    nc = write_netcdf(ds, path)
+    js = atomic_write(path.with_suffix(".json"), json.dumps(dataset_to_json(ds)))
+    return nc, js
+
+
+def dataset_to_json(ds: xr.Dataset) -> dict:
+    """The JSON form of a model dataset (schema in the README): nested lists, NaN as null."""
+
+    def lists(a: np.ndarray):
+        a = np.asarray(a)
+        return np.where(np.isfinite(a), np.round(a, 9), np.nan).astype(object).tolist()
+
+    def clean(v):
+        if isinstance(v, list):
+            return [clean(x) for x in v]
+        return None if isinstance(v, float) and math.isnan(v) else v
+
+    tags = {}
+    for t in (int(t) for t in ds.tag.values):
+        s = ds.sel(tag=t)
+        tags[str(t)] = {k: clean(lists(s[k].values)) for k in JSON_VARIABLES}
+    return {
+        "schema": SCHEMA,
+        "axes": list(AXES),
+        "units": {"distance": "m", "obliquity": "rad", "errors": ERROR_UNITS},
+        "min_support": float(ds.attrs["min_support"]),
+        "distance": ds.distance.values.tolist(),
+        "obliquity": ds.obliquity.values.tolist(),
+        "attrs": {k: str(v) for k, v in ds.attrs.items()},
+        "tags": tags,
+    }
+
+
+def dataset_from_json(data: dict) -> xr.Dataset:
+    """The model dataset from its JSON form."""
+    if data.get("schema") != SCHEMA:
+        raise ValueError(f"not a simgap error model (schema {SCHEMA!r})")
+    tags = sorted(int(t) for t in data["tags"])
+
+    def arr(key: str) -> np.ndarray:
+        values = [data["tags"][str(t)][key] for t in tags]
+        return np.array(values, dtype=object).astype(float)  # null -> NaN
+
+    cube, plane = ("tag", "distance", "obliquity", "axis"), ("tag", "distance", "obliquity")
+    return xr.Dataset(
+        {
+            "bias": (cube, arr("bias")),
+            "spread": (cube, arr("spread")),
+            "bias_se": (cube, arr("bias_se")),
+            "correlation": (("tag", "axis", "axis_b"), arr("correlation")),
+            "p_detect": (plane, arr("p_detect")),
+            "p_detect_lo": (plane, arr("p_detect_lo")),
+            "p_detect_hi": (plane, arr("p_detect_hi")),
+            "support_error": (plane, arr("support_error")),
+            "support_detection": (plane, arr("support_detection")),
+        },
+        coords={
+            "tag": tags,
+            "distance": data["distance"],
+            "obliquity": data["obliquity"],
+            "axis": list(data["axes"]),
+            "axis_b": list(data["axes"]),
+        },
+        attrs={**data.get("attrs", {}), "min_support": float(data["min_support"])},
+    )

@@ -1,0 +1,128 @@
+"""Paper-style report of one result dataset: figures, Table 2 beside the paper's, and a summary.
+
+The entry point is :func:`write_report`. It validates the dataset against the result-dataset
+contract (DESIGN section 3), reduces the first variant to a
+:class:`~simgap.analysis.report.summaries.VariantSummary` (absolute and signed errors averaged over
+repeats, restricted to visible configurations) and writes, atomically:
+
+========================================  ======================================================
+file                                      content
+========================================  ======================================================
+``error_vs_distance_tag{t}.png``          2x3 panels, absolute error (m or rad) against carriage
+                                          position (m), one line per turntable angle, threshold
+                                          line, visible-but-undetected configurations as ``x``
+``heatmap_tag{t}.png``                    2x3 panels, signed error over (theta, p), diverging
+                                          colours centred on 0, grey where there is no estimate
+``table2.md``                             our max/min absolute error beside the paper's Table 2,
+                                          fraction within threshold, detection rate per tag
+``summary.md``                            counts, fractions within thresholds, observations
+                                          computed from the data, embedded figures
+========================================  ======================================================
+
+The package holds one job a module, composed here and by :mod:`simgap.analysis.compare`:
+:mod:`~simgap.analysis.report.summaries` (reductions, the dataset's rig),
+:mod:`~simgap.analysis.report.comparisons` (paired variant comparison),
+:mod:`~simgap.analysis.report.tables`, :mod:`~simgap.analysis.report.figures`,
+:mod:`~simgap.analysis.report.markdown` and :mod:`~simgap.analysis.report.output` (atomic files).
+
+Examples
+--------
+>>> import xarray as xr
+>>> from pathlib import Path
+>>> from simgap.analysis.report import write_report
+>>> paths = write_report(xr.open_dataset("results/baseline.nc"), Path("rep"))  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import xarray as xr
+
+from simgap.analysis.image_evidence import plot_image_stats
+from simgap.analysis.report.figures import plot_error_heatmap, plot_error_vs_distance
+from simgap.analysis.report.markdown import summary_markdown, table2_markdown
+from simgap.analysis.report.output import save_figure, save_text
+from simgap.analysis.report.summaries import (
+    VariantSummary,
+    check_report_dataset,
+    summarize_variant,
+)
+
+#: Writes one figure; module-level so that tests can replace PNG encoding with a placeholder.
+_save_figure = save_figure
+
+
+def write_variant_report(
+    summary: VariantSummary,
+    out_dir: Path,
+    variants: Sequence[str] = (),
+    image_datasets: dict[str, xr.Dataset] | None = None,
+) -> list[Path]:
+    """Write the figures, ``table2.md`` and ``summary.md`` of one variant.
+
+    Parameters
+    ----------
+    summary : VariantSummary
+        Output of :func:`~simgap.analysis.report.summaries.summarize_variant`.
+    out_dir : pathlib.Path
+        Existing output folder.
+    variants : sequence of str, optional
+        All variants of the dataset, named in the summary when some are not reported.
+    image_datasets : dict of str to xarray.Dataset, optional
+        Datasets with ``image_stats`` to plot against distance and view angle.
+
+    Returns
+    -------
+    list of pathlib.Path
+        Written files: per tag ``error_vs_distance_tag{t}.png``, then per tag
+        ``heatmap_tag{t}.png``, then ``image_stats_vs_{distance,view_angle}.png`` when the
+        dataset has image statistics, then ``table2.md`` and ``summary.md``.
+    """
+    plotters = (("error_vs_distance", plot_error_vs_distance), ("heatmap", plot_error_heatmap))
+    figures = []
+    for stem, plot in plotters:
+        for tag in summary.tags:
+            figures.append(_save_figure(plot(summary, tag), out_dir / f"{stem}_tag{tag}.png"))
+    if image_datasets:
+        for against in ("distance", "view_angle"):
+            fig = plot_image_stats(image_datasets, against)
+            figures.append(_save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
+    table = save_text(table2_markdown(summary), out_dir / "table2.md")
+    text = save_text(summary_markdown(summary, figures, variants), out_dir / "summary.md")
+    return [*figures, table, text]
+
+
+def write_report(ds: xr.Dataset, out_dir: Path, *, pin_pitch_m: float | None = None) -> list[Path]:
+    """Write the paper-style report of a result dataset.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Result dataset following DESIGN section 3. Only the first variant (``ds.variant[0]``) is
+        reported; errors are averaged over ``repeat`` with NaN skipped.
+    out_dir : pathlib.Path
+        Output folder, created if needed; files in it are replaced atomically.
+    pin_pitch_m : float, optional
+        Carriage pin-hole pitch in metres (x axis of the error-vs-distance figures and the slope
+        fit use carriage position ``pin_pitch_m * p``); default: the pitch of the dataset's rig
+        (:func:`~simgap.analysis.report.summaries.dataset_rig`).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The written files (see :func:`write_variant_report`).
+
+    Raises
+    ------
+    ValueError
+        If required variables or coordinates are missing (all are named), or dims are wrong.
+    """
+    check_report_dataset(ds)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    variants = [str(v) for v in ds["variant"].values]
+    summary = summarize_variant(ds.isel(variant=0), pin_pitch_m=pin_pitch_m)
+    images = {variants[0]: ds.isel(variant=[0])} if "image_stats" in ds else None
+    return write_variant_report(summary, out_dir, variants, images)

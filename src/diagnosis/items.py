@@ -1,0 +1,120 @@
+"""The diagnosis' items: the real dataset's visible configurations, their simulation, their splits.
+
+An item is one visible (tag, p, theta) with the real and simulated errors, corners, image
+statistics and detection outcomes (:class:`simgap.analysis.fitting.Items`). Candidates are fitted
+on one split of the items, chosen on a second and the reduction is reported on a third.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import xarray as xr
+import yaml
+
+from simgap.analysis import gap as gapmod
+from simgap.analysis.fitting import Items
+from simgap.analysis.image_evidence import repeat_median_stats
+from simgap.core.axes import AXES, axis_unit
+from simgap.core.config import to_mapping
+from simgap.core.rig import CameraModel
+from simgap.pipeline.experiment import Configurations, Experiment
+from simgap.pose.image_stats import STAT_NAMES
+
+
+def calibration_from_attrs(real: xr.Dataset) -> CameraModel | None:
+    """The calibration a capture was ingested with (``calibration_yaml`` attr), or None."""
+    text = real.attrs.get("calibration_yaml")
+    if not text:
+        return None
+    data = yaml.safe_load(text)
+    keys = ("width", "height", "fx", "fy", "cx", "cy", "distortion")
+    return CameraModel(**{k: (tuple(data[k]) if k == "distortion" else data[k]) for k in keys})
+
+
+def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
+    """``exp`` restricted to the real dataset's configurations, imaging with its calibration."""
+    rig = dict(exp.rig)
+    cal = calibration_from_attrs(real)
+    if cal is not None:
+        rig["camera"] = to_mapping(cal)
+    conf = Configurations(
+        tuple(int(p) for p in real.p.values),
+        tuple(round(float(np.rad2deg(t)), 6) for t in real.theta.values),
+        tuple(int(t) for t in real.tag.values),
+    )
+    return dataclasses.replace(exp, rig=rig, configurations=conf, variants=(), grid={})
+
+
+def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> Items:
+    """The visible (tag, p, theta) items with their errors, corners, image statistics, detection.
+
+    Errors (m, rad) and corners (px) are NaN where a side did not detect the tag; such items
+    still carry image statistics and detection outcomes. Each axis' scale is its gap noise, at
+    least :data:`simgap.analysis.gap.PRACTICAL_FLOOR`.
+    """
+    real, sim = gapmod.align(real, sim)
+    visible = field.real_detection.notnull()
+    idx = np.argwhere(visible.values)
+    tags, ps, thetas = real.tag.values, real.p.values, real.theta.values
+    at = (idx[:, 0], idx[:, 1], idx[:, 2])
+    r_err = gapmod.mean_error(real).values
+    s_err = gapmod.mean_error(sim).values
+    with warnings.catch_warnings():  # never-detected items are all-NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r_c = real.corners.isel(variant=0).mean("repeat", skipna=True).values
+        s_c = sim.corners.isel(variant=0).mean("repeat", skipna=True).values
+    floors = np.array([gapmod.PRACTICAL_FLOOR[axis_unit(a)] for a in AXES])
+    scale = np.maximum(field.sigma.values, floors)
+    stats = {}
+    for name, ds in (("real", real), ("sim", sim)):
+        if "image_stats" in ds:
+            stats[name] = repeat_median_stats(ds).values[at]
+        else:
+            stats[name] = np.full((len(idx), len(STAT_NAMES)), np.nan)
+    return Items(
+        tag=tags[idx[:, 0]],
+        p=ps[idx[:, 1]],
+        theta=thetas[idx[:, 2]],
+        real_err=r_err[at],
+        sim_err=s_err[at],
+        real_corners=r_c[at],
+        sim_corners=s_c[at],
+        scale=scale,
+        real_stats=stats["real"],
+        sim_stats=stats["sim"],
+        real_detected=field.real_detection.values[at],
+        sim_detected=field.sim_detection.values[at],
+    )
+
+
+def split_items(
+    n: int, train_fraction: float, choose_fraction: float, seed: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Disjoint random fit / choose / report index sets of ``n`` items (each non-empty if n >= 3).
+
+    Parameters
+    ----------
+    n : int
+        Number of items.
+    train_fraction, choose_fraction : float
+        Shares of the fit and choice splits; the report split takes the rest.
+    seed : int
+        Seed of the permutation.
+    """
+    order = np.random.default_rng(seed).permutation(n)
+    if n < 3:
+        return np.sort(order), np.sort(order), np.sort(order)
+    k_fit = min(max(int(round(train_fraction * n)), 1), n - 2)
+    k_choose = min(max(int(round(choose_fraction * n)), 1), n - k_fit - 1)
+    cut = k_fit + k_choose
+    return np.sort(order[:k_fit]), np.sort(order[k_fit:cut]), np.sort(order[cut:])
+
+
+def subsample(index: np.ndarray, k: int, seed: int) -> np.ndarray:
+    """At most ``k`` of ``index``, drawn without replacement (sorted); all when it has ``k``."""
+    if index.size <= k:
+        return index
+    return np.sort(np.random.default_rng(seed + 1).choice(index, k, replace=False))

@@ -1,0 +1,39 @@
+"""Settings of the gap diagnosis."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class DiagnoseSettings:
+    """Settings of the diagnosis.
+
+    Attributes
+    ----------
+    train_fraction : float
+        Share of the visible configurations used to fit effects.
+    choose_fraction : float
+        Share used to rank, add, simplify and prune effects (the model choice). The rest is the
+        report split: the reduction is measured there only, never on configurations that
+        fitted or chose the model.
+    seed : int
+        Seed of the split and the subsamples.
+    max_sim_items : int
+        Configurations used when fitting a candidate by simulation (training subsample).
+    max_heldout_items : int
+        Most configurations of the choice split (all candidates are scored on them).
+    explained_reduction : float
+        Held-out pose-gap reduction below which a significant pose gap is reported as
+        unexplained.
+    confirm : bool
+        Re-run the full pipeline with the selected effects to confirm the reduction.
+    """
+
+    train_fraction: float = 0.5
+    choose_fraction: float = 0.25
+    seed: int = 0
+    max_sim_items: int = 40
+    max_heldout_items: int = 80
+    explained_reduction: float = 0.3
+    confirm: bool = True

@@ -1,0 +1,81 @@
+"""Simulated results of diagnosis items under any variant state, through a :class:`Simulator`."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from simgap.analysis.fitting import Items
+from simgap.effects.state import VariantState
+from simgap.pipeline.experiment import Experiment
+from simgap.pipeline.simulator import Simulator
+from simgap.pose.image_stats import STAT_NAMES
+
+#: Trailing shape of each per-item result field.
+_FIELD_SHAPES = {"error": (6,), "corners": (4, 2), "image_stats": (len(STAT_NAMES),)}
+
+
+class SimRunner:
+    """Runs variant states through the simulator for a set of items (in process, memoised).
+
+    This is the ``runner`` of :class:`simgap.analysis.selection.ModelSearch` and of the
+    simulation-fitted candidates: ``runner(state, items)`` gives simulated errors, and
+    :meth:`corners`, :meth:`stats`, :meth:`detected`, :meth:`depths` the other evidence.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The simulation experiment (rig, tags, repeats, render settings).
+    simulator : Simulator
+        Runs one state at one configuration (cached).
+    """
+
+    def __init__(self, exp: Experiment, simulator: Simulator) -> None:
+        self.exp, self.simulator = exp, simulator
+        self.rig = exp.rig_model
+        self.tags = simulator.tags(exp)
+        self._memo: dict[tuple, dict[str, np.ndarray]] = {}
+
+    def _results(self, state: VariantState, items: Items, field: str) -> np.ndarray:
+        reps = self.exp.repeats if state.image.stochastic else 1
+        key0 = self.simulator.state_key(self.exp, state)
+        out = np.full((len(items),) + _FIELD_SHAPES.get(field, ()), np.nan)
+        for i in range(len(items)):
+            p, theta = int(items.p[i]), float(items.theta[i])
+            key = (key0, p, theta)
+            if key not in self._memo:
+                runs = [self.simulator.run(self.exp, state, p, theta, r) for r in range(reps)]
+                with warnings.catch_warnings():  # a tag never detected is all-NaN
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    self._memo[key] = {
+                        f: np.nanmean(np.stack([getattr(x, f) for x in runs]), axis=0)
+                        for f in ("error", "corners")
+                    } | {
+                        "image_stats": np.nanmedian(
+                            np.stack([x.image_stats for x in runs]), axis=0
+                        ),
+                        "detected": np.mean(np.stack([x.detected for x in runs]), axis=0),
+                    }
+            out[i] = self._memo[key][field][self.tags.index(int(items.tag[i]))]
+        return out
+
+    def __call__(self, state: VariantState, items: Items) -> np.ndarray:
+        """Repeat-mean simulated errors (N, 6) of ``items`` under ``state`` (m, rad)."""
+        return self._results(state, items, "error")
+
+    def corners(self, state: VariantState, items: Items) -> np.ndarray:
+        """Repeat-mean detected corners (N, 4, 2) of ``items`` under ``state`` (px)."""
+        return self._results(state, items, "corners")
+
+    def stats(self, state: VariantState, items: Items) -> np.ndarray:
+        """Repeat-median image statistics (N, S) of ``items`` under ``state``."""
+        return self._results(state, items, "image_stats")
+
+    def detected(self, state: VariantState, items: Items) -> np.ndarray:
+        """Detection rate over repeats (N,) of ``items`` under ``state``."""
+        return self._results(state, items, "detected")
+
+    def depths(self, items: Items) -> np.ndarray:
+        """Depth of each item's tag along the optical axis, nominal rig (N,) (m)."""
+        return self.rig.eyepoints_from_tags(items.tag, items.p, items.theta)[:, 1, 3]
