@@ -53,6 +53,11 @@ DISK_10_90_PER_RADIUS = 2 * 0.68705
 RESIDUAL_CAP = 3.0
 #: Points of the coarse scan that brackets a 1-D fit before the bounded Brent search.
 SCAN_POINTS = 16
+#: An effect fitted by a scan must lower the RMS misfit of its own statistics (floors) by this
+#: much on the training tags, else the evidence does not call for it (a JPEG fitted where the
+#: blockiness already matches would only be credited for its side effects on noise). The same
+#: quarter unit as the channels' tolerance (:data:`simgap.analysis.scoring.EQUIVALENT_UNITS`).
+SIGNATURE_MIN_GAIN = 0.25
 
 
 def evidence_misfit(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) -> float:
@@ -122,8 +127,17 @@ class AppearanceCandidate(SimulationCandidate):
             misfit, bounds=(lo, hi), method="bounded", options={"xatol": self.xatol}
         )
         x, fun = (sol.x, sol.fun) if sol.fun <= values[k] else (grid[k], values[k])
+        before = evidence_misfit(stats, items.real_stats, items.sim_stats)
+        gain = float(np.sqrt(before) - np.sqrt(fun)) if np.isfinite(before) else 0.0
         return Fit(
-            self.effect, self.params(x), time.perf_counter() - t0, {"train_misfit": float(fun)}
+            self.effect,
+            self.params(x),
+            time.perf_counter() - t0,
+            {
+                "train_misfit": float(fun),
+                "train_misfit_before": float(before),
+                "supported": gain >= SIGNATURE_MIN_GAIN,
+            },
         )
 
 

@@ -210,14 +210,21 @@ class ModelSearch:
     def rank(self, candidates, significant: bool) -> list[Scored]:
         """Fit and score every candidate alone; projection ones only when no gap is significant.
 
-        Ranked on the combined held-out misfit of all evidence (:attr:`Scored.evidence_after`:
-        detected corners, image statistics, detections, each in units of its smallest relevant
-        difference); among indistinguishable ones (:func:`equivalent_models`) the simpler first.
+        Appearance effects whose fit does not explain their own statistics on the training
+        tags (``supported`` false, :data:`simgap.analysis.appearance.SIGNATURE_MIN_GAIN`) are
+        left out. Ranked on the combined held-out misfit of all evidence
+        (:attr:`Scored.evidence_after`: detected corners, image statistics, detections, each in
+        units of its smallest relevant difference); among indistinguishable ones
+        (:func:`equivalent_models`) the simpler first.
         """
         rest = [
-            self.evaluate((c,))
-            for c in candidates
-            if significant or isinstance(c, ProjectionCandidate)
+            scored
+            for scored in (
+                self.evaluate((c,))
+                for c in candidates
+                if significant or isinstance(c, ProjectionCandidate)
+            )
+            if scored.fits[0][1].extra.get("supported", True)
         ]
         out = []
         while rest:
