@@ -19,8 +19,8 @@ from simgap.core import transforms as tf
 from simgap.core.config import ConfigError, deep_merge, from_mapping, read_yaml, require
 from simgap.core.paths import assets_dir, scenes_dir
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors, Rig
-from simgap.render import camera as _camera  # registers the sensor plugin
 from simgap.render.backend import mitsuba
+from simgap.render.camera import PLUGIN_NAME as SENSOR_PLUGIN
 
 DEFAULT_TEMPLATE = "pass_fixture.yaml"
 Frame = Literal["rail", "carriage", "eyepoint", "turntable"]
@@ -239,7 +239,7 @@ class FixtureScene:
                 **({} if max_depth is None else {"max_depth": int(max_depth)}),
             },
             "sensor": {
-                "type": _camera.PLUGIN_NAME,
+                "type": SENSOR_PLUGIN,
                 "film": {
                     "type": "hdrfilm",
                     "width": int(film_size[0]),
