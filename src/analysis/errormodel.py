@@ -60,8 +60,9 @@ from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from simgap.core.atomic import atomic_write
+from simgap.core.axes import AXES
 from simgap.core.rig import Rig, view_angles
-from simgap.results.dataset import AXES, ERROR_UNITS, write_netcdf
+from simgap.results.dataset import ERROR_UNITS, write_netcdf
 
 SCHEMA = "simgap-errormodel/1"
 #: Two-sided 90 % interval of the standard normal.

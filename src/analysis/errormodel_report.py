@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 
 from simgap.analysis.errormodel import Z90, ErrorModel, TagPoses, covariates
 from simgap.core.atomic import atomic_write
-from simgap.results.dataset import AXES
+from simgap.core.axes import AXES
 
 #: Axis scale to display units: mm for translations, mrad for rotations.
 DISPLAY_SCALE = 1e3

@@ -50,6 +50,8 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 from scipy.special import ndtr
 
+from simgap.core.robust import MAD_TO_SIGMA
+
 #: ``(name, units, long name)`` of every statistic, in storage order.
 STATS: tuple[tuple[str, str, str], ...] = (
     ("ink_dn", "DN", "median 8-bit level of the marker's black border"),
@@ -88,6 +90,9 @@ ESF_SIDE_SHARE = 0.7
 ESF_MIN_SIGMA_PX = 0.02
 #: Fewest pixels a region needs for its statistic (else NaN).
 MIN_PIXELS = 12
+#: Neighbour differences further than this many robust sigmas from their median are edges or
+#: texture, not noise, and are left out of the noise estimate.
+NOISE_CLIP_SIGMAS = 6.0
 
 _SRGB_TO_LINEAR = colour.cctf_decoding(np.arange(256) / 255.0, function="sRGB").astype(np.float64)
 _UNIT_SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]], np.float64)
@@ -118,8 +123,12 @@ def _noise(values: np.ndarray, mask: np.ndarray) -> float:
         return float("nan")
     d = (values[:, 1:] - values[:, :-1])[pair]
     med = np.median(d)
-    mad = 1.4826 * np.median(np.abs(d - med))
-    keep = np.abs(d - med) <= max(6.0 * mad, 1e-12) if mad > 0 else np.ones(d.shape, bool)
+    mad = MAD_TO_SIGMA * np.median(np.abs(d - med))
+    keep = (
+        np.abs(d - med) <= max(NOISE_CLIP_SIGMAS * mad, 1e-12)
+        if mad > 0
+        else np.ones(d.shape, bool)
+    )
     return float(np.std(d[keep]) / np.sqrt(2.0))
 
 

@@ -15,11 +15,16 @@ import numpy as np
 import xarray as xr
 
 from simgap.core.atomic import atomic_write
-from simgap.core.config import ConfigError
+from simgap.core.axes import AXES, AXIS_UNITS
+from simgap.core.config import ConfigError, from_mapping, parse_yaml
+from simgap.core.rig import CameraModel
 from simgap.pose.image_stats import STATS
 
-AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
-ERROR_UNITS = "m (tx, ty, tz); rad (rx, ry, rz)"
+#: ``units`` attr of the pose and error variables: ``"m (tx, ty, tz); rad (rx, ry, rz)"``.
+ERROR_UNITS = "; ".join(
+    f"{unit} ({', '.join(a for a in AXES if AXIS_UNITS[a] == unit)})"
+    for unit in dict.fromkeys(AXIS_UNITS.values())
+)
 FULL_DIMS = ("variant", "repeat", "tag", "p", "theta")
 #: The contract (DESIGN §3): variable -> (dims, kind), kind "number" or "boolean".
 #: ``visible`` may also have a leading ``variant`` dim.
@@ -154,9 +159,7 @@ def check_dataset(
 
 
 def _check_calibration_attr(text: object, where: str) -> None:
-    from simgap.core.config import from_mapping, parse_yaml
-    from simgap.core.rig import CameraModel
-
+    """Refuse a ``calibration_yaml`` attr that is not a valid :class:`CameraModel` mapping."""
     label = f"{where}attrs.calibration_yaml"
     data = parse_yaml(text, label) if isinstance(text, str) else None
     if not isinstance(data, dict):
