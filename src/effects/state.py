@@ -6,8 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors
-from simgap.pose.detect import DetectorSettings
-from simgap.pose.estimate import PnPSettings
+from simgap.pose.tags import Estimation
 
 
 @dataclass(frozen=True)
@@ -81,18 +80,9 @@ class ImageState:
 
 
 @dataclass(frozen=True)
-class EstimationState:
-    """What the estimator assumes and how it detects and solves."""
-
-    calibration: CameraModel = field(default_factory=CameraModel)
-    detector: DetectorSettings = field(default_factory=DetectorSettings)
-    pnp: PnPSettings = field(default_factory=PnPSettings)
-
-
-@dataclass(frozen=True)
 class VariantState:
     """One variant: scene, image and estimation stages (the ground truth is the nominal rig)."""
 
     scene: SceneState = field(default_factory=SceneState)
     image: ImageState = field(default_factory=ImageState)
-    estimation: EstimationState = field(default_factory=EstimationState)
+    estimation: Estimation = field(default_factory=Estimation)

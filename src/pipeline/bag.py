@@ -49,18 +49,11 @@ from simgap.core import transforms as tf
 from simgap.core.atomic import atomic_write, staged_path
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel, Rig, load_rig
-from simgap.pipeline.capture import (
-    CALIBRATION_FILE,
-    DEFAULT_DETECTOR,
-    DEFAULT_PNP,
-    IMAGES_DIR,
-    MANIFEST_FILE,
-    image_name,
-    ingest,
-    read_calibration,
-    read_capture,
-    turntable_stop,
-)
+from simgap.pipeline.capture import read_calibration
+from simgap.pipeline.capture.folder import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE, read_capture
+from simgap.pipeline.capture.ingest import DEFAULT_DETECTOR, DEFAULT_PNP, ingest
+from simgap.pipeline.capture.manifest import turntable_stop
+from simgap.pipeline.capture.writer import image_name
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
 

@@ -54,7 +54,6 @@ from simgap.core.config import (
 from simgap.core.rig import Rig, load_rig
 from simgap.effects import make_effect
 from simgap.effects.state import (
-    EstimationState,
     ImageState,
     RenderQuality,
     SceneState,
@@ -62,6 +61,7 @@ from simgap.effects.state import (
 )
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
+from simgap.pose.tags import Estimation
 from simgap.render.scene import SceneSpec, load_scene_spec
 
 #: Share of the machine's physical memory one run may plan to use for its result arrays.
@@ -272,7 +272,7 @@ class Experiment:
                 render_seed=r.seed,
             ),
             image=ImageState(encoding=self.image.encoding, exposure=self.image.exposure),
-            estimation=EstimationState(
+            estimation=Estimation(
                 calibration=rig.camera, detector=self.detector, pnp=self.pnp
             ),
         )

@@ -19,6 +19,7 @@ from simgap.core.axes import AXES, AXIS_UNITS
 from simgap.core.config import ConfigError, from_mapping, parse_yaml
 from simgap.core.rig import CameraModel
 from simgap.pose.image_stats import STATS
+from simgap.pose.tags import empty_tag_arrays
 
 #: ``units`` attr of the pose and error variables: ``"m (tx, ty, tz); rad (rx, ry, rz)"``.
 ERROR_UNITS = "; ".join(
@@ -171,15 +172,11 @@ def _check_calibration_attr(text: object, where: str) -> None:
 
 
 def empty_results(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
-    """Result arrays of ``shape`` (variant, repeat, tag, p, theta): none detected, NaN poses."""
-    return {
-        "detected": np.zeros(shape, bool),
-        "estimated": np.full(shape + (6,), np.nan),
-        "error": np.full(shape + (6,), np.nan),
-        "reproj_px": np.full(shape, np.nan),
-        "corners": np.full(shape + (4, 2), np.nan),
-        "image_stats": np.full(shape + (len(STATS),), np.nan),
-    }
+    """Result arrays of ``shape`` (variant, repeat, tag, p, theta): none detected, NaN poses.
+
+    See :func:`simgap.pose.tags.empty_tag_arrays` (fields, dtypes and units).
+    """
+    return empty_tag_arrays(shape)
 
 
 def result_nbytes(n_configurations: int) -> int:
