@@ -262,7 +262,7 @@ class TagScale(Effect):
 
 
 @register
-class RenderSettings(Effect):
+class SamplingQuality(Effect):
     """Renderer quality: samples per pixel, sampler and maximum path depth."""
 
     name = "render_quality"

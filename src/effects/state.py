@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors
+from simgap.effects.base import EFFECTS
 from simgap.pose.tags import Estimation
 
 
@@ -74,8 +75,6 @@ class ImageState:
     @property
     def stochastic(self) -> bool:
         """Whether the pipeline draws random numbers (then repeats differ)."""
-        from simgap.effects.base import EFFECTS
-
         return any(EFFECTS[name].stochastic for name, _ in self.ops)
 
 
