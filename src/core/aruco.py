@@ -61,10 +61,13 @@ def project_tag_corners(
 ) -> np.ndarray:
     """Project a square's corners TL, TR, BR, BL into the image (``cv2.projectPoints``).
 
+    The one corner projection of the package: expected corners, sticker boxes for render crops
+    and projection-stage fits all use it.
+
     Parameters
     ----------
-    eyepoint_from_tag : ndarray, shape (4, 4)
-        The marker frame in the eyepoint (global-orientation) frame (m).
+    eyepoint_from_tag : ndarray, shape (4, 4) or (..., 4, 4)
+        The marker frame in the eyepoint (global-orientation) frame (m); batched poses allowed.
     size : float
         Side of the square (m): the marker, or a sticker with its quiet zone.
     camera_matrix : ndarray, shape (3, 3)
@@ -74,10 +77,14 @@ def project_tag_corners(
 
     Returns
     -------
-    ndarray, shape (4, 2)
+    ndarray, shape (4, 2) or (..., 4, 2)
         Pixel coordinates (px), OpenCV convention (pixel centres at integers).
     """
-    cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ eyepoint_from_tag
-    pts = tf.apply(cv_from_tag, marker_object_points(size))
-    uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), camera_matrix, dist_coeffs)
-    return uv.reshape(4, 2)
+    m = np.asarray(eyepoint_from_tag, dtype=float)
+    cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ m
+    obj = marker_object_points(size)
+    pts = obj @ np.swapaxes(cv_from_tag[..., :3, :3], -1, -2) + cv_from_tag[..., None, :3, 3]
+    uv, _ = cv2.projectPoints(
+        pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera_matrix, dist_coeffs
+    )
+    return uv.reshape(m.shape[:-2] + (4, 2))

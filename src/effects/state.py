@@ -8,6 +8,7 @@ from typing import Any
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors
 from simgap.effects.base import EFFECTS
 from simgap.pose.tags import Estimation
+from simgap.scene.spec import SceneSpec, default_scene_spec
 
 
 @dataclass(frozen=True)
@@ -25,8 +26,9 @@ class SceneState:
 
     Attributes
     ----------
-    overrides : dict
-        Deep-merged into the scene template (materials, lights, objects, integrator).
+    spec : SceneSpec
+        The scene description (:mod:`simgap.scene`): materials, tag print, lights, objects,
+        integrator; scene-stage effects replace parts of it.
     camera : CameraModel
         The true camera (intrinsics px, Brown-Conrady distortion).
     errors : FixtureErrors
@@ -41,7 +43,7 @@ class SceneState:
         Base seed of the renderer's sampler.
     """
 
-    overrides: dict[str, Any] = field(default_factory=dict)
+    spec: SceneSpec = field(default_factory=default_scene_spec)
     camera: CameraModel = field(default_factory=CameraModel)
     errors: FixtureErrors = NOMINAL
     tag_scale: float = 1.0
@@ -49,6 +51,14 @@ class SceneState:
     focus_distance_m: float = 1.0
     quality: RenderQuality = field(default_factory=RenderQuality)
     render_seed: int = 0
+
+    @property
+    def overrides(self) -> SceneSpec:
+        """Deprecated name of :attr:`spec`, kept until :mod:`simgap.pipeline.sweep` reads ``spec``.
+
+        It passes it through :func:`simgap.scene.load_scene_spec`, which returns a spec as is.
+        """
+        return self.spec
 
 
 @dataclass(frozen=True)

@@ -13,18 +13,13 @@ import cv2
 
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel
-from simgap.pipeline.capture.calibration import (
-    CalibrationFormat,
-    camera_model,
-    first_line,
-    numbers,
-    register_format,
-)
+from simgap.pipeline.capture import calibration as cal_checks
+from simgap.pipeline.capture.calibration import CalibrationFormat, register_format
 
 
 def _can_open(text: str) -> bool:
     """OpenCV writes a ``%YAML:1.0`` (or ``%YAML 1.2``) directive as the first line."""
-    return first_line(text).startswith("%YAML")
+    return cal_checks.first_line(text).startswith("%YAML")
 
 
 def _fs_matrix(fs: Any, key: str, where: str, count: int | None) -> list[float]:
@@ -46,7 +41,7 @@ def _fs_matrix(fs: Any, key: str, where: str, count: int | None) -> list[float]:
         if not (item.isReal() or item.isInt()):
             raise ConfigError(f"{label}[{i}]: expected a number")
         values.append(item.real())
-    values = numbers(values, label, count)
+    values = cal_checks.numbers(values, label, count)
     if node.isMap():
         rows, cols = node.getNode("rows"), node.getNode("cols")
         if not (rows.empty() or cols.empty()):
@@ -101,7 +96,7 @@ def _read_opencv_nodes(fs: Any, path: Path, width: int | None, height: int | Non
         model = None if node.empty() else node.string()
     finally:
         fs.release()
-    return camera_model(where, size[0], size[1], k, dist, model)
+    return cal_checks.camera_model(where, size[0], size[1], k, dist, model)
 
 
 def _write(cal: CameraModel) -> str:
