@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import colour
@@ -12,7 +12,7 @@ import numpy as np
 from simgap.core.config import require
 from simgap.effects.base import Effect, RelativeScale, register
 from simgap.effects.state import RenderQuality, VariantState
-from simgap.scene.lights import LightSpec
+from simgap.scene.lights import LightSpec, default_target
 from simgap.scene.materials import Coating, Conductor, Diffuse, Plastic
 from simgap.scene.spec import SceneSpec
 
@@ -64,7 +64,7 @@ class Lighting(Effect):
 
         type: Literal["area", "point", "spot"] = "area"
         position: Vec3 = (0.12, -0.30, 0.40)
-        target: Vec3 = (0.036749, 0.321749, 0.06)
+        target: Vec3 = field(default_factory=default_target)
         size_m: tuple[float, float] = (0.30, 0.30)
         power: float = 8.0
         cct_k: float | None = None

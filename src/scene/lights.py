@@ -2,10 +2,25 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal
 
 from simgap.core.config import require
+from simgap.core.rig import load_rig
+
+#: Height (m, rail frame) that lights aim at by default: about the middle of the tag node.
+AIM_HEIGHT_M = 0.06
+
+
+@lru_cache(maxsize=1)
+def default_target() -> tuple[float, float, float]:
+    """Default aim point (m, rail frame): the rig's turntable centre at :data:`AIM_HEIGHT_M`.
+
+    Read from the rig's transform tree (``links.carriage_to_turntable`` at p = 0), never retyped.
+    """
+    x, y, _ = load_rig().rail_from_turntable(0.0)[:3, 3]
+    return (float(x), float(y), AIM_HEIGHT_M)
 
 
 @dataclass(frozen=True)
@@ -32,7 +47,7 @@ class LightSpec:
 
     type: Literal["area", "point", "spot", "constant"]
     position: tuple[float, float, float] = (0.0, -0.3, 0.4)
-    target: tuple[float, float, float] = (0.036749, 0.321749, 0.06)
+    target: tuple[float, float, float] = field(default_factory=default_target)
     size: tuple[float, float] = (0.3, 0.3)
     radiance: float = 1.0
     intensity: float = 1.0
