@@ -60,6 +60,7 @@ from simgap.pipeline.experiment_files import blame_parent, merge_chain, origins,
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.tags import Estimation
+from simgap.results.dataset import result_nbytes
 from simgap.scene.spec import SceneSpec, load_scene_spec
 
 #: Share of the machine's physical memory one run may plan to use for its result arrays.
@@ -202,8 +203,6 @@ class Experiment:
             ``(bytes, key, shape)``: the estimate (bytes), the key path of the largest factor
             (what to reduce) and the shape in words.
         """
-        from simgap.results.dataset import result_nbytes
-
         rig, c = self.rig_model, self.configurations
         n_variants = len(self.variants) + ("baseline" not in [v.name for v in self.variants])
         n_variants += math.prod(len(v) for v in self.grid.values()) if self.grid else 0

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import xarray as xr
 import yaml
@@ -162,8 +163,6 @@ def _fixture_from_joints(reader: Any, conns: list, bag: Path, rig: Rig) -> list[
 
 def _image_bytes(msg: Any, msgtype: str, where: str) -> tuple[bytes, str]:
     """The frame as file bytes and extension: a CompressedImage's own bytes, else a PNG."""
-    import cv2
-
     if msgtype == COMPRESSED_TYPE:
         data = bytes(msg.data)
         if data.startswith(b"\x89PNG"):

@@ -7,8 +7,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import xarray as xr
+from scipy.spatial.transform import Rotation
 
 from simgap.core import transforms as tf
 from simgap.core.atomic import staged_path
@@ -82,8 +84,6 @@ class _Messages:
         return bytes(self.ts.serialize_cdr(msg, msg.__msgtype__))
 
     def image(self, ns: int, image: np.ndarray | tuple[bytes, str], compressed: bool):
-        import cv2
-
         if isinstance(image, tuple):
             data, ext = image
             if not compressed:
@@ -133,8 +133,6 @@ class _Messages:
 
     def pose(self, ns: int, pose6: np.ndarray):
         """A PoseStamped in the optical frame from a global-frame pose (m, rotation vector)."""
-        from scipy.spatial.transform import Rotation
-
         eye_from_tag = tf.make(tf.rotvec_to_matrix(pose6[3:]), pose6[:3])
         cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ eye_from_tag
         x, y, z, w = Rotation.from_matrix(cv_from_tag[:3, :3]).as_quat()
