@@ -8,16 +8,19 @@ Build it with :func:`build_dataset`, write it with :func:`write_netcdf` (atomic)
 from __future__ import annotations
 
 import math
+import platform
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+import cv2
 import numpy as np
 import xarray as xr
 
+import simgap
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES, AXIS_UNITS
 from simgap.core.config import ConfigError, from_mapping, parse_yaml
-from simgap.core.rig import CameraModel
+from simgap.core.rig import CameraModel, Rig
 from simgap.pose.image_stats import STATS
 from simgap.pose.tags import empty_tag_arrays
 
@@ -49,6 +52,8 @@ COORDS = {
 }
 #: Variables the analyses read unless they say otherwise.
 REQUIRED = ("error", "detected", "visible")
+#: ``conventions`` attr of every result dataset: the frame the poses are expressed in.
+CONVENTIONS = "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)"
 
 
 class DatasetError(ConfigError):
@@ -187,6 +192,43 @@ def result_nbytes(n_configurations: int) -> int:
     """
     per = sum(a.nbytes for a in empty_results((1,)).values())
     return int(n_configurations) * per
+
+
+def ground_truth(
+    rig: Rig, tags: Sequence[int], ps: Sequence[int], thetas: Sequence[float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``expected`` and ``visible`` arrays of a dataset, from the rig's CAD tree.
+
+    Parameters
+    ----------
+    rig : Rig
+        The nominal rig (ground truth).
+    tags, ps, thetas
+        Tag ids, pin holes and turntable angles (rad).
+
+    Returns
+    -------
+    expected : ndarray (tag, p, theta, 6)
+        Expected poses, global frame (m, rad).
+    visible : ndarray of bool (tag, p, theta)
+        Whether each tag is expected to be detectable.
+    """
+    expected = np.array(
+        [[[rig.expected_pose(t, p, th) for th in thetas] for p in ps] for t in tags]
+    )
+    visible = np.array([[[rig.is_visible(t, p, th) for th in thetas] for p in ps] for t in tags])
+    return expected, visible
+
+
+def software_versions() -> dict[str, str]:
+    """Provenance attrs shared by every result dataset: simgap, OpenCV, NumPy, xarray, Python."""
+    return {
+        "simgap_version": simgap.__version__,
+        "opencv_version": cv2.__version__,
+        "numpy_version": np.__version__,
+        "xarray_version": xr.__version__,
+        "python_version": platform.python_version(),
+    }
 
 
 def build_dataset(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import platform
 import warnings
 from pathlib import Path
 
@@ -13,7 +12,6 @@ import xarray as xr
 import yaml
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
-import simgap
 from simgap.core.config import to_mapping
 from simgap.core.rig import CameraModel, Rig, load_rig
 from simgap.pipeline.capture.folder import (
@@ -25,7 +23,13 @@ from simgap.pipeline.capture.folder import (
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.tags import Estimation, measure_tags
-from simgap.results.dataset import build_dataset, empty_results
+from simgap.results.dataset import (
+    CONVENTIONS,
+    build_dataset,
+    empty_results,
+    ground_truth,
+    software_versions,
+)
 
 VARIANT = "real"
 DEFAULT_DETECTOR = DetectorSettings()
@@ -132,10 +136,7 @@ def ingest(
             idx = idx + (thetas.index(frame.theta),)
             for k, v in out.arrays().items():
                 res[k][idx] = v
-    expected = np.array(
-        [[[rig.expected_pose(t, p, th) for th in thetas] for p in ps] for t in tags]
-    )
-    visible = np.array([[[rig.is_visible(t, p, th) for th in thetas] for p in ps] for t in tags])
+    expected, visible = ground_truth(rig, tags, ps, thetas)
     attrs = {
         "title": f"simgap result: capture {cap.folder.name}",
         "source": "capture",
@@ -150,12 +151,8 @@ def ingest(
         "frames_failed": json.dumps(failed),
         "detector": json.dumps({VARIANT: f"{detector}"}),
         "pnp": json.dumps({VARIANT: f"{pnp}"}),
-        "simgap_version": simgap.__version__,
-        "opencv_version": cv2.__version__,
-        "numpy_version": np.__version__,
-        "xarray_version": xr.__version__,
-        "python_version": platform.python_version(),
-        "conventions": "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)",
+        **software_versions(),
+        "conventions": CONVENTIONS,
     }
     return build_dataset(
         tags,
