@@ -22,11 +22,11 @@ from simgap.pipeline.bag import (
     CAMERA_INFO_TOPIC,
     FIXTURE_TOPIC,
     IMAGE_TOPIC,
-    _Messages,
     bag_to_capture,
     capture_to_bag,
     ingest_bag,
 )
+from simgap.pipeline.bag.writer import _Messages
 from simgap.pipeline.capture import ingest, write_capture
 from simgap.pose.estimate import project_tag_corners
 from simgap.render.assets import tag_texture

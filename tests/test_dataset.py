@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.results.dataset import AXES, build_dataset, read_netcdf, write_netcdf
+from simgap.core.axes import AXES
+from simgap.results.dataset import build_dataset, read_netcdf, write_netcdf
 
 TAGS = (0, 1)
 PS = (0, 7, 14)

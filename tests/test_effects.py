@@ -147,15 +147,21 @@ def test_state_image_stochastic_flag():
 
 
 def test_material_override_with_a_new_type_replaces_the_template_entry():
-    from simgap.render.scene import load_scene_spec
+    from simgap.render.mitsuba_scene import bsdf
+    from simgap.scene import Coating, Conductor, TagPrint
 
     bare = make_effect("fixture_material", {"slot": "node", "finish": "bare"})
-    spec = load_scene_spec(bare.apply(VariantState()).scene.overrides)
-    assert spec.materials["node"] == {"type": "roughconductor", "material": "Al", "alpha": 0.25}
+    spec = bare.apply(VariantState()).scene.spec
+    assert spec.materials["node"] == Conductor(material="Al", alpha=0.25)
+    assert bsdf(spec.materials["node"]) == {
+        "type": "roughconductor",
+        "material": "Al",
+        "alpha": 0.25,
+    }
     state = make_effect("tag_material", {"ink": 0.05, "paper": 0.7}).apply(VariantState())
     state = make_effect("tag_gloss", {"alpha": 0.1}).apply(state)
-    tag = load_scene_spec(state.scene.overrides).materials["tag"]
-    assert tag == {"type": "roughplastic", "alpha": 0.1, "int_ior": 1.49, "ink": 0.05, "paper": 0.7}
+    tag = state.scene.spec.tag
+    assert tag == TagPrint(ink=0.05, paper=0.7, coating=Coating(alpha=0.1, int_ior=1.49))
     light = make_effect("lighting", {"type": "point", "power": 2.0}).apply(VariantState())
-    key = load_scene_spec(light.scene.overrides).lights["key"]
+    key = light.scene.spec.lights["key"]
     assert key.type == "point" and key.intensity == 2.0

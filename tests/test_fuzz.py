@@ -14,6 +14,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from simgap.core.aruco import DICTIONARIES
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel, load_rig
 from simgap.pipeline.capture import (
@@ -25,7 +26,6 @@ from simgap.pipeline.capture import (
     write_capture,
 )
 from simgap.pipeline.experiment import load_experiment
-from simgap.pose.detect import DICTIONARIES
 from simgap.results.dataset import (
     DatasetError,
     build_dataset,

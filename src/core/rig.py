@@ -23,13 +23,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from functools import cached_property
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
 from simgap.core import transforms as tf
+from simgap.core.aruco import check_dictionary, marker_cells
 from simgap.core.config import deep_merge, from_mapping, read_yaml, require
 
 DEFAULT_RIG_FILE = Path(__file__).with_name("rig.yaml")
@@ -193,8 +193,6 @@ class Tags:
     faces: tuple[TagFace, ...] = (TagFace(0, 0.0806, "outward"), TagFace(1, 0.0381, "inward"))
 
     def __post_init__(self) -> None:
-        from simgap.pose.detect import check_dictionary
-
         check_dictionary(self.dictionary)
         require(self.size > 0, "size: expected a positive length (m)")
         require(self.quiet_zone_cells >= 0, "quiet_zone_cells: expected an integer >= 0")
@@ -346,17 +344,9 @@ class Rig:
         """Whether the tag is expected to be detectable (faces the camera steeply enough)."""
         return self.view_angle(tag, p, theta) > np.deg2rad(self.visibility.min_view_angle_deg)
 
-    # --- helpers --------------------------------------------------------------------------
-
-    @cached_property
-    def tag_corners_local(self) -> np.ndarray:
-        """The four outer corners TL, TR, BR, BL in the marker frame, shape (4, 3) (m)."""
-        h = self.tags.size / 2
-        return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
-
     def marker_cells(self) -> int:
         """Cells across a marker of the rig's dictionary, including its one-cell black border."""
-        return _marker_cells(self.tags.dictionary)
+        return marker_cells(self.tags.dictionary)
 
     def sticker_size(self) -> float:
         """Side of the white sticker including the quiet zone (m)."""
@@ -374,13 +364,6 @@ def view_angles(eyepoint_from_tags: np.ndarray) -> np.ndarray:
     t = m[..., :3, 3]
     to_camera = -t / np.linalg.norm(t, axis=-1, keepdims=True)
     return np.arcsin(np.clip(np.sum(to_camera * m[..., :3, 2], axis=-1), -1.0, 1.0))
-
-
-def _marker_cells(dictionary: str) -> int:
-    """Cells across a marker of ``dictionary``, including its one-cell black border."""
-    import cv2
-
-    return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)).markerSize) + 2
 
 
 def load_rig(

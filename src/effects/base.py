@@ -1,14 +1,16 @@
-"""Effect base class and the name-keyed registry."""
+"""Effect base class and the name-keyed registry (imports nothing else of :mod:`simgap.effects`)."""
 
 from __future__ import annotations
 
 import abc
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from simgap.core.config import ConfigError, from_mapping, require, to_mapping
-from simgap.effects.state import VariantState
+
+if TYPE_CHECKING:  # annotation only: the state module reads the registry, not the reverse
+    from simgap.effects.state import VariantState
 
 Stage = Literal["scene", "geometry", "image", "estimation"]
 

@@ -68,7 +68,7 @@ class DetectorRefinement(Effect):
 
 
 @register
-class Detector(Effect):
+class DetectorOverride(Effect):
     """All ArUco detector settings at once (see :class:`simgap.pose.detect.DetectorSettings`)."""
 
     name = "detector"

@@ -72,7 +72,10 @@ class TurntableOffset(Effect):
 
 @register
 class CarriagePitch(Effect):
-    """Carriage pin pitch differs from 0.0254 m by a relative ``scale`` (0.01 = +1 %)."""
+    """Carriage pin pitch differs from the rig's (``links.pin_pitch``) by a relative ``scale``.
+
+    ``scale`` is dimensionless: 0.01 = +1 %.
+    """
 
     name = "carriage_pitch"
     stage = "geometry"

@@ -3,17 +3,24 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import colour
 import numpy as np
 
-from simgap.core.config import deep_merge, require
+from simgap.core.config import require
 from simgap.effects.base import Effect, RelativeScale, register
 from simgap.effects.state import RenderQuality, VariantState
+from simgap.scene.lights import LightSpec, default_target
+from simgap.scene.materials import Coating, Conductor, Diffuse, Plastic
+from simgap.scene.spec import SceneSpec
 
 Vec3 = tuple[float, float, float]
+#: Conductor name of bare aluminium (Mitsuba's table of measured metals).
+ALUMINIUM = "Al"
+#: Relative luminance of linear sRGB primaries (ITU-R BT.709).
+BT709_LUMINANCE = (0.2126, 0.7152, 0.0722)
 
 
 def cct_to_rgb(cct_k: float | None) -> tuple[float, float, float]:
@@ -27,16 +34,18 @@ def cct_to_rgb(cct_k: float | None) -> tuple[float, float, float]:
     xy = colour.temperature.CCT_to_xy(float(cct_k), method="Kang 2002")
     rgb = colour.XYZ_to_sRGB(colour.xy_to_XYZ(xy), apply_cctf_encoding=False)
     rgb = np.clip(rgb, 0.0, None)
-    rgb = rgb / float(np.dot(rgb, [0.2126, 0.7152, 0.0722]))
+    rgb = rgb / float(np.dot(rgb, BT709_LUMINANCE))
     return tuple(float(v) for v in rgb)
 
 
 def _scene(state: VariantState, **changes) -> VariantState:
+    """``state`` with fields of its scene stage replaced."""
     return dataclasses.replace(state, scene=dataclasses.replace(state.scene, **changes))
 
 
-def _override(state: VariantState, patch: dict) -> VariantState:
-    return _scene(state, overrides=deep_merge(state.scene.overrides, patch))
+def _spec(state: VariantState, spec: SceneSpec) -> VariantState:
+    """``state`` with another scene description."""
+    return _scene(state, spec=spec)
 
 
 @register
@@ -55,7 +64,7 @@ class Lighting(Effect):
 
         type: Literal["area", "point", "spot"] = "area"
         position: Vec3 = (0.12, -0.30, 0.40)
-        target: Vec3 = (0.036749, 0.321749, 0.06)
+        target: Vec3 = field(default_factory=default_target)
         size_m: tuple[float, float] = (0.30, 0.30)
         power: float = 8.0
         cct_k: float | None = None
@@ -68,23 +77,19 @@ class Lighting(Effect):
             )
 
     def apply(self, state: VariantState) -> VariantState:
-        """Replace the template's ``key`` light."""
+        """Replace the scene's ``key`` light."""
         p = self.params
-        light = {
-            "type": p.type,
-            "position": list(p.position),
-            "target": list(p.target),
-            "size": list(p.size_m),
-            "radiance": p.power,
-            "intensity": p.power,
-            "cutoff_deg": p.cutoff_deg,
-            "rgb": list(cct_to_rgb(p.cct_k)),
-        }
-        overrides = dict(state.scene.overrides)
-        lights = dict(overrides.get("lights", {}))
-        lights["key"] = light
-        overrides["lights"] = lights
-        return _scene(state, overrides=overrides)
+        light = LightSpec(
+            type=p.type,
+            position=p.position,
+            target=p.target,
+            size=p.size_m,
+            radiance=p.power,
+            intensity=p.power,
+            cutoff_deg=p.cutoff_deg,
+            rgb=cct_to_rgb(p.cct_k),
+        )
+        return _spec(state, state.scene.spec.with_light("key", light))
 
 
 @register
@@ -105,14 +110,13 @@ class Ambient(Effect):
             require(self.radiance >= 0, "radiance: expected >= 0")
 
     def apply(self, state: VariantState) -> VariantState:
-        """Set the template's ``ambient`` light."""
-        rgb = list(cct_to_rgb(self.params.cct_k))
-        patch = {
-            "lights": {
-                "ambient": {"type": "constant", "radiance": self.params.radiance, "rgb": rgb}
-            }
-        }
-        return _override(state, patch)
+        """Set the scene's ``ambient`` light (a uniform environment)."""
+        spec = state.scene.spec
+        old = spec.lights.get("ambient", LightSpec("constant"))
+        light = dataclasses.replace(
+            old, type="constant", radiance=self.params.radiance, rgb=cct_to_rgb(self.params.cct_k)
+        )
+        return _spec(state, spec.with_light("ambient", light))
 
 
 @register
@@ -133,17 +137,18 @@ class TagMaterial(Effect):
             require(0 <= self.ink < self.paper <= 1, "ink/paper: expected 0 <= ink < paper <= 1")
 
     def apply(self, state: VariantState) -> VariantState:
-        """Set ink and paper albedo, keeping the tag's BSDF type."""
-        return _override(
-            state, {"materials": {"tag": {"ink": self.params.ink, "paper": self.params.paper}}}
-        )
+        """Set ink and paper albedo, keeping the print's coating and texture filter."""
+        spec = state.scene.spec
+        tag = dataclasses.replace(spec.tag, ink=self.params.ink, paper=self.params.paper)
+        return _spec(state, spec.with_tag(tag))
 
 
 @register
 class TagGloss(Effect):
-    """Laminated tag: a rough dielectric coating (``roughplastic``) over the print.
+    """Laminated tag: a rough dielectric coating over the print.
 
-    ``alpha`` is the GGX roughness (dimensionless); ``int_ior`` the laminate's refractive index.
+    ``alpha`` is the microfacet roughness (dimensionless); ``int_ior`` the laminate's refractive
+    index.
     """
 
     name = "tag_gloss"
@@ -161,25 +166,18 @@ class TagGloss(Effect):
             require(1 < self.int_ior < 3, "int_ior: expected 1 < int_ior < 3")
 
     def apply(self, state: VariantState) -> VariantState:
-        """Make the tag material a rough plastic."""
-        patch = {
-            "materials": {
-                "tag": {
-                    "type": "roughplastic",
-                    "alpha": self.params.alpha,
-                    "int_ior": self.params.int_ior,
-                }
-            }
-        }
-        return _override(state, patch)
+        """Laminate the tag print (ink, paper and texture filter kept)."""
+        spec = state.scene.spec
+        coating = Coating(alpha=self.params.alpha, int_ior=self.params.int_ior)
+        return _spec(state, spec.with_tag(dataclasses.replace(spec.tag, coating=coating)))
 
 
 @register
 class FixtureMaterial(Effect):
     """Material of one fixture part (a material slot of the scene template).
 
-    ``bare``: rough aluminium (``roughconductor``, roughness ``alpha``); ``anodised``: dark rough
-    plastic; ``painted``: diffuse paint of albedo ``reflectance``.
+    ``bare``: rough aluminium (a conductor of roughness ``alpha``); ``anodised``: rough plastic
+    of base albedo ``reflectance``; ``painted``: diffuse paint of albedo ``reflectance``.
     """
 
     name = "fixture_material"
@@ -199,22 +197,14 @@ class FixtureMaterial(Effect):
             require(0 < self.alpha <= 1, "alpha: expected 0 < alpha <= 1")
 
     def apply(self, state: VariantState) -> VariantState:
-        """Replace the slot's BSDF."""
+        """Replace the slot's material."""
         p = self.params
-        bsdf = {
-            "bare": {"type": "roughconductor", "material": "Al", "alpha": p.alpha},
-            "anodised": {
-                "type": "roughplastic",
-                "diffuse_reflectance": p.reflectance,
-                "alpha": p.alpha,
-            },
-            "painted": {"type": "diffuse", "reflectance": p.reflectance},
+        material = {
+            "bare": Conductor(material=ALUMINIUM, alpha=p.alpha),
+            "anodised": Plastic(diffuse_reflectance=p.reflectance, alpha=p.alpha),
+            "painted": Diffuse(reflectance=p.reflectance),
         }[p.finish]
-        overrides = dict(state.scene.overrides)
-        materials = dict(overrides.get("materials", {}))
-        materials[p.slot] = bsdf
-        overrides["materials"] = materials
-        return _scene(state, overrides=overrides)
+        return _spec(state, state.scene.spec.with_material(p.slot, material))
 
 
 @register
@@ -262,7 +252,7 @@ class TagScale(Effect):
 
 
 @register
-class RenderSettings(Effect):
+class SamplingQuality(Effect):
     """Renderer quality: samples per pixel, sampler and maximum path depth."""
 
     name = "render_quality"

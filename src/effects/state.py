@@ -6,8 +6,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors
-from simgap.pose.detect import DetectorSettings
-from simgap.pose.estimate import PnPSettings
+from simgap.effects.base import EFFECTS
+from simgap.pose.tags import Estimation
+from simgap.scene.spec import SceneSpec, default_scene_spec
 
 
 @dataclass(frozen=True)
@@ -25,8 +26,9 @@ class SceneState:
 
     Attributes
     ----------
-    overrides : dict
-        Deep-merged into the scene template (materials, lights, objects, integrator).
+    spec : SceneSpec
+        The scene description (:mod:`simgap.scene`): materials, tag print, lights, objects,
+        integrator; scene-stage effects replace parts of it.
     camera : CameraModel
         The true camera (intrinsics px, Brown-Conrady distortion).
     errors : FixtureErrors
@@ -41,7 +43,7 @@ class SceneState:
         Base seed of the renderer's sampler.
     """
 
-    overrides: dict[str, Any] = field(default_factory=dict)
+    spec: SceneSpec = field(default_factory=default_scene_spec)
     camera: CameraModel = field(default_factory=CameraModel)
     errors: FixtureErrors = NOMINAL
     tag_scale: float = 1.0
@@ -49,6 +51,14 @@ class SceneState:
     focus_distance_m: float = 1.0
     quality: RenderQuality = field(default_factory=RenderQuality)
     render_seed: int = 0
+
+    @property
+    def overrides(self) -> SceneSpec:
+        """Deprecated name of :attr:`spec`, kept until :mod:`simgap.pipeline.sweep` reads ``spec``.
+
+        It passes it through :func:`simgap.scene.load_scene_spec`, which returns a spec as is.
+        """
+        return self.spec
 
 
 @dataclass(frozen=True)
@@ -75,18 +85,7 @@ class ImageState:
     @property
     def stochastic(self) -> bool:
         """Whether the pipeline draws random numbers (then repeats differ)."""
-        from simgap.effects.base import EFFECTS
-
         return any(EFFECTS[name].stochastic for name, _ in self.ops)
-
-
-@dataclass(frozen=True)
-class EstimationState:
-    """What the estimator assumes and how it detects and solves."""
-
-    calibration: CameraModel = field(default_factory=CameraModel)
-    detector: DetectorSettings = field(default_factory=DetectorSettings)
-    pnp: PnPSettings = field(default_factory=PnPSettings)
 
 
 @dataclass(frozen=True)
@@ -95,4 +94,4 @@ class VariantState:
 
     scene: SceneState = field(default_factory=SceneState)
     image: ImageState = field(default_factory=ImageState)
-    estimation: EstimationState = field(default_factory=EstimationState)
+    estimation: Estimation = field(default_factory=Estimation)

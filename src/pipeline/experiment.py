@@ -33,7 +33,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -44,25 +43,25 @@ import yaml
 
 from simgap.core.config import (
     ConfigError,
-    deep_merge,
     from_mapping,
     parse_yaml,
-    read_yaml,
     require,
     to_mapping,
 )
 from simgap.core.rig import Rig, load_rig
 from simgap.effects import make_effect
 from simgap.effects.state import (
-    EstimationState,
     ImageState,
     RenderQuality,
     SceneState,
     VariantState,
 )
+from simgap.pipeline.experiment_files import blame_parent, merge_chain, origins, read_chain
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
-from simgap.render.scene import SceneSpec, load_scene_spec
+from simgap.pose.tags import Estimation
+from simgap.results.dataset import result_nbytes
+from simgap.scene.spec import SceneSpec, load_scene_spec
 
 #: Share of the machine's physical memory one run may plan to use for its result arrays.
 MEMORY_SHARE = 0.5
@@ -204,8 +203,6 @@ class Experiment:
             ``(bytes, key, shape)``: the estimate (bytes), the key path of the largest factor
             (what to reduce) and the shape in words.
         """
-        from simgap.results.dataset import result_nbytes
-
         rig, c = self.rig_model, self.configurations
         n_variants = len(self.variants) + ("baseline" not in [v.name for v in self.variants])
         n_variants += math.prod(len(v) for v in self.grid.values()) if self.grid else 0
@@ -266,13 +263,13 @@ class Experiment:
         r = self.render
         return VariantState(
             scene=SceneState(
-                overrides=self.scene,
+                spec=self.scene_spec,
                 camera=rig.camera,
                 quality=RenderQuality(r.spp, r.sampler, r.max_depth),
                 render_seed=r.seed,
             ),
             image=ImageState(encoding=self.image.encoding, exposure=self.image.exposure),
-            estimation=EstimationState(
+            estimation=Estimation(
                 calibration=rig.camera, detector=self.detector, pnp=self.pnp
             ),
         )
@@ -320,12 +317,7 @@ class Experiment:
         rig = self.rig_model
         c = self.configurations
         ps = c.p or rig.grid.p
-        bad = sorted(set(ps) - set(rig.grid.p))
-        if bad:
-            raise ConfigError(
-                f"{self.source}: configurations.p: {bad[0]} is not a pin hole; "
-                f"expected one of {list(rig.grid.p)}"
-            )
+        self._check_known("p", ps, rig.grid.p, "{} is not a pin hole")
         if c.theta_deg:
             stops = rig.grid.theta_step_deg * np.arange(rig.grid.theta_count)
             first: dict[int, float] = {}
@@ -347,13 +339,17 @@ class Experiment:
         else:
             thetas = rig.grid.theta
         tags = c.tags or rig.tags.ids
-        bad_tags = sorted(set(tags) - set(rig.tags.ids))
-        if bad_tags:
-            raise ConfigError(
-                f"{self.source}: configurations.tags: tag {bad_tags[0]} is not on the rig; "
-                f"expected one of {list(rig.tags.ids)}"
-            )
+        self._check_known("tags", tags, rig.tags.ids, "tag {} is not on the rig")
         return tuple(ps), thetas, tuple(tags)
+
+    def _check_known(self, key: str, values, known, what: str) -> None:
+        """Refuse ``configurations.<key>`` values not in ``known`` (``what`` formats the first)."""
+        bad = sorted(set(values) - set(known))
+        if bad:
+            raise ConfigError(
+                f"{self.source}: configurations.{key}: {what.format(bad[0])}; "
+                f"expected one of {list(known)}"
+            )
 
     def to_yaml(self) -> str:
         """The resolved experiment as YAML text (stored in dataset attrs)."""
@@ -371,75 +367,6 @@ def _apply_effect(name: str, params: Any, state: VariantState, where: str) -> Va
         raise
     except ValueError as exc:
         raise ConfigError(f"{where}{name}: {exc}") from exc
-
-
-def _read_chain(path: Path, seen: tuple[Path, ...] = ()) -> list[tuple[Path, dict[str, Any]]]:
-    """An experiment file and the files it inherits from: ``(path, data)``, root ancestor first."""
-    data = read_yaml(path)
-    if not data:
-        raise ConfigError(
-            f"{path}: empty experiment file; expected a mapping of settings (at least "
-            "`name: ...`; an experiment with only a name runs the full study)"
-        )
-    if "source" in data:
-        raise ConfigError(f"{path}: source: unknown key (reserved)")
-    parent = data.get("inherit")
-    if parent is None:
-        return [(path, data)]
-    if not isinstance(parent, str):
-        raise ConfigError(f"{path}: inherit: expected a file path, got {parent!r}")
-    parent_path = (path.parent / parent).resolve()
-    if parent_path in seen or parent_path == path.resolve():
-        raise ConfigError(f"{path}: inherit: circular inheritance through {parent_path}")
-    if not parent_path.is_file():
-        raise ConfigError(f"{path}: inherit: {parent_path} not found")
-    chain = _read_chain(parent_path, seen + (path.resolve(),))
-    return chain + [(path, data)]
-
-
-def _merge_chain(chain: list[tuple[Path, dict[str, Any]]]) -> dict[str, Any]:
-    """The files of :func:`_read_chain` merged (the last file wins; names are not inherited)."""
-    merged: dict[str, Any] = {}
-    for _, data in chain[:-1]:
-        merged = deep_merge(merged, data)
-    merged.pop("name", None)
-    merged.pop("description", None)
-    return deep_merge(merged, chain[-1][1])
-
-
-def _origins(chain: list[tuple[Path, dict[str, Any]]]) -> dict[tuple[str, ...], Path]:
-    """Which file set each key path last (mappings merge, other values replace)."""
-    out: dict[tuple[str, ...], Path] = {}
-
-    def walk(data: Any, prefix: tuple[str, ...], path: Path) -> None:
-        for key, value in data.items():
-            out[prefix + (str(key),)] = path
-            if isinstance(value, dict):
-                walk(value, prefix + (str(key),), path)
-
-    for path, data in chain:
-        walk(data, (), path)
-    return out
-
-
-def _blame_parent(
-    exc: ConfigError, path: Path, origins: dict[tuple[str, ...], Path]
-) -> ConfigError:
-    """``exc`` reported against the inherited file that set the offending key, if not ``path``."""
-    message, prefix = str(exc), f"{path}: "
-    if not message.startswith(prefix):
-        return exc
-    rest = message[len(prefix) :]
-    keys = tuple(re.findall(r"[^.\[\]]+", rest.split(": ", 1)[0]))
-    for n in range(len(keys), 0, -1):
-        origin = origins.get(keys[:n])
-        if origin is not None:
-            if origin == path:
-                return exc
-            blamed = ConfigError(f"{origin}: {rest} (inherited by {path})")
-            blamed.__cause__ = exc.__cause__
-            return blamed
-    return exc
 
 
 def experiment_from_yaml(text: str, source: str = "<dataset>") -> Experiment:
@@ -466,8 +393,8 @@ def load_experiment(path: str | Path) -> Experiment:
         Naming the file and key path of what is wrong.
     """
     path = Path(path)
-    chain = _read_chain(path)
-    data = _merge_chain(chain)
+    chain = read_chain(path)
+    data = merge_chain(chain)
     data.setdefault("name", path.stem)
     try:
         exp = from_mapping(Experiment, {**data, "source": str(path)}, where=f"{path}: ")
@@ -477,5 +404,5 @@ def load_experiment(path: str | Path) -> Experiment:
         exp.configuration_axes()
         exp.variant_states()
     except ConfigError as exc:
-        raise _blame_parent(exc, path, _origins(chain)) from exc.__cause__
+        raise blame_parent(exc, path, origins(chain)) from exc.__cause__
     return exp

@@ -39,33 +39,15 @@ from simgap.effects.state import VariantState
 from simgap.pipeline.cache import Cache, content_hash, file_hash, write_text
 from simgap.pipeline.experiment import Experiment
 from simgap.pose.detect import Detector
-from simgap.pose.estimate import estimate_pose, pose_error, project_tag_corners
-from simgap.pose.image_stats import MarkerLayout, tag_stats
+from simgap.pose.tags import RESULT_FIELDS, ConfigResult, estimate_tags, measure_tags
 from simgap.render import imaging
 from simgap.render.scene import projected_sticker_boxes
 from simgap.results.dataset import build_dataset, empty_results
 
 #: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
 CROP_STEP_PX = 32
-RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners", "image_stats")
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
 RESULT_VERSION = "image-stats-4"
-
-
-@dataclass(frozen=True)
-class ConfigResult:
-    """Detection and pose results of one (p, theta) for every tag of the experiment (tag order)."""
-
-    detected: np.ndarray  # (T,) bool
-    estimated: np.ndarray  # (T, 6) global pose, NaN where not detected
-    error: np.ndarray  # (T, 6)
-    reproj_px: np.ndarray  # (T,)
-    corners: np.ndarray  # (T, 4, 2) px
-    image_stats: np.ndarray  # (T, S) image evidence, see simgap.pose.image_stats.STATS
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        """As a mapping for storage."""
-        return {k: getattr(self, k) for k in RESULT_FIELDS}
 
 
 @dataclass(frozen=True)
@@ -243,85 +225,17 @@ class VariantPipeline:
             return ConfigResult(**cached)
         frame = self.frame(p, theta, repeat, render_repeat)
         if frame is None:
-            result = estimate_tags(self.rig, self.state, self.tags, {}, p, theta)
+            result = estimate_tags(self.rig, self.state.estimation, self.tags, {}, p, theta)
         else:
             crop_gray = imaging.to_gray(frame.crop)
             full = imaging.paste(crop_gray, frame.offset, frame.size)
             found, rejected = self.detector.detect_with_rejected(full)
             result = measure_tags(
-                self.rig, self.state, self.tags, crop_gray, frame.offset, found, rejected, p, theta
+                self.rig, self.state.estimation, self.tags, crop_gray, frame.offset, found,
+                rejected, p, theta,
             )
         self.cache.save_arrays("results", key, result.arrays())
         return result
-
-
-def estimate_tags(
-    rig: Rig, state: VariantState, tags, found: dict, p: int, theta: float
-) -> ConfigResult:
-    """Pose and error of every tag from detected corners (px), with the assumed calibration."""
-    out = ConfigResult(**empty_results((len(tags),)))
-    cal = state.estimation.calibration
-    for i, tag in enumerate(tags):
-        if tag not in found:
-            continue
-        out.detected[i] = True
-        out.corners[i] = found[tag]
-        est = estimate_pose(
-            found[tag], rig.tags.size, cal.matrix, cal.dist_coeffs, state.estimation.pnp
-        )
-        if est is None:
-            continue
-        out.estimated[i] = est.pose
-        out.error[i] = pose_error(est.pose, rig.expected_pose(tag, p, theta))
-        out.reproj_px[i] = est.reproj_px
-    return out
-
-
-def measure_tags(
-    rig: Rig,
-    state: VariantState,
-    tags,
-    gray: np.ndarray,
-    offset: tuple[int, int],
-    found: dict,
-    rejected: list,
-    p: int,
-    theta: float,
-) -> ConfigResult:
-    """:func:`estimate_tags` plus the image evidence of every visible tag.
-
-    The evidence is measured around the detected corners, or around the corners expected from
-    the nominal rig and the assumed calibration when the tag was not detected (then without the
-    edge-spread fit, which needs accurate corners).
-
-    Parameters
-    ----------
-    rig, state, tags
-        The fixture, the variant (its assumed calibration and PnP) and the tag ids.
-    gray : ndarray of uint8
-        The 8-bit grey frame, or a crop of it.
-    offset : tuple of int
-        Full-frame pixel of ``gray``'s top-left corner (px).
-    found, rejected
-        The detector's markers (tag id -> corners, px) and rejected candidates (px).
-    p, theta
-        Pin hole and turntable angle (rad).
-    """
-    out = estimate_tags(rig, state, tags, found, p, theta)
-    cal = state.estimation.calibration
-    layout = MarkerLayout(rig.marker_cells(), rig.tags.quiet_zone_cells)
-    for i, tag in enumerate(tags):
-        if tag in found:
-            corners, with_edge = found[tag], True
-        elif rig.is_visible(tag, p, theta):
-            corners = project_tag_corners(
-                rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal.matrix, cal.dist_coeffs
-            )
-            with_edge = False
-        else:
-            continue
-        out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, with_edge)
-    return out
 
 
 def _scene_spec(overrides: dict):

@@ -9,6 +9,7 @@ from typing import Literal
 import cv2
 import numpy as np
 
+from simgap.core.aruco import check_dictionary, predefined_dictionary
 from simgap.core.config import require
 
 REFINEMENTS = {
@@ -17,12 +18,6 @@ REFINEMENTS = {
     "CONTOUR": cv2.aruco.CORNER_REFINE_CONTOUR,
     "APRILTAG": cv2.aruco.CORNER_REFINE_APRILTAG,
 }
-#: OpenCV's predefined ArUco / AprilTag dictionaries: the ``cv2.aruco.DICT_*`` constants that
-#: ``getPredefinedDictionary`` accepts (other ``cv2.aruco`` names, e.g. ``ArucoDetector`` or
-#: ``CORNER_REFINE_NONE``, are not dictionaries).
-DICTIONARIES: frozenset[str] = frozenset(
-    n for n in dir(cv2.aruco) if n.startswith("DICT_") and type(getattr(cv2.aruco, n)) is int
-)
 _DEFAULT_PARAMS = cv2.aruco.DetectorParameters()
 #: Numeric ``cv2.aruco.DetectorParameters`` attributes and their types (int, float or bool).
 PARAM_TYPES: dict[str, type] = {
@@ -39,21 +34,6 @@ _OWN_PARAMS = {
 }
 #: Parameters that may be negative (the adaptive threshold's constant); all others are >= 0.
 _SIGNED_PARAMS = {"adaptiveThreshConstant"}
-
-
-def check_dictionary(name: str) -> None:
-    """Refuse a name that is not an OpenCV predefined dictionary (:data:`DICTIONARIES`).
-
-    Raises
-    ------
-    ValueError
-        ``"dictionary: ..."`` listing the valid names.
-    """
-    require(
-        name in DICTIONARIES,
-        f"dictionary: expected a cv2.aruco predefined dictionary name, got {name!r} (one of "
-        f"{', '.join(sorted(DICTIONARIES))})",
-    )
 
 
 def _check_extra(extra: dict[str, float | bool]) -> None:
@@ -92,7 +72,7 @@ def _check_extra(extra: dict[str, float | bool]) -> None:
 
 def _check_with_opencv(settings: DetectorSettings) -> None:
     """Run the detector once on a synthetic marker so OpenCV's own parameter checks run now."""
-    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, settings.dictionary))
+    dictionary = predefined_dictionary(settings.dictionary)
     side = 8 * (dictionary.markerSize + 2)
     img = np.full((4 * side, 4 * side), 255, np.uint8)
     img[side : 2 * side, side : 2 * side] = cv2.aruco.generateImageMarker(dictionary, 0, side)
@@ -158,7 +138,7 @@ class Detector:
         params.cornerRefinementMinAccuracy = settings.subpix_min_accuracy_px
         for name, value in settings.extra.items():
             setattr(params, name, type(getattr(params, name))(value))
-        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, settings.dictionary))
+        dictionary = predefined_dictionary(settings.dictionary)
         self._detector = cv2.aruco.ArucoDetector(dictionary, params)
 
     def detect(self, gray: np.ndarray) -> dict[int, np.ndarray]:

@@ -2,7 +2,8 @@
 
 Conventions (DESIGN §1): pose = translation of the tag centre (m) and rotation vector of the marker
 frame (rad), both in the global frame. Error = estimated - expected translation per axis and
-``rotvec(R_est @ R_expected.T)`` per axis.
+``rotvec(R_est @ R_expected.T)`` per axis. Marker corners and their projection live in
+:mod:`simgap.core.aruco` (``marker_object_points``, ``project_tag_corners`` re-exported here).
 """
 
 from __future__ import annotations
@@ -14,6 +15,17 @@ import cv2
 import numpy as np
 
 from simgap.core import transforms as tf
+from simgap.core.aruco import marker_object_points, project_tag_corners
+
+__all__ = [
+    "PNP_METHODS",
+    "PnPSettings",
+    "PoseEstimate",
+    "estimate_pose",
+    "marker_object_points",
+    "pose_error",
+    "project_tag_corners",
+]
 
 PNP_METHODS = {
     "IPPE_SQUARE": cv2.SOLVEPNP_IPPE_SQUARE,
@@ -45,12 +57,6 @@ class PnPSettings:
     method: Literal["IPPE_SQUARE", "IPPE", "ITERATIVE", "SQPNP", "EPNP"] = "IPPE_SQUARE"
     refine_lm: bool = False
     fallback_reproj_px: float | None = 1.0
-
-
-def marker_object_points(size: float) -> np.ndarray:
-    """Marker corners TL, TR, BR, BL in the marker frame (m), shape (4, 3)."""
-    h = size / 2
-    return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
 
 
 @dataclass(frozen=True)
@@ -145,13 +151,3 @@ def pose_error(estimated: np.ndarray, expected: np.ndarray) -> np.ndarray:
         tf.rotvec_to_matrix(estimated[3:]) @ tf.rotvec_to_matrix(expected[3:]).T
     )
     return np.concatenate([dt, dr])
-
-
-def project_tag_corners(
-    eyepoint_from_tag: np.ndarray, size: float, camera_matrix: np.ndarray, dist_coeffs: np.ndarray
-) -> np.ndarray:
-    """Project a tag's corners TL, TR, BR, BL into the image (px), shape (4, 2)."""
-    cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ eyepoint_from_tag
-    pts = tf.apply(cv_from_tag, marker_object_points(size))
-    uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), camera_matrix, dist_coeffs)
-    return uv.reshape(4, 2)

@@ -58,6 +58,8 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 from scipy.special import ndtr
 
+from simgap.core.robust import MAD_TO_SIGMA
+
 #: ``(name, units, long name)`` of every statistic, in storage order.
 STATS: tuple[tuple[str, str, str], ...] = (
     ("ink_dn", "DN", "median 8-bit level of the marker's black border"),
@@ -107,6 +109,9 @@ JPEG_BLOCK_PX = 8
 BLOCK_EPSILON_DN = 0.5
 #: Pixels closer than this to a cell edge of the marker are left out of the blockiness (px).
 BLOCK_EDGE_MARGIN_PX = 2.5
+#: Neighbour differences further than this many robust sigmas from their median are edges or
+#: texture, not noise, and are left out of the noise estimate.
+NOISE_CLIP_SIGMAS = 6.0
 
 _SRGB_TO_LINEAR = colour.cctf_decoding(np.arange(256) / 255.0, function="sRGB").astype(np.float64)
 _UNIT_SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]], np.float64)
@@ -137,8 +142,12 @@ def _noise(values: np.ndarray, mask: np.ndarray) -> float:
         return float("nan")
     d = (values[:, 1:] - values[:, :-1])[pair]
     med = np.median(d)
-    mad = 1.4826 * np.median(np.abs(d - med))
-    keep = np.abs(d - med) <= max(6.0 * mad, 1e-12) if mad > 0 else np.ones(d.shape, bool)
+    mad = MAD_TO_SIGMA * np.median(np.abs(d - med))
+    keep = (
+        np.abs(d - med) <= max(NOISE_CLIP_SIGMAS * mad, 1e-12)
+        if mad > 0
+        else np.ones(d.shape, bool)
+    )
     return float(np.std(d[keep]) / np.sqrt(2.0))
 
 

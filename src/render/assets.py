@@ -25,9 +25,10 @@ import cv2
 import numpy as np
 import trimesh
 
+from simgap.core.aruco import BORDER_CELLS, marker_cells, predefined_dictionary
 from simgap.core.atomic import atomic_write
 from simgap.core.paths import assets_dir
-from simgap.core.rig import Rig, _marker_cells, load_rig
+from simgap.core.rig import Rig, load_rig
 
 #: Gap between a tag sticker and the node face behind it (m): the sticker's thickness.
 STICKER_STANDOFF = 0.0003
@@ -76,9 +77,9 @@ def fixture_meshes(rig: Rig) -> dict[str, trimesh.Trimesh]:
 
 def tag_texture(dictionary: str, tag_id: int, quiet_zone_cells: int) -> np.ndarray:
     """Marker image with its quiet zone, one pixel per cell, uint8 (0 = black, 255 = white)."""
-    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
-    cells = _marker_cells(dictionary)
-    marker = cv2.aruco.generateImageMarker(d, tag_id, cells, borderBits=1)
+    d = predefined_dictionary(dictionary)
+    cells = marker_cells(dictionary)
+    marker = cv2.aruco.generateImageMarker(d, tag_id, cells, borderBits=BORDER_CELLS)
     return np.pad(marker, quiet_zone_cells, constant_values=255)
 
 

@@ -4,6 +4,9 @@ Dr.Jit's LLVM back end reads ``DRJIT_LIBLLVM_PATH`` when ``drjit`` is imported, 
 the whole process on the first kernel (DESIGN §4). This module therefore finds the newest
 libLLVM >= 19 *before* importing mitsuba, uses ``llvm_ad_rgb`` when one is found and falls back to
 ``scalar_rgb`` (about 4x slower) with a warning otherwise. ``SIMGAP_VARIANT`` overrides the choice.
+
+Importing this module imports nothing of Mitsuba: :func:`mitsuba` is the renderer's one explicit
+set-up (variant, then simgap's plugins), called when a scene is built.
 """
 
 from __future__ import annotations
@@ -13,6 +16,8 @@ import os
 import re
 import warnings
 from types import ModuleType
+
+from simgap.render.camera import register_sensor
 
 MIN_LLVM = 19
 _LLVM_GLOBS = (
@@ -64,17 +69,17 @@ _MI: ModuleType | None = None
 
 
 def mitsuba() -> ModuleType:
-    """Import mitsuba with the chosen variant set, once per process, and return the module."""
+    """Set up the renderer once per process and return the ``mitsuba`` module.
+
+    Imports mitsuba with the variant of :func:`choose_variant` and registers simgap's plugins (the
+    OpenCV sensor, :func:`simgap.render.camera.register_sensor`).
+    """
     global _MI
     if _MI is None:
         variant = choose_variant()
         import mitsuba as mi
 
         mi.set_variant(variant)
+        register_sensor(mi)
         _MI = mi
     return _MI
-
-
-def variant_name() -> str:
-    """Return the active Mitsuba variant (imports mitsuba if needed)."""
-    return mitsuba().variant()

@@ -6,6 +6,10 @@ the ray whose OpenCV projection (``cv2.projectPoints``, same K and Brown-Conrady
 lands on that sample. All its parameters are opaque Dr.Jit variables, so changing the pose, the
 intrinsics or the crop window between renders reuses the compiled kernel.
 
+Nothing happens at import: :func:`register_sensor` defines the class (it subclasses ``mi.Sensor``,
+so it needs the variant set) and registers it as :data:`PLUGIN_NAME`; the renderer's one set-up
+function, :func:`simgap.render.backend.mitsuba`, calls it.
+
 Parameters
 ----------
 film : hdrfilm
@@ -13,6 +17,7 @@ film : hdrfilm
 
 Example
 -------
+>>> mi = simgap.render.backend.mitsuba()   # sets the variant and calls register_sensor(mi)
 >>> cam = scene.sensors()[0]
 >>> cam.set_intrinsics(fx=1386, fy=1386, cx=959.5, cy=539.5, distortion=(0, 0, 0, 0, 0))
 >>> cam.set_pose(rail_from_cv)          # 4x4, OpenCV camera axes in the scene frame
@@ -21,106 +26,126 @@ Example
 
 from __future__ import annotations
 
+from types import ModuleType
+
 import numpy as np
-
-from simgap.render.backend import mitsuba
-
-mi = mitsuba()
-import drjit as dr  # noqa: E402  (imported after the variant is set)
 
 PLUGIN_NAME = "opencv_camera"
 #: Fixed-point iterations used to invert Brown-Conrady distortion per ray; 20 reach < 1e-6 px for
 #: D435-sized coefficients (checked against cv2.projectPoints in tests/test_render.py).
 UNDISTORT_ITERATIONS = 20
 
-
-def _opaque(values) -> list:
-    return [dr.opaque(mi.Float, float(v)) for v in values]
+_REGISTERED: set[str] = set()
 
 
-class OpenCVCamera(mi.Sensor):
-    """Pinhole + Brown-Conrady sensor with a movable crop window (see module docstring)."""
+def register_sensor(mi: ModuleType) -> None:
+    """Define :class:`OpenCVCamera` for ``mi``'s variant and register it as :data:`PLUGIN_NAME`.
 
-    def __init__(self, props: mi.Properties) -> None:
-        super().__init__(props)
-        self.set_intrinsics(1000.0, 1000.0, 0.0, 0.0, (0.0,) * 5)
-        self.set_pose(np.eye(4))
-        self.set_crop_offset(0, 0)
-        self.set_lens(0.0, 1.0)
+    Idempotent per variant. Called by :func:`simgap.render.backend.mitsuba` once the variant is
+    set; nothing registers at import.
 
-    def set_intrinsics(self, fx: float, fy: float, cx: float, cy: float, distortion) -> None:
-        """Set focal lengths and principal point (px) and ``(k1, k2, p1, p2, k3)``."""
-        self._k = _opaque((fx, fy, cx, cy))
-        self._has_distortion = bool(np.any(np.asarray(distortion, float) != 0.0))
-        self._dist = _opaque(distortion)
-
-    def set_pose(self, scene_from_cv: np.ndarray) -> None:
-        """Set the camera pose: OpenCV camera frame in the scene frame (4x4, m)."""
-        m = np.asarray(scene_from_cv, float)
-        self._m = [_opaque(m[i]) for i in range(3)]
-
-    def set_crop_offset(self, x0: int, y0: int) -> None:
-        """Set the full-image pixel of the film's top-left corner (px)."""
-        self._offset = _opaque((x0, y0))
-
-    def set_lens(self, aperture_radius: float, focus_distance: float) -> None:
-        """Thin lens: aperture radius (m; 0 = pinhole) and in-focus distance along z (m)."""
-        self._thin_lens = aperture_radius > 0.0
-        self._lens = _opaque((aperture_radius, focus_distance))
-
-    def _undistort(self, xd, yd):
-        k1, k2, p1, p2, k3 = self._dist
-        x, y = xd, yd
-        for _ in range(UNDISTORT_ITERATIONS):
-            r2 = x * x + y * y
-            radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-            dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
-            dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
-            x = (xd - dx) / radial
-            y = (yd - dy) / radial
-        return x, y
-
-    def sample_ray(self, time, sample1, sample2, sample3, active=True):
-        """Return the ray through film position ``sample2`` (in [0, 1]^2 of the crop)."""
-        fx, fy, cx, cy = self._k
-        size = mi.ScalarVector2f(self.film().crop_size())
-        u = self._offset[0] + sample2.x * size.x - 0.5
-        v = self._offset[1] + sample2.y * size.y - 0.5
-        x, y = (u - cx) / fx, (v - cy) / fy
-        if self._has_distortion:
-            x, y = self._undistort(x, y)
-        ox = oy = mi.Float(0.0)
-        dx, dy, dz = x, y, mi.Float(1.0)
-        if self._thin_lens:
-            # chief ray through the lens centre is the pinhole ray: blur is centred on it
-            radius, focus = self._lens
-            lens = mi.warp.square_to_uniform_disk_concentric(sample3) * radius
-            ox, oy = lens.x, lens.y
-            dx, dy, dz = x * focus - ox, y * focus - oy, focus
-        m = self._m
-        d = mi.Vector3f(
-            m[0][0] * dx + m[0][1] * dy + m[0][2] * dz,
-            m[1][0] * dx + m[1][1] * dy + m[1][2] * dz,
-            m[2][0] * dx + m[2][1] * dy + m[2][2] * dz,
-        )
-        origin = mi.Point3f(
-            m[0][0] * ox + m[0][1] * oy + m[0][3],
-            m[1][0] * ox + m[1][1] * oy + m[1][3],
-            m[2][0] * ox + m[2][1] * oy + m[2][3],
-        )
-        return mi.Ray3f(origin, dr.normalize(d), time, []), mi.Spectrum(1.0)
-
-    def sample_ray_differential(self, time, sample1, sample2, sample3, active=True):
-        """Ray without differentials (textures use nearest filtering)."""
-        ray, weight = self.sample_ray(time, sample1, sample2, sample3, active)
-        return mi.RayDifferential3f(ray), weight
-
-    def traverse(self, callback) -> None:
-        """Expose nothing to ``mi.traverse``: parameters are set through the ``set_*`` methods."""
-
-    def to_string(self) -> str:
-        """Short description."""
-        return "OpenCVCamera[]"
+    Parameters
+    ----------
+    mi : module
+        The ``mitsuba`` module with its variant set.
+    """
+    variant = mi.variant()
+    if variant in _REGISTERED:
+        return
+    cls = _sensor_class(mi)
+    mi.register_sensor(PLUGIN_NAME, lambda props: cls(props))
+    _REGISTERED.add(variant)
 
 
-mi.register_sensor(PLUGIN_NAME, lambda props: OpenCVCamera(props))
+def _sensor_class(mi: ModuleType) -> type:
+    """The sensor class, built on ``mi.Sensor`` of the active variant."""
+    import drjit as dr
+
+    def _opaque(values) -> list:
+        return [dr.opaque(mi.Float, float(v)) for v in values]
+
+    class OpenCVCamera(mi.Sensor):
+        """Pinhole + Brown-Conrady sensor with a movable crop window (see module docstring)."""
+
+        def __init__(self, props: mi.Properties) -> None:
+            super().__init__(props)
+            self.set_intrinsics(1000.0, 1000.0, 0.0, 0.0, (0.0,) * 5)
+            self.set_pose(np.eye(4))
+            self.set_crop_offset(0, 0)
+            self.set_lens(0.0, 1.0)
+
+        def set_intrinsics(self, fx: float, fy: float, cx: float, cy: float, distortion) -> None:
+            """Set focal lengths and principal point (px) and ``(k1, k2, p1, p2, k3)``."""
+            self._k = _opaque((fx, fy, cx, cy))
+            self._has_distortion = bool(np.any(np.asarray(distortion, float) != 0.0))
+            self._dist = _opaque(distortion)
+
+        def set_pose(self, scene_from_cv: np.ndarray) -> None:
+            """Set the camera pose: OpenCV camera frame in the scene frame (4x4, m)."""
+            m = np.asarray(scene_from_cv, float)
+            self._m = [_opaque(m[i]) for i in range(3)]
+
+        def set_crop_offset(self, x0: int, y0: int) -> None:
+            """Set the full-image pixel of the film's top-left corner (px)."""
+            self._offset = _opaque((x0, y0))
+
+        def set_lens(self, aperture_radius: float, focus_distance: float) -> None:
+            """Thin lens: aperture radius (m; 0 = pinhole) and in-focus distance along z (m)."""
+            self._thin_lens = aperture_radius > 0.0
+            self._lens = _opaque((aperture_radius, focus_distance))
+
+        def _undistort(self, xd, yd):
+            k1, k2, p1, p2, k3 = self._dist
+            x, y = xd, yd
+            for _ in range(UNDISTORT_ITERATIONS):
+                r2 = x * x + y * y
+                radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+                dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+                dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+                x = (xd - dx) / radial
+                y = (yd - dy) / radial
+            return x, y
+
+        def sample_ray(self, time, sample1, sample2, sample3, active=True):
+            """Return the ray through film position ``sample2`` (in [0, 1]^2 of the crop)."""
+            fx, fy, cx, cy = self._k
+            size = mi.ScalarVector2f(self.film().crop_size())
+            u = self._offset[0] + sample2.x * size.x - 0.5
+            v = self._offset[1] + sample2.y * size.y - 0.5
+            x, y = (u - cx) / fx, (v - cy) / fy
+            if self._has_distortion:
+                x, y = self._undistort(x, y)
+            ox = oy = mi.Float(0.0)
+            dx, dy, dz = x, y, mi.Float(1.0)
+            if self._thin_lens:
+                # chief ray through the lens centre is the pinhole ray: blur is centred on it
+                radius, focus = self._lens
+                lens = mi.warp.square_to_uniform_disk_concentric(sample3) * radius
+                ox, oy = lens.x, lens.y
+                dx, dy, dz = x * focus - ox, y * focus - oy, focus
+            m = self._m
+            d = mi.Vector3f(
+                m[0][0] * dx + m[0][1] * dy + m[0][2] * dz,
+                m[1][0] * dx + m[1][1] * dy + m[1][2] * dz,
+                m[2][0] * dx + m[2][1] * dy + m[2][2] * dz,
+            )
+            origin = mi.Point3f(
+                m[0][0] * ox + m[0][1] * oy + m[0][3],
+                m[1][0] * ox + m[1][1] * oy + m[1][3],
+                m[2][0] * ox + m[2][1] * oy + m[2][3],
+            )
+            return mi.Ray3f(origin, dr.normalize(d), time, []), mi.Spectrum(1.0)
+
+        def sample_ray_differential(self, time, sample1, sample2, sample3, active=True):
+            """Ray without differentials (textures use nearest filtering)."""
+            ray, weight = self.sample_ray(time, sample1, sample2, sample3, active)
+            return mi.RayDifferential3f(ray), weight
+
+        def traverse(self, callback) -> None:
+            """Expose nothing to ``mi.traverse``: parameters are set by the ``set_*`` methods."""
+
+        def to_string(self) -> str:
+            """Short description."""
+            return "OpenCVCamera[]"
+
+    return OpenCVCamera

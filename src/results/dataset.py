@@ -8,18 +8,27 @@ Build it with :func:`build_dataset`, write it with :func:`write_netcdf` (atomic)
 from __future__ import annotations
 
 import math
+import platform
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+import cv2
 import numpy as np
 import xarray as xr
 
+import simgap
 from simgap.core.atomic import atomic_write
-from simgap.core.config import ConfigError
+from simgap.core.axes import AXES, AXIS_UNITS
+from simgap.core.config import ConfigError, from_mapping, parse_yaml
+from simgap.core.rig import CameraModel, Rig
 from simgap.pose.image_stats import STATS
+from simgap.pose.tags import empty_tag_arrays
 
-AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
-ERROR_UNITS = "m (tx, ty, tz); rad (rx, ry, rz)"
+#: ``units`` attr of the pose and error variables: ``"m (tx, ty, tz); rad (rx, ry, rz)"``.
+ERROR_UNITS = "; ".join(
+    f"{unit} ({', '.join(a for a in AXES if AXIS_UNITS[a] == unit)})"
+    for unit in dict.fromkeys(AXIS_UNITS.values())
+)
 FULL_DIMS = ("variant", "repeat", "tag", "p", "theta")
 #: The contract (DESIGN §3): variable -> (dims, kind), kind "number" or "boolean".
 #: ``visible`` may also have a leading ``variant`` dim.
@@ -43,6 +52,8 @@ COORDS = {
 }
 #: Variables the analyses read unless they say otherwise.
 REQUIRED = ("error", "detected", "visible")
+#: ``conventions`` attr of every result dataset: the frame the poses are expressed in.
+CONVENTIONS = "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)"
 
 
 class DatasetError(ConfigError):
@@ -154,9 +165,7 @@ def check_dataset(
 
 
 def _check_calibration_attr(text: object, where: str) -> None:
-    from simgap.core.config import from_mapping, parse_yaml
-    from simgap.core.rig import CameraModel
-
+    """Refuse a ``calibration_yaml`` attr that is not a valid :class:`CameraModel` mapping."""
     label = f"{where}attrs.calibration_yaml"
     data = parse_yaml(text, label) if isinstance(text, str) else None
     if not isinstance(data, dict):
@@ -168,15 +177,11 @@ def _check_calibration_attr(text: object, where: str) -> None:
 
 
 def empty_results(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
-    """Result arrays of ``shape`` (variant, repeat, tag, p, theta): none detected, NaN poses."""
-    return {
-        "detected": np.zeros(shape, bool),
-        "estimated": np.full(shape + (6,), np.nan),
-        "error": np.full(shape + (6,), np.nan),
-        "reproj_px": np.full(shape, np.nan),
-        "corners": np.full(shape + (4, 2), np.nan),
-        "image_stats": np.full(shape + (len(STATS),), np.nan),
-    }
+    """Result arrays of ``shape`` (variant, repeat, tag, p, theta): none detected, NaN poses.
+
+    See :func:`simgap.pose.tags.empty_tag_arrays` (fields, dtypes and units).
+    """
+    return empty_tag_arrays(shape)
 
 
 def result_nbytes(n_configurations: int) -> int:
@@ -187,6 +192,43 @@ def result_nbytes(n_configurations: int) -> int:
     """
     per = sum(a.nbytes for a in empty_results((1,)).values())
     return int(n_configurations) * per
+
+
+def ground_truth(
+    rig: Rig, tags: Sequence[int], ps: Sequence[int], thetas: Sequence[float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``expected`` and ``visible`` arrays of a dataset, from the rig's CAD tree.
+
+    Parameters
+    ----------
+    rig : Rig
+        The nominal rig (ground truth).
+    tags, ps, thetas
+        Tag ids, pin holes and turntable angles (rad).
+
+    Returns
+    -------
+    expected : ndarray (tag, p, theta, 6)
+        Expected poses, global frame (m, rad).
+    visible : ndarray of bool (tag, p, theta)
+        Whether each tag is expected to be detectable.
+    """
+    expected = np.array(
+        [[[rig.expected_pose(t, p, th) for th in thetas] for p in ps] for t in tags]
+    )
+    visible = np.array([[[rig.is_visible(t, p, th) for th in thetas] for p in ps] for t in tags])
+    return expected, visible
+
+
+def software_versions() -> dict[str, str]:
+    """Provenance attrs shared by every result dataset: simgap, OpenCV, NumPy, xarray, Python."""
+    return {
+        "simgap_version": simgap.__version__,
+        "opencv_version": cv2.__version__,
+        "numpy_version": np.__version__,
+        "xarray_version": xr.__version__,
+        "python_version": platform.python_version(),
+    }
 
 
 def build_dataset(

@@ -1,0 +1,31 @@
+"""simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
+
+Commands: run, report, compare, study, ingest, export-bag, errormodel, diagnose, validate, effects,
+assets.
+
+Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
+shows the traceback instead).
+
+Modules: :mod:`.app` (the Typer app and its error path), then the commands by job, registered in
+the order ``--help`` lists them: :mod:`.simulate`, :mod:`.real`, :mod:`.diagnose`,
+:mod:`.catalogue`.
+"""
+
+from __future__ import annotations
+
+from simgap.cli.app import app
+
+# Command modules register their commands on import, in the order ``--help`` lists them.
+# isort: split
+from simgap.cli import simulate  # noqa: F401
+
+# isort: split
+from simgap.cli import real  # noqa: F401
+
+# isort: split
+from simgap.cli import diagnose  # noqa: F401
+
+# isort: split
+from simgap.cli import catalogue  # noqa: F401
+
+__all__ = ["app"]

@@ -1,0 +1,5 @@
+"""``python -m simgap.cli``."""
+
+from simgap.cli import app
+
+app()

@@ -1,0 +1,118 @@
+"""The Typer app of the command line: one error path (exit code 2, one line), shared options."""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+import typer
+
+from simgap.core.config import ConfigError
+
+#: The app's ``--help`` text (the command line's description, unchanged from the one-module CLI).
+HELP = (
+    "simgap: simulate the PASS fixture study, compare rendering options, diagnose the "
+    "sim-to-real gap."
+    """
+
+Commands: run, report, compare, study, ingest, export-bag, errormodel, diagnose, validate, effects,
+assets.
+
+Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
+shows the traceback instead).
+"""
+)
+_STATE = {"debug": False}
+
+
+def _error_line(exc: BaseException, paths: list[Path]) -> str:
+    """One line for ``exc``, prefixed with the command's input file unless it names a file."""
+    if isinstance(exc, OSError) and exc.filename and exc.strerror:
+        message = f"{exc.filename}: {exc.strerror}"
+    elif isinstance(exc, (ConfigError, ValueError, OSError)):
+        message = str(exc)
+    elif isinstance(exc, MemoryError):
+        message = "out of memory (reduce the experiment's size)"
+    else:
+        message = f"{type(exc).__name__}: {exc} (unexpected; rerun with --debug for the traceback)"
+    if paths and not any(str(p) in message for p in paths):
+        message = f"{paths[0]}: {message}"
+    return " ".join(message.split())
+
+
+def _handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Run a command; any error exits with code 2 and one line (the traceback with --debug)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except Exception as exc:
+            if _STATE["debug"]:
+                raise
+            bound = inspect.signature(func).bind_partial(*args, **kwargs).arguments
+            paths = [v for v in bound.values() if isinstance(v, Path)]
+            _fail(_error_line(exc, paths))
+
+    return wrapper
+
+
+class _App(typer.Typer):
+    """A Typer app whose commands all go through :func:`_handle_errors` (one place)."""
+
+    def command(self, *args: Any, **kwargs: Any) -> Callable[[Callable], Callable]:
+        """Register a command, wrapped by :func:`_handle_errors`."""
+        register = super().command(*args, **kwargs)
+        return lambda func: register(_handle_errors(func))
+
+
+app = _App(add_completion=False, no_args_is_help=True, help=HELP)
+
+
+@app.callback()
+def main(
+    debug: bool = typer.Option(
+        False, "--debug", help="Show the full traceback of an error instead of one line."
+    ),
+) -> None:
+    """Simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap."""
+    _STATE["debug"] = debug
+
+
+CACHE_HELP = "Cache folder for renders and results (default: $SIMGAP_CACHE or ~/.cache/simgap)."
+SCHEDULER_HELP = (
+    "Dask scheduler address (tcp://HOST:PORT); default: an in-process LocalCluster. "
+    "Workers must see the cache folder under the same path."
+)
+
+
+def _fail(message: str) -> None:
+    typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+    raise typer.Exit(code=2)
+
+
+def _experiment(path: Path):
+    """Load an experiment file (errors name the file and key)."""
+    from simgap.pipeline.experiment import load_experiment
+
+    return load_experiment(path)
+
+
+def _load_sim(sim: Path):
+    """An experiment from YAML, or the experiment a result dataset was made with."""
+    from simgap.pipeline.experiment import experiment_from_yaml
+
+    if sim.suffix in (".yaml", ".yml"):
+        return _experiment(sim)
+    from simgap.results.dataset import read_netcdf
+
+    ds = read_netcdf(sim)
+    if "experiment_yaml" not in ds.attrs:
+        raise ConfigError(f"{sim}: not a simgap result dataset (no experiment_yaml attribute)")
+    return experiment_from_yaml(ds.attrs["experiment_yaml"], source=str(sim))

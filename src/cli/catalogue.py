@@ -1,0 +1,50 @@
+"""The effects catalogue, the assets, and the one-shot study (run + report)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from simgap.cli.app import CACHE_HELP, SCHEDULER_HELP, _experiment, app
+from simgap.cli.simulate import report, run
+
+
+@app.command()
+def effects() -> None:
+    """List the effects catalogue: name, stage, what it models, parameters and defaults."""
+    import dataclasses
+
+    from simgap.effects import EFFECTS
+
+    for name in sorted(EFFECTS, key=lambda n: (EFFECTS[n].stage, n)):
+        cls = EFFECTS[name]
+        doc = " ".join((cls.__doc__ or "").split("\n\n")[0].split())
+        defaults = cls.Params()
+        params = ", ".join(
+            f"{f.name}={getattr(defaults, f.name)!r}" for f in dataclasses.fields(cls.Params)
+        )
+        typer.echo(f"{name:20s} [{cls.stage}] {doc}\n{'':21s} {params}")
+
+
+@app.command()
+def assets() -> None:
+    """Regenerate fixture meshes and tag textures in assets/."""
+    from simgap.render.assets import write_assets
+
+    for p in write_assets():
+        typer.echo(str(p))
+
+
+@app.command()
+def study(
+    experiment: Path = typer.Argument(Path("experiments/baseline.yaml"), help="Experiment YAML."),
+    output: Path = typer.Option(Path("results"), "-o", "--output", help="Output folder."),
+    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+    scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
+) -> None:
+    """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
+    name = _experiment(experiment).name
+    nc = output / f"{name}.nc"
+    run(experiment, nc, cache, True, scheduler)
+    report(nc, output / f"{name}-report", None)

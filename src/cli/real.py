@@ -1,0 +1,103 @@
+"""Commands on real data: ingest a capture folder or a ROS bag, export a bag."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from simgap.cli.app import CACHE_HELP, _experiment, _fail, _load_sim, app
+
+
+@app.command()
+def ingest(
+    capture: Path = typer.Argument(
+        ..., help="Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag."
+    ),
+    output: Path = typer.Option(..., "-o", "--output", help="Result dataset to write (netCDF)."),
+    experiment: Path | None = typer.Option(
+        None, "--experiment", help="Take rig, detector and PnP settings from this experiment YAML."
+    ),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+    ranges: Path | None = typer.Option(
+        None,
+        "--ranges",
+        help="Bag only: CSV start_ns,end_ns,p,theta_rad giving each frame's p, theta.",
+    ),
+    image_topic: str | None = typer.Option(None, "--image-topic", help="Bag only: frames topic."),
+    camera_info_topic: str | None = typer.Option(
+        None, "--camera-info-topic", help="Bag only: CameraInfo topic."
+    ),
+    fixture_topic: str | None = typer.Option(
+        None, "--fixture-topic", help="Bag only: JointState topic (default /simgap/fixture)."
+    ),
+    keep_capture: Path | None = typer.Option(
+        None, "--keep-capture", help="Bag only: keep the intermediate capture folder here."
+    ),
+) -> None:
+    """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
+    from simgap.pipeline.capture import ingest as ingest_capture
+    from simgap.results.dataset import write_netcdf
+
+    kwargs = {}
+    if experiment is not None:
+        exp = _experiment(experiment)
+        kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
+    from simgap.pipeline.bag import ingest_bag, is_bag
+
+    if is_bag(capture):
+        bag_options = {
+            "ranges_csv": ranges,
+            "image_topic": image_topic,
+            "camera_info_topic": camera_info_topic,
+            "fixture_topic": fixture_topic,
+            "keep_capture": keep_capture,
+        }
+        ds = ingest_bag(capture, show_progress=progress, **bag_options, **kwargs)
+    else:
+        ds = ingest_capture(capture, show_progress=progress, **kwargs)
+    write_netcdf(ds, output)
+    vis = ds.visible.values
+    det = ds.detected.values[0].any(axis=0)
+    typer.echo(
+        f"wrote {output}: {ds.attrs['frames']} frame(s), {ds.attrs['frames_unreadable']} "
+        f"unreadable; {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
+    )
+
+
+@app.command("export-bag")
+def export_bag(
+    source: Path = typer.Argument(
+        ..., help="Experiment YAML, simulated result dataset (.nc) or capture folder."
+    ),
+    output: Path = typer.Option(..., "-o", "--output", help="Bag to write: .bag file or folder."),
+    fmt: str | None = typer.Option(
+        None, "--format", help="ros1 or ros2 (default: ros1 for a .bag output, else ros2)."
+    ),
+    compressed: bool = typer.Option(
+        False, "--compressed/--raw", help="CompressedImage (PNG, or the file's bytes) or raw bgr8."
+    ),
+    variant: str | None = typer.Option(
+        None, "--variant", help="Variant to export (default: first)."
+    ),
+    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+) -> None:
+    """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
+    from simgap.core.paths import default_cache_dir
+    from simgap.pipeline.bag import BAG_FORMATS, capture_to_bag, experiment_to_bag
+
+    fmt = fmt or ("ros1" if output.suffix == ".bag" else "ros2")
+    if fmt not in BAG_FORMATS:
+        _fail(f"--format: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
+    if source.is_dir():
+        path = capture_to_bag(source, output, fmt, compressed=compressed)
+    else:
+        dataset = None
+        if source.suffix == ".nc":
+            from simgap.results.dataset import check_dataset, read_netcdf
+
+            dataset = check_dataset(read_netcdf(source), source)
+        exp = _load_sim(source)
+        cache_dir = cache or default_cache_dir()
+        path = experiment_to_bag(exp, cache_dir, output, fmt, dataset, variant, compressed)
+    typer.echo(f"wrote {path} ({fmt})")

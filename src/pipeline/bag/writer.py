@@ -1,0 +1,304 @@
+"""Write ROS bags: frames, camera info, fixture joints and tag poses (aruco_ros style)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import xarray as xr
+from scipy.spatial.transform import Rotation
+
+from simgap.core import transforms as tf
+from simgap.core.atomic import staged_path
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel, Rig, load_rig
+from simgap.pipeline.bag.formats import (
+    BAG_FORMATS,
+    CAMERA_INFO_TOPIC,
+    CAMERA_INFO_TYPE,
+    CARRIAGE_JOINT,
+    COMPRESSED_TOPIC,
+    COMPRESSED_TYPE,
+    FIXTURE_TOPIC,
+    IMAGE_TOPIC,
+    IMAGE_TYPE,
+    JOINT_STATE_TYPE,
+    OPTICAL_FRAME,
+    PERIOD_NS,
+    POSE_TYPE,
+    START_NS,
+    TURNTABLE_JOINT,
+    BagFormat,
+)
+from simgap.pipeline.capture.folder import read_capture
+
+
+@dataclass(frozen=True)
+class BagFrame:
+    """One frame to write.
+
+    Attributes
+    ----------
+    p, theta, repeat
+        Fixture configuration: pin hole, turntable angle (rad), repeat index.
+    image : ndarray or (bytes, str)
+        An 8-bit RGB (H, W, 3) or grey (H, W) array, or a file's bytes and its extension
+        (``"png"`` or ``"jpg"``), kept as they are in a CompressedImage.
+    expected, estimated : mapping of int to ndarray (6,)
+        Poses per tag id in the global frame (m, rotation vector rad); NaN poses are skipped.
+    """
+
+    p: int
+    theta: float
+    repeat: int
+    image: np.ndarray | tuple[bytes, str]
+    expected: Mapping[int, np.ndarray] = field(default_factory=dict)
+    estimated: Mapping[int, np.ndarray] = field(default_factory=dict)
+
+
+def _typestore(fmt: BagFormat):
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS1_NOETIC if fmt == "ros1" else Stores.ROS2_HUMBLE)
+
+
+class _Messages:
+    """Message builders for one typestore (ROS 1 and ROS 2 differ in field names)."""
+
+    def __init__(self, fmt: BagFormat) -> None:
+        self.fmt, self.ts = fmt, _typestore(fmt)
+        self.types = self.ts.types
+
+    def header(self, ns: int, frame_id: str = OPTICAL_FRAME):
+        stamp = self.types["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+        extra = {"seq": 0} if self.fmt == "ros1" else {}
+        return self.types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id, **extra)
+
+    def serialize(self, msg: Any) -> bytes:
+        if self.fmt == "ros1":
+            return bytes(self.ts.serialize_ros1(msg, msg.__msgtype__))
+        return bytes(self.ts.serialize_cdr(msg, msg.__msgtype__))
+
+    def image(self, ns: int, image: np.ndarray | tuple[bytes, str], compressed: bool):
+        if isinstance(image, tuple):
+            data, ext = image
+            if not compressed:
+                bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+                return self.image(ns, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), False)
+            fmt = "jpeg" if ext in ("jpg", "jpeg") else "png"
+            return self.types[COMPRESSED_TYPE](
+                header=self.header(ns), format=fmt, data=np.frombuffer(data, np.uint8)
+            )
+        img = np.asarray(image)
+        if img.dtype != np.uint8 or img.ndim not in (2, 3):
+            raise ValueError(f"image: expected 8-bit RGB or grey, got {img.dtype} {img.shape}")
+        bgr = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
+        if compressed:
+            ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+            return self.image(ns, (buf.tobytes(), "png"), True)
+        h, w = bgr.shape[:2]
+        enc, step = ("mono8", w) if bgr.ndim == 2 else ("bgr8", 3 * w)
+        return self.types[IMAGE_TYPE](
+            header=self.header(ns), height=h, width=w, encoding=enc, is_bigendian=0,
+            step=step, data=np.ascontiguousarray(bgr).reshape(-1),
+        )  # fmt: skip
+
+    def camera_info(self, ns: int, cal: CameraModel):
+        proj = [cal.fx, 0.0, cal.cx, 0.0, 0.0, cal.fy, cal.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+        mats = {
+            "d": np.asarray(cal.distortion, float),
+            "k": cal.matrix.ravel(),
+            "r": np.eye(3).ravel(),
+            "p": np.asarray(proj, float),
+        }
+        if self.fmt == "ros1":
+            mats = {k.upper(): v for k, v in mats.items()}
+        roi = self.types["sensor_msgs/msg/RegionOfInterest"](
+            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+        )
+        return self.types[CAMERA_INFO_TYPE](
+            header=self.header(ns), height=cal.height, width=cal.width,
+            distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi, **mats,
+        )  # fmt: skip
+
+    def joints(self, ns: int, travel_m: float, theta: float):
+        return self.types[JOINT_STATE_TYPE](
+            header=self.header(ns, "rail"), name=[CARRIAGE_JOINT, TURNTABLE_JOINT],
+            position=np.array([travel_m, theta]), velocity=np.zeros(0), effort=np.zeros(0),
+        )  # fmt: skip
+
+    def pose(self, ns: int, pose6: np.ndarray):
+        """A PoseStamped in the optical frame from a global-frame pose (m, rotation vector)."""
+        eye_from_tag = tf.make(tf.rotvec_to_matrix(pose6[3:]), pose6[:3])
+        cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ eye_from_tag
+        x, y, z, w = Rotation.from_matrix(cv_from_tag[:3, :3]).as_quat()
+        t = self.types
+        point = t["geometry_msgs/msg/Point"](*(float(v) for v in cv_from_tag[:3, 3]))
+        quat = t["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w))
+        return t[POSE_TYPE](
+            header=self.header(ns),
+            pose=t["geometry_msgs/msg/Pose"](position=point, orientation=quat),
+        )
+
+
+def write_bag(
+    path: Path,
+    fmt: BagFormat,
+    calibration: CameraModel,
+    frames: Iterable[BagFrame],
+    rig: Rig,
+    compressed: bool = False,
+) -> Path:
+    """Write frames, calibration, fixture joints and poses as a ROS 1 or ROS 2 bag, atomically.
+
+    Parameters
+    ----------
+    path : Path
+        The ``.bag`` file (ROS 1) or bag folder (ROS 2) to write; replaced if it exists.
+    fmt : {"ros1", "ros2"}
+        Bag format (ROS 1 noetic messages, or ROS 2 humble messages in SQLite 3 storage).
+    calibration : CameraModel
+        Published as ``sensor_msgs/CameraInfo`` with every frame.
+    frames : iterable of BagFrame
+        Consumed once, in order; frame ``i`` is stamped ``START_NS + i * PERIOD_NS`` (ns).
+    rig : Rig
+        The carriage joint is the travel ``p * pin_pitch`` (m).
+    compressed : bool
+        Frames as ``sensor_msgs/CompressedImage`` on :data:`COMPRESSED_TOPIC` (array frames
+        encoded as PNG, file bytes kept) instead of raw ``bgr8`` on :data:`IMAGE_TOPIC`.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import Writer as Writer2
+
+    if fmt not in BAG_FORMATS:
+        raise ValueError(f"fmt: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
+    build = _Messages(fmt)
+    with staged_path(path) as tmp:
+        writer = Writer1(tmp) if fmt == "ros1" else Writer2(tmp, version=9)
+        conns: dict[str, Any] = {}
+
+        def put(topic: str, msg: Any, ns: int) -> None:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, msg.__msgtype__, typestore=build.ts)
+            writer.write(conns[topic], ns, build.serialize(msg))
+
+        with writer:
+            for i, frame in enumerate(frames):
+                ns = START_NS + i * PERIOD_NS
+                travel = frame.p * rig.links.pin_pitch
+                put(FIXTURE_TOPIC, build.joints(ns, travel, float(frame.theta)), ns)
+                put(CAMERA_INFO_TOPIC, build.camera_info(ns, calibration), ns)
+                topic = COMPRESSED_TOPIC if compressed else IMAGE_TOPIC
+                put(topic, build.image(ns, frame.image, compressed), ns)
+                for kind, poses in (("expected", frame.expected), ("estimated", frame.estimated)):
+                    for tag, pose in sorted(poses.items()):
+                        if np.all(np.isfinite(pose)):
+                            put(f"/simgap/tag{tag}/{kind}", build.pose(ns, np.asarray(pose)), ns)
+    return Path(path)
+
+
+def _expected(rig: Rig, p: int, theta: float) -> dict[int, np.ndarray]:
+    return {t: rig.expected_pose(t, p, theta) for t in rig.tags.ids}
+
+
+def capture_to_bag(
+    folder: Path, bag: Path, fmt: BagFormat, rig: Rig | None = None, compressed: bool = False
+) -> Path:
+    """Export a capture folder as a bag (frames in manifest order, ground truth from the rig).
+
+    With ``compressed`` the image files' bytes are kept (PNG or JPEG); otherwise frames
+    are decoded to raw ``bgr8``. Either way :func:`ingest_bag` of the bag gives the same data as
+    :func:`simgap.pipeline.capture.ingest` of the folder (repeats renumbered 0, 1, ... in
+    manifest order).
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        As :func:`simgap.pipeline.capture.read_capture`.
+    """
+    rig = rig or load_rig()
+    cap = read_capture(Path(folder), rig)
+
+    def frames() -> Iterator[BagFrame]:
+        for f in sorted(cap.frames, key=lambda f: f.repeat):
+            image = (f.image.read_bytes(), f.image.suffix.lstrip(".").lower())
+            yield BagFrame(f.p, f.theta, f.repeat, image, _expected(rig, f.p, f.theta))
+
+    return write_bag(bag, fmt, cap.calibration, frames(), rig, compressed)
+
+
+def experiment_to_bag(
+    exp: Any,
+    cache_dir: Path,
+    bag: Path,
+    fmt: BagFormat,
+    dataset: xr.Dataset | None = None,
+    variant: str | None = None,
+    compressed: bool = False,
+) -> Path:
+    """Export an experiment's frames (from the render cache, rendered where missing) as a bag.
+
+    Parameters
+    ----------
+    exp : simgap.pipeline.experiment.Experiment
+        The experiment; its configurations are exported, or the dataset's when given.
+    cache_dir : Path
+        Render cache.
+    bag : Path
+        Output bag.
+    fmt : {"ros1", "ros2"}
+        Bag format.
+    dataset : xarray.Dataset, optional
+        A result dataset of ``exp``: its configurations and its estimated poses are written too.
+    variant : str, optional
+        Variant to export (default: the first).
+    compressed : bool
+        As :func:`write_bag`.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        If ``variant`` is not a variant of the experiment.
+    """
+    from simgap.pipeline.sweep import experiment_pipelines
+
+    names = [name for name, _ in exp.variant_states()]
+    variant = variant or names[0]
+    if variant not in names:
+        raise ConfigError(f"variant: expected one of {', '.join(names)}, got {variant!r}")
+    pipe = experiment_pipelines(exp, Path(cache_dir))[names.index(variant)]
+    rig = exp.rig_model
+    if dataset is not None:
+        ds = dataset.sel(variant=variant)
+        ps, thetas, repeats = ds.p.values, ds.theta.values, ds.repeat.values
+    else:
+        ps, thetas, _ = exp.configuration_axes()
+        repeats = range(exp.repeats)
+
+    def frames() -> Iterator[BagFrame]:
+        for repeat in repeats:
+            for p in ps:
+                for theta in thetas:
+                    render_repeat = int(repeat) if exp.render.reseed_repeats else 0
+                    frame = pipe.frame(int(p), float(theta), int(repeat), render_repeat)
+                    if frame is None:
+                        continue
+                    est = {}
+                    if dataset is not None:
+                        sel = ds.estimated.sel(repeat=repeat, p=p, theta=theta)
+                        est = {int(t): sel.sel(tag=t).values for t in sel.tag.values}
+                    yield BagFrame(
+                        int(p), float(theta), int(repeat), frame.rgb(),
+                        _expected(rig, int(p), float(theta)), est,
+                    )  # fmt: skip
+
+    return write_bag(bag, fmt, pipe.state.estimation.calibration, frames(), rig, compressed)

@@ -1,0 +1,201 @@
+"""Calibration files: a registry of formats, each a reader, a writer and a can-open check.
+
+Like xarray's backends, every format is a small :class:`CalibrationFormat` registered under its name
+(:data:`CALIBRATION_FORMATS`); :func:`read_calibration` asks each format, in registration order,
+whether it can open a file's text and reads it with the first that can, and
+:func:`calibration_to_yaml` writes with the named one. The formats of DESIGN §3 are
+:mod:`~simgap.pipeline.capture.opencv_yaml` (OpenCV FileStorage YAML, recognised by its ``%YAML``
+first line) and :mod:`~simgap.pipeline.capture.ros_yaml` (ROS camera_info YAML, everything else);
+this module holds the checks both share.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from simgap.core.config import ConfigError, read_text
+from simgap.core.rig import MAX_IMAGE_SIDE_PX, CameraModel
+
+#: Distortion models accepted in a calibration file (Brown-Conrady k1, k2, p1, p2, k3).
+DISTORTION_MODELS = ("plumb_bob",)
+#: Brown-Conrady coefficients a camera model holds (k1, k2, p1, p2, k3).
+N_DISTORTION = 5
+#: Tolerance on the fixed zeros and one of a camera matrix ``[fx, 0, cx, 0, fy, cy, 0, 0, 1]``.
+MATRIX_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class CalibrationFormat:
+    """One calibration file format.
+
+    Attributes
+    ----------
+    name : str
+        Registry key (the ``fmt`` of :func:`calibration_to_yaml`).
+    can_open : callable
+        ``can_open(text) -> bool``: whether the file's text is in this format.
+    read : callable
+        ``read(path, text, width, height) -> CameraModel``; ``width``/``height`` (px) are used
+        when the file does not give the image size. Raises ConfigError naming the file and key.
+    write : callable
+        ``write(calibration) -> str``: the file's text.
+    """
+
+    name: str
+    can_open: Callable[[str], bool]
+    read: Callable[[Path, str, int | None, int | None], CameraModel]
+    write: Callable[[CameraModel], str]
+
+
+CALIBRATION_FORMATS: dict[str, CalibrationFormat] = {}
+
+
+def register_format(fmt: CalibrationFormat) -> CalibrationFormat:
+    """Add a format to :data:`CALIBRATION_FORMATS` (asked after those registered before it)."""
+    if fmt.name in CALIBRATION_FORMATS:
+        raise ValueError(f"calibration format {fmt.name!r} registered twice")
+    CALIBRATION_FORMATS[fmt.name] = fmt
+    return fmt
+
+
+def first_line(text: str) -> str:
+    """The first non-blank line of ``text``, without leading spaces ("" for a blank text)."""
+    return next((line for line in text.splitlines() if line.strip()), "").lstrip()
+
+
+def numbers(values: Any, where: str, count: int | None = None) -> list[float]:
+    """A list of finite numbers, optionally of a given length."""
+    if not isinstance(values, (list, tuple)):
+        raise ConfigError(f"{where}: expected a list of numbers, got {values!r}")
+    if count is not None and len(values) != count:
+        raise ConfigError(f"{where}: expected {count} numbers, got {len(values)}")
+    out = []
+    for i, v in enumerate(values):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(f"{where}[{i}]: expected a finite number, got {v!r}")
+        out.append(float(v))
+    return out
+
+
+def _size(value: Any, where: str) -> int:
+    """An image side (px): a positive integer up to ``MAX_IMAGE_SIDE_PX`` (integral floats too)."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 < value <= MAX_IMAGE_SIDE_PX:
+        raise ConfigError(
+            f"{where}: expected a positive integer <= {MAX_IMAGE_SIDE_PX} (px), got {value!r}"
+        )
+    return value
+
+
+def camera_model(
+    where: str,
+    width: Any,
+    height: Any,
+    k: list[float],
+    dist: list[float],
+    model: Any,
+) -> CameraModel:
+    """Validate the parts read from either format and build the camera model."""
+    if model is not None and model not in DISTORTION_MODELS:
+        raise ConfigError(
+            f"{where}distortion_model: expected one of {', '.join(DISTORTION_MODELS)} "
+            f"(k1, k2, p1, p2, k3), got {model!r}"
+        )
+    w = _size(width, f"{where}image_width")
+    h = _size(height, f"{where}image_height")
+    if (
+        abs(k[1]) > MATRIX_TOLERANCE
+        or any(abs(v) > MATRIX_TOLERANCE for v in k[3:4] + k[6:8])
+        or abs(k[8] - 1) > MATRIX_TOLERANCE
+    ):
+        raise ConfigError(
+            f"{where}camera_matrix.data: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] (no skew), "
+            f"got {k}"
+        )
+    if k[0] <= 0 or k[4] <= 0:
+        raise ConfigError(
+            f"{where}camera_matrix.data: expected positive focal lengths fx, fy (px), "
+            f"got {k[0]}, {k[4]}"
+        )
+    if len(dist) > N_DISTORTION and any(v != 0.0 for v in dist[N_DISTORTION:]):
+        raise ConfigError(
+            f"{where}distortion_coefficients.data: expected at most 5 coefficients "
+            f"(k1, k2, p1, p2, k3; plumb_bob), got {len(dist)} with non-zero k4 and beyond"
+        )
+    dist = (dist + [0.0] * N_DISTORTION)[:N_DISTORTION]
+    try:  # plausibility relative to the image size (CameraModel's checks)
+        return CameraModel(w, h, k[0], k[4], k[2], k[5], tuple(dist))
+    except ValueError as exc:
+        field = str(exc).split(":", 1)[0]
+        key = "distortion_coefficients.data" if "distortion" in field else "camera_matrix.data"
+        raise ConfigError(f"{where}{key}: {exc}") from None
+
+
+def read_calibration(
+    path: Path, width: int | None = None, height: int | None = None
+) -> CameraModel:
+    """Read a calibration file: ROS camera_info YAML or OpenCV FileStorage YAML.
+
+    Parameters
+    ----------
+    path : Path
+        The file. OpenCV FileStorage is recognised by its first line (``%YAML:1.0`` or
+        ``%YAML 1.2``); anything else is read as ROS camera_info YAML (``image_width``,
+        ``image_height``, ``camera_matrix{rows, cols, data}``, ``distortion_model: plumb_bob``,
+        ``distortion_coefficients{data: [k1, k2, p1, p2, k3]}``; other keys are ignored).
+    width, height : int, optional
+        Image size (px) used when the file does not give ``image_width`` / ``image_height``
+        (OpenCV files often do not). The file's values win when present.
+
+    Returns
+    -------
+    CameraModel
+        Focal lengths and principal point (px), distortion ``(k1, k2, p1, p2, k3)``; shorter
+        distortion lists are padded with zeros.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        Naming the file, the key and what was expected, e.g.
+        ``capture/camera.yaml: camera_matrix.data: expected 9 numbers, got 8``; also for a
+        distortion model other than ``plumb_bob`` and for a camera matrix with skew.
+    """
+    path = Path(path)
+    text = read_text(path, "calibration file")
+    for fmt in CALIBRATION_FORMATS.values():
+        if fmt.can_open(text):
+            return fmt.read(path, text, width, height)
+    raise ConfigError(
+        f"{path}: not a calibration file of a known format (one of "
+        f"{', '.join(CALIBRATION_FORMATS)})"
+    )
+
+
+def calibration_to_yaml(cal: CameraModel, fmt: str = "ros") -> str:
+    """The text of a calibration file for ``cal`` in format ``fmt`` (``"ros"`` or ``"opencv"``).
+
+    Raises
+    ------
+    ValueError
+        For a format name that is not in :data:`CALIBRATION_FORMATS`.
+    """
+    return calibration_format(fmt).write(cal)
+
+
+def calibration_format(name: str) -> CalibrationFormat:
+    """The registered format called ``name``.
+
+    Raises
+    ------
+    ValueError
+        ``"fmt: expected 'ros' or 'opencv', got ..."`` (the registered names).
+    """
+    if name not in CALIBRATION_FORMATS:
+        names = " or ".join(repr(n) for n in CALIBRATION_FORMATS)
+        raise ValueError(f"fmt: expected {names}, got {name!r}")
+    return CALIBRATION_FORMATS[name]

@@ -1,0 +1,121 @@
+"""A capture folder (DESIGN §3) read and validated against a rig.
+
+::
+
+    capture/
+      camera.yaml     the calibration the operator believes in (ROS camera_info or OpenCV YAML)
+      manifest.csv    header image,p,theta_rad (optional columns: repeat, note)
+      images/...      8-bit PNG or JPEG frames, as the camera delivered them
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from simgap.core.config import ConfigError
+from simgap.core.rig import CameraModel, Rig
+from simgap.pipeline.capture.calibration import read_calibration
+from simgap.pipeline.capture.manifest import CaptureFrame, read_manifest
+from simgap.render.imaging import truncation
+
+CALIBRATION_FILE = "camera.yaml"
+MANIFEST_FILE = "manifest.csv"
+IMAGES_DIR = "images"
+
+
+class CaptureWarning(UserWarning):
+    """A frame of a capture could not be used (it is recorded as a detection failure)."""
+
+
+@dataclass
+class Capture:
+    """A validated capture folder.
+
+    Attributes
+    ----------
+    folder : Path
+        The capture folder.
+    calibration : CameraModel
+        The calibration of ``camera.yaml`` (what the estimator assumes).
+    frames : list of CaptureFrame
+        One per manifest row, in manifest order.
+    """
+
+    folder: Path
+    calibration: CameraModel
+    frames: list[CaptureFrame] = field(default_factory=list)
+
+
+def read_image(path: Path) -> np.ndarray | None:
+    """An image as 8-bit BGR, or None when it cannot be read, is truncated or cannot be decoded.
+
+    Truncation is checked on the bytes (:func:`simgap.render.imaging.truncation`: a PNG must end
+    with its IEND chunk, a JPEG with the end-of-image marker), because decoders return a
+    grey-filled image for a truncated JPEG with only a warning on stderr.
+    """
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return None
+    if truncation(data) is not None:
+        return None
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    except cv2.error:
+        return None
+    return img if img is not None and img.size > 0 else None
+
+
+def read_capture(folder: Path, rig: Rig) -> Capture:
+    """Read and validate a capture folder against a rig.
+
+    Parameters
+    ----------
+    folder : Path
+        The capture folder (``camera.yaml``, ``manifest.csv``, images).
+    rig : Rig
+        The rig: its pin holes and turntable stops are the valid ``p`` and ``theta_rad``.
+
+    Returns
+    -------
+    Capture
+        The calibration and the frames; each frame's ``theta`` is the rig's stop (rad, in
+        [0, 2 pi)) nearest to the manifest's value.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        If the folder, ``camera.yaml``, ``manifest.csv`` or an image is missing; the manifest
+        has an unknown or missing column, a ``p`` that is not a pin hole, a ``theta_rad`` that
+        is not a turntable stop (within ``THETA_TOLERANCE_RAD``), a bad ``repeat`` or a
+        duplicate (p, theta, repeat); the calibration is invalid, or its image size differs from
+        the images' (checked on the first image that can be decoded); or no image can be
+        decoded. Messages name the file and the manifest row.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ConfigError(f"{folder}: capture folder not found")
+    cal_path, manifest_path = folder / CALIBRATION_FILE, folder / MANIFEST_FILE
+    for path, what in ((cal_path, "calibration"), (manifest_path, "manifest")):
+        if not path.is_file():
+            raise ConfigError(
+                f"{path}: {what} file not found (a capture folder needs {CALIBRATION_FILE}, "
+                f"{MANIFEST_FILE} and the images)"
+            )
+    frames = read_manifest(manifest_path, folder, rig)
+    first = next(((f, img) for f in frames if (img := read_image(f.image)) is not None), None)
+    if first is None:
+        raise ConfigError(f"{folder}: none of the {len(frames)} images can be decoded")
+    frame, img = first
+    h, w = img.shape[:2]
+    cal = read_calibration(cal_path, w, h)
+    if (cal.width, cal.height) != (w, h):
+        raise ConfigError(
+            f"{cal_path}: image size {cal.width}x{cal.height} differs from the images' "
+            f"{w}x{h} ({frame.image})"
+        )
+    return Capture(folder, cal, frames)

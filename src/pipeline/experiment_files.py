@@ -1,0 +1,83 @@
+"""Experiment files on disk: the ``inherit:`` chain, its merge, and errors blamed on the right file.
+
+An experiment file may inherit another (``inherit: smoke.yaml``, relative to it); the chain is read
+root first, merged with the child winning (names and descriptions are not inherited), and a
+validation error about a key that an inherited file set is reported against that file.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+from simgap.core.config import ConfigError, deep_merge, read_yaml
+
+
+def read_chain(path: Path, seen: tuple[Path, ...] = ()) -> list[tuple[Path, dict[str, Any]]]:
+    """An experiment file and the files it inherits from: ``(path, data)``, root ancestor first."""
+    data = read_yaml(path)
+    if not data:
+        raise ConfigError(
+            f"{path}: empty experiment file; expected a mapping of settings (at least "
+            "`name: ...`; an experiment with only a name runs the full study)"
+        )
+    if "source" in data:
+        raise ConfigError(f"{path}: source: unknown key (reserved)")
+    parent = data.get("inherit")
+    if parent is None:
+        return [(path, data)]
+    if not isinstance(parent, str):
+        raise ConfigError(f"{path}: inherit: expected a file path, got {parent!r}")
+    parent_path = (path.parent / parent).resolve()
+    if parent_path in seen or parent_path == path.resolve():
+        raise ConfigError(f"{path}: inherit: circular inheritance through {parent_path}")
+    if not parent_path.is_file():
+        raise ConfigError(f"{path}: inherit: {parent_path} not found")
+    chain = read_chain(parent_path, seen + (path.resolve(),))
+    return chain + [(path, data)]
+
+
+def merge_chain(chain: list[tuple[Path, dict[str, Any]]]) -> dict[str, Any]:
+    """The files of :func:`read_chain` merged (the last file wins; names are not inherited)."""
+    merged: dict[str, Any] = {}
+    for _, data in chain[:-1]:
+        merged = deep_merge(merged, data)
+    merged.pop("name", None)
+    merged.pop("description", None)
+    return deep_merge(merged, chain[-1][1])
+
+
+def origins(chain: list[tuple[Path, dict[str, Any]]]) -> dict[tuple[str, ...], Path]:
+    """Which file set each key path last (mappings merge, other values replace)."""
+    out: dict[tuple[str, ...], Path] = {}
+
+    def walk(data: Any, prefix: tuple[str, ...], path: Path) -> None:
+        for key, value in data.items():
+            out[prefix + (str(key),)] = path
+            if isinstance(value, dict):
+                walk(value, prefix + (str(key),), path)
+
+    for path, data in chain:
+        walk(data, (), path)
+    return out
+
+
+def blame_parent(
+    exc: ConfigError, path: Path, origins: dict[tuple[str, ...], Path]
+) -> ConfigError:
+    """``exc`` reported against the inherited file that set the offending key, if not ``path``."""
+    message, prefix = str(exc), f"{path}: "
+    if not message.startswith(prefix):
+        return exc
+    rest = message[len(prefix) :]
+    keys = tuple(re.findall(r"[^.\[\]]+", rest.split(": ", 1)[0]))
+    for n in range(len(keys), 0, -1):
+        origin = origins.get(keys[:n])
+        if origin is not None:
+            if origin == path:
+                return exc
+            blamed = ConfigError(f"{origin}: {rest} (inherited by {path})")
+            blamed.__cause__ = exc.__cause__
+            return blamed
+    return exc

@@ -1,0 +1,100 @@
+"""The Mitsuba converter: scene description (:mod:`simgap.scene`) -> Mitsuba plugin dictionaries.
+
+The only place that knows Mitsuba's BSDF and emitter plugin names. Every parameter is written
+explicitly (Mitsuba's defaults included), so a description renders the same as the template
+entry it was read from.
+"""
+
+from __future__ import annotations
+
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from simgap.scene.lights import LightSpec
+from simgap.scene.materials import Coating, Conductor, Diffuse, Material, Plastic, TagPrint
+
+#: Upsampling of the one-texel-per-cell marker texture before bilinear filtering.
+BILINEAR_UPSAMPLE = 16
+#: 8-bit texture values above this are paper (white), the others ink.
+PAPER_THRESHOLD = 127
+
+
+def _rough(name: str, alpha: float | None) -> dict[str, Any]:
+    """``{"type": "rough<name>", "alpha": a}``, or the smooth ``<name>`` when ``alpha`` is None."""
+    return {"type": name} if alpha is None else {"type": f"rough{name}", "alpha": alpha}
+
+
+def bsdf(material: Material) -> dict[str, Any]:
+    """The Mitsuba BSDF dictionary of a fixture material."""
+    if isinstance(material, Diffuse):
+        return {"type": "diffuse", "reflectance": material.reflectance}
+    if isinstance(material, Plastic):
+        return {
+            **_rough("plastic", material.alpha),
+            "diffuse_reflectance": material.diffuse_reflectance,
+            "int_ior": material.int_ior,
+        }
+    if isinstance(material, Conductor):
+        return {**_rough("conductor", material.alpha), "material": material.material}
+    raise TypeError(f"no Mitsuba BSDF for {type(material).__name__}")
+
+
+def tag_bsdf(tag: TagPrint, texture: np.ndarray, mi: ModuleType) -> dict[str, Any]:
+    """Tag BSDF: the marker texture (uint8, one texel per cell) mapped to ink/paper albedo.
+
+    The bitmap's v is flipped (``to_uv``): a ``rectangle`` maps uv = ((x+1)/2, (y+1)/2) while
+    bitmap row 0 is the image's top (DESIGN §4).
+    """
+    if tag.texture_filter == "bilinear":
+        texture = np.kron(texture, np.ones((BILINEAR_UPSAMPLE, BILINEAR_UPSAMPLE), texture.dtype))
+    albedo = np.where(texture > PAPER_THRESHOLD, tag.paper, tag.ink).astype(np.float32)[..., None]
+    bitmap = {
+        "type": "bitmap",
+        "bitmap": mi.Bitmap(albedo),
+        "raw": True,
+        "filter_type": tag.texture_filter,
+        "to_uv": mi.ScalarTransform4f().translate([0, 1, 0]).scale([1, -1, 1]),
+    }
+    coating: Coating | None = tag.coating
+    if coating is None:
+        return {"type": "diffuse", "reflectance": bitmap}
+    return {
+        **_rough("plastic", coating.alpha),
+        "int_ior": coating.int_ior,
+        "diffuse_reflectance": bitmap,
+    }
+
+
+def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
+    """The Mitsuba dictionary of a light (an emitter, or an emitting rectangle for ``area``)."""
+    colour = np.asarray(light.rgb, float)
+    if light.type == "constant":
+        return {"type": "constant", "radiance": {"type": "rgb", "value": colour * light.radiance}}
+    look = mi.ScalarTransform4f().look_at(
+        origin=list(light.position), target=list(light.target), up=[0, 0, 1]
+    )
+    if light.type == "area":
+        return {
+            "type": "rectangle",
+            "to_world": look
+            @ mi.ScalarTransform4f().scale([light.size[0] / 2, light.size[1] / 2, 1]),
+            "emitter": {
+                "type": "area",
+                "radiance": {"type": "rgb", "value": colour * light.radiance},
+            },
+            "bsdf": {"type": "diffuse", "reflectance": 0.0},
+        }
+    if light.type == "point":
+        return {
+            "type": "point",
+            "position": list(light.position),
+            "intensity": {"type": "rgb", "value": colour * light.intensity},
+        }
+    return {
+        "type": "spot",
+        "to_world": look,
+        "cutoff_angle": light.cutoff_deg,
+        "intensity": {"type": "rgb", "value": colour * light.intensity},
+    }
