@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Set up, then run lint and the test suite (slow tests are excluded by default; pass -m slow for them).
+# Set up, then run lint, the import-layer contract and the test suite (slow tests are excluded by default; pass -m slow for them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 .venv/bin/ruff check src tests benchmarks
+.venv/bin/lint-imports  # the layers contract of pyproject.toml (README, Architecture)
 exec .venv/bin/python -m pytest "$@"
