@@ -53,10 +53,13 @@ DISK_10_90_PER_RADIUS = 2 * 0.68705
 RESIDUAL_CAP = 3.0
 #: Points of the coarse scan that brackets a 1-D fit before the bounded Brent search.
 SCAN_POINTS = 16
-#: An effect fitted by a scan must lower the RMS misfit of its own statistics (floors) by this
-#: much on the training tags, else the evidence does not call for it (a JPEG fitted where the
-#: blockiness already matches would only be credited for its side effects on noise). The same
-#: quarter unit as the channels' tolerance (:data:`simgap.analysis.scoring.EQUIVALENT_UNITS`).
+#: An effect fitted by a scan is ranked only when its own statistics differ by at least
+#: :data:`SIGNATURE_MIN_MISFIT` floors (RMS over the training tags) and the fit lowers that by
+#: :data:`SIGNATURE_MIN_GAIN`, else the evidence does not call for it (a JPEG fitted where the
+#: blockiness matches within its floor would only be credited for side effects on noise). The
+#: gain is the quarter unit of the channels' tolerance
+#: (:data:`simgap.analysis.scoring.EQUIVALENT_UNITS`).
+SIGNATURE_MIN_MISFIT = 1.0
 SIGNATURE_MIN_GAIN = 0.25
 
 
@@ -128,7 +131,8 @@ class AppearanceCandidate(SimulationCandidate):
         )
         x, fun = (sol.x, sol.fun) if sol.fun <= values[k] else (grid[k], values[k])
         before = evidence_misfit(stats, items.real_stats, items.sim_stats)
-        gain = float(np.sqrt(before) - np.sqrt(fun)) if np.isfinite(before) else 0.0
+        rms_before = float(np.sqrt(before)) if np.isfinite(before) else 0.0
+        gain = rms_before - float(np.sqrt(fun))
         return Fit(
             self.effect,
             self.params(x),
@@ -136,7 +140,7 @@ class AppearanceCandidate(SimulationCandidate):
             {
                 "train_misfit": float(fun),
                 "train_misfit_before": float(before),
-                "supported": gain >= SIGNATURE_MIN_GAIN,
+                "supported": rms_before >= SIGNATURE_MIN_MISFIT and gain >= SIGNATURE_MIN_GAIN,
             },
         )
 
