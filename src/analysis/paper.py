@@ -16,7 +16,9 @@ Examples
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import csv
+from dataclasses import dataclass, fields
+from pathlib import Path
 from types import MappingProxyType
 from typing import Final
 
@@ -75,23 +77,20 @@ class PaperEnvelope:
     hardware_min: float
 
 
-TABLE2: Final = MappingProxyType(
-    {
-        # (axis, tag): simulation max, hardware max, simulation min, hardware min
-        ("tx", 0): PaperEnvelope(0.0065, 0.0135, 0.0000, 0.0042),
-        ("tx", 1): PaperEnvelope(0.0036, 0.0152, 0.0000, 0.0062),
-        ("ty", 0): PaperEnvelope(0.0435, 0.0318, 0.0001, 0.0074),
-        ("ty", 1): PaperEnvelope(0.0593, 0.0859, 0.0004, 0.0051),
-        ("tz", 0): PaperEnvelope(0.0087, 0.0079, 0.0071, 0.0032),
-        ("tz", 1): PaperEnvelope(0.0088, 0.0071, 0.0076, 0.0031),
-        ("rx", 0): PaperEnvelope(0.0243, 0.0112, 0.0000, 0.0001),
-        ("rx", 1): PaperEnvelope(0.0181, 0.0173, 0.0000, 0.0001),
-        ("ry", 0): PaperEnvelope(0.0779, 0.0410, 0.0000, 0.0093),
-        ("ry", 1): PaperEnvelope(0.0662, 0.0672, 0.0001, 0.0003),
-        ("rz", 0): PaperEnvelope(0.6694, 0.2911, 0.0002, 0.0000),
-        ("rz", 1): PaperEnvelope(1.3370, 0.8592, 0.0006, 0.0001),
-    }
-)
+TABLE2_FILE = Path(__file__).with_name("paper_table2.csv")
+
+
+def _read_table2(path: Path) -> dict[tuple[str, int], PaperEnvelope]:
+    """Rows of the transcribed Table 2: ``(axis, tag) -> PaperEnvelope``."""
+    lines = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")]
+    table = {}
+    for row in csv.DictReader(lines):
+        values = [float(row[f.name]) for f in fields(PaperEnvelope)]
+        table[(row["axis"], int(row["tag"]))] = PaperEnvelope(*values)
+    return table
+
+
+TABLE2: Final = MappingProxyType(_read_table2(TABLE2_FILE))
 """The paper's Table 2, keyed by ``(axis, tag)``; values in m (``t*``) or rad (``r*``)."""
 
 
