@@ -1,13 +1,10 @@
 """Effect base class, declarative parameter checks and the name-keyed registry.
 
-An effect is a small class declared in one header, ``class Blur(ImageEffect, name="blur",
-order=10)``, which registers it; its ``Params`` subclass :class:`EffectParams` and so become frozen
-dataclasses whose fields state their valid range once, as data, with :func:`param`::
-
-    class Params(EffectParams):
-        \"\"\"PSF width.\"\"\"
-
-        sigma_px: float = param(0.7, "0 < sigma < 10 px", lambda v: 0 < v < 10)
+An effect is a small class whose header names and registers it, ``class Blur(ImageEffect,
+name="blur", order=10)``. Its ``Params`` subclass :class:`EffectParams`, which makes them frozen
+dataclasses, and each field states its default and valid range once, as data, with :func:`param`:
+``sigma_px: float = param(0.7, "0 < sigma < 10 px", lambda v: 0 < v < 10)``; the one generic
+``EffectParams.__post_init__`` checks them all and names the key in its message.
 
 (This module imports nothing else of :mod:`simgap.effects`.)
 """
