@@ -1,7 +1,9 @@
 """The effects catalogue: every physical or algorithmic effect as a small registered class.
 
 Each effect has a frozen, validated ``Params`` dataclass (units in the field names or docstring), a
-docstring saying what it models, and the ``stage`` at which it acts (DESIGN §2):
+docstring saying what it models, and the ``stage`` at which it acts (DESIGN §2). The class header
+registers it, ``class TagGloss(Effect, name="tag_gloss", stage="scene")``, and each parameter
+declares its valid range once with :func:`~simgap.effects.base.param`. The stages:
 
 ==============  ==========================================================  =====================
 stage           what it changes                                              recompute
@@ -22,6 +24,6 @@ Use :func:`make_effect` to build one from YAML data and ``EFFECTS`` to list them
 from __future__ import annotations
 
 from simgap.effects import estimation, geometry, image, scene  # noqa: F401,E402  (registration)
-from simgap.effects.base import EFFECTS, Effect, make_effect, register
+from simgap.effects.base import EFFECTS, Check, Effect, EffectParams, make_effect, param, register
 
-__all__ = ["EFFECTS", "Effect", "make_effect", "register"]
+__all__ = ["EFFECTS", "Check", "Effect", "EffectParams", "make_effect", "param", "register"]

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-from typing import Literal
+from typing import ClassVar, Literal
 
-from simgap.core.config import require
-from simgap.effects.base import Effect, register
+from simgap.effects.base import Effect, EffectParams, param
 from simgap.effects.state import VariantState
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings
@@ -17,28 +15,24 @@ def _estimation(state: VariantState, **changes) -> VariantState:
     return dataclasses.replace(state, estimation=dataclasses.replace(state.estimation, **changes))
 
 
-@register
-class Calibration(Effect):
+def _unset_or_positive(v: float | None) -> bool:
+    return v is None or v > 0
+
+
+class Calibration(Effect, name="calibration", stage="estimation"):
     """The calibration the estimator believes in (px, Brown-Conrady); unset fields keep the rig's.
 
     Calibration errors move no pixel: they act on corners already detected.
     """
 
-    name = "calibration"
-    stage = "estimation"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Assumed intrinsics and distortion."""
 
-        fx: float | None = None
-        fy: float | None = None
+        fx: float | None = param(None, "> 0 px", _unset_or_positive, key="fx/fy")
+        fy: float | None = param(None, "> 0 px", _unset_or_positive, key="fx/fy")
         cx: float | None = None
         cy: float | None = None
         distortion: tuple[float, float, float, float, float] | None = None
-
-        def __post_init__(self) -> None:
-            require(all(v is None or v > 0 for v in (self.fx, self.fy)), "fx/fy: expected > 0 px")
 
     def apply(self, state: VariantState) -> VariantState:
         """Replace the assumed calibration's set fields."""
@@ -48,15 +42,10 @@ class Calibration(Effect):
         return _estimation(state, calibration=state.estimation.calibration.replace(**changes))
 
 
-@register
-class DetectorRefinement(Effect):
+class DetectorRefinement(Effect, name="detector_refinement", stage="estimation"):
     """ArUco corner refinement method (NONE, SUBPIX, CONTOUR, APRILTAG)."""
 
-    name = "detector_refinement"
-    stage = "estimation"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Refinement method."""
 
         method: Literal["NONE", "SUBPIX", "CONTOUR", "APRILTAG"] = "SUBPIX"
@@ -67,27 +56,26 @@ class DetectorRefinement(Effect):
         return _estimation(state, detector=det)
 
 
-@register
-class DetectorOverride(Effect):
+class _Settings(Effect, stage="estimation"):
+    """An estimation effect whose ``Params`` are one of the estimator's settings objects."""
+
+    #: The field of the estimation stage (:class:`simgap.pose.tags.Estimation`) replaced.
+    setting: ClassVar[str]
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Replace the estimator's settings."""
+        return _estimation(state, **{self.setting: self.params})
+
+
+class DetectorOverride(_Settings, name="detector"):
     """All ArUco detector settings at once (see :class:`simgap.pose.detect.DetectorSettings`)."""
 
-    name = "detector"
-    stage = "estimation"
     Params = DetectorSettings
-
-    def apply(self, state: VariantState) -> VariantState:
-        """Replace the detector settings."""
-        return _estimation(state, detector=self.params)
+    setting = "detector"
 
 
-@register
-class PnPMethod(Effect):
+class PnPMethod(_Settings, name="pnp_method"):
     """PnP solver used on the four corners (see :class:`simgap.pose.estimate.PnPSettings`)."""
 
-    name = "pnp_method"
-    stage = "estimation"
     Params = PnPSettings
-
-    def apply(self, state: VariantState) -> VariantState:
-        """Replace the PnP settings."""
-        return _estimation(state, pnp=self.params)
+    setting = "pnp"

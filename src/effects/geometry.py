@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
-from simgap.core.config import require
-from simgap.effects.base import Effect, RelativeScale, register
+from simgap.effects.base import Effect, EffectParams, RelativeScale, param, within
 from simgap.effects.state import VariantState
 
 Vec3 = tuple[float, float, float]
+ZERO3: Vec3 = (0.0, 0.0, 0.0)
 
 
 def _errors(state: VariantState, **changes) -> VariantState:
@@ -17,68 +16,39 @@ def _errors(state: VariantState, **changes) -> VariantState:
     return dataclasses.replace(state, scene=dataclasses.replace(state.scene, errors=errors))
 
 
-@register
-class CameraMount(Effect):
+class CameraMount(Effect, name="camera_mount", stage="geometry"):
     """Camera mount offset on the carriage: translation (m) and rotation vector (rad)."""
 
-    name = "camera_mount"
-    stage = "geometry"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Mount offset."""
 
-        translation_m: Vec3 = (0.0, 0.0, 0.0)
-        rotation_rad: Vec3 = (0.0, 0.0, 0.0)
-
-        def __post_init__(self) -> None:
-            require(
-                all(abs(v) < 0.05 for v in self.translation_m),
-                "translation_m: expected |t| < 0.05 m",
-            )
-            require(
-                all(abs(v) < 0.3 for v in self.rotation_rad), "rotation_rad: expected |r| < 0.3 rad"
-            )
+        translation_m: Vec3 = param(ZERO3, "|t| < 0.05 m", within(0.05))
+        rotation_rad: Vec3 = param(ZERO3, "|r| < 0.3 rad", within(0.3))
 
     def apply(self, state: VariantState) -> VariantState:
         """Offset the eyepoint on its link."""
-        return _errors(
-            state,
-            mount_translation=self.params.translation_m,
-            mount_rotation=self.params.rotation_rad,
-        )
+        p = self.params
+        return _errors(state, mount_translation=p.translation_m, mount_rotation=p.rotation_rad)
 
 
-@register
-class TurntableOffset(Effect):
+class TurntableOffset(Effect, name="turntable_offset", stage="geometry"):
     """Turntable zero offset: every stop is rotated by ``angle_rad`` (rad, CCW about +Z)."""
 
-    name = "turntable_offset"
-    stage = "geometry"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Zero offset."""
 
-        angle_rad: float = 0.0
-
-        def __post_init__(self) -> None:
-            require(abs(self.angle_rad) < 0.5, "angle_rad: expected |a| < 0.5 rad")
+        angle_rad: float = param(0.0, "|a| < 0.5 rad", lambda v: abs(v) < 0.5)
 
     def apply(self, state: VariantState) -> VariantState:
         """Offset the turntable zero."""
         return _errors(state, turntable_zero=self.params.angle_rad)
 
 
-@register
-class CarriagePitch(Effect):
+class CarriagePitch(Effect, name="carriage_pitch", stage="geometry"):
     """Carriage pin pitch differs from the rig's (``links.pin_pitch``) by a relative ``scale``.
 
     ``scale`` is dimensionless: 0.01 = +1 %.
     """
-
-    name = "carriage_pitch"
-    stage = "geometry"
 
     Params = RelativeScale
 
@@ -87,21 +57,13 @@ class CarriagePitch(Effect):
         return _errors(state, pitch_scale=self.params.scale)
 
 
-@register
-class TagOffset(Effect):
+class TagOffset(Effect, name="tag_offset", stage="geometry"):
     """Tag stickers mounted off their nominal centre, in each marker's frame (m)."""
 
-    name = "tag_offset"
-    stage = "geometry"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Mounting offset (x right, y up, z out of the marker)."""
 
-        offset_m: Vec3 = (0.0, 0.0, 0.0)
-
-        def __post_init__(self) -> None:
-            require(all(abs(v) < 0.02 for v in self.offset_m), "offset_m: expected |o| < 0.02 m")
+        offset_m: Vec3 = param(ZERO3, "|o| < 0.02 m", within(0.02))
 
     def apply(self, state: VariantState) -> VariantState:
         """Offset the tags on the node."""

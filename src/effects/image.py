@@ -11,14 +11,13 @@ from __future__ import annotations
 import abc
 import dataclasses
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import cv2
 import numpy as np
 
-from simgap.core.config import require
 from simgap.core.rig import CameraModel
-from simgap.effects.base import EFFECTS, Effect, register
+from simgap.effects.base import EFFECTS, Effect, EffectParams, param
 from simgap.effects.state import ImageState, VariantState
 from simgap.render import imaging
 
@@ -36,11 +35,19 @@ class ImageContext:
     rng: np.random.Generator
 
 
-class ImageEffect(Effect):
-    """An image operation: ``order`` < 50 works on linear float RGB, >= 50 on 8-bit RGB."""
+class ImageEffect(Effect, stage="image"):
+    """An image operation: ``order`` < 50 works on linear float RGB, >= 50 on 8-bit RGB.
 
-    stage = "image"
+    ``order`` is given in the class header with the name: ``class Blur(ImageEffect, name="blur",
+    order=10)``.
+    """
+
     order: ClassVar[int]
+
+    def __init_subclass__(cls, *, order: int | None = None, **kwargs: Any) -> None:
+        if order is not None:  # before registration, so that a registered operation has one
+            cls.order = order
+        super().__init_subclass__(**kwargs)
 
     def apply(self, state: VariantState) -> VariantState:
         """Append this operation to the camera pipeline."""
@@ -52,29 +59,20 @@ class ImageEffect(Effect):
         """Apply the operation to a crop."""
 
 
-@register
-class Blur(ImageEffect):
+class Blur(ImageEffect, name="blur", order=10):
     """Optical blur: isotropic Gaussian point spread function of standard deviation ``sigma_px``."""
 
-    name = "blur"
-    order = 10
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """PSF width."""
 
-        sigma_px: float = 0.7
-
-        def __post_init__(self) -> None:
-            require(0 < self.sigma_px < 10, "sigma_px: expected 0 < sigma < 10 px")
+        sigma_px: float = param(0.7, "0 < sigma < 10 px", lambda v: 0 < v < 10)
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Convolve with the PSF."""
         return cv2.GaussianBlur(img, (0, 0), self.params.sigma_px, borderType=cv2.BORDER_REFLECT)
 
 
-@register
-class MotionBlur(ImageEffect):
+class MotionBlur(ImageEffect, name="motion_blur", order=11):
     """Linear motion blur during the exposure: a box PSF ``length_px`` long at ``angle_deg``.
 
     E.g. the turntable still turning while the shutter is open (horizontal, ``angle_deg`` 0) or
@@ -82,18 +80,11 @@ class MotionBlur(ImageEffect):
     outside the catalogue, which the diagnosis must report as unexplained.
     """
 
-    name = "motion_blur"
-    order = 11
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Motion during the exposure."""
 
-        length_px: float = 3.0
+        length_px: float = param(3.0, "0 < length < 50 px", lambda v: 0 < v < 50)
         angle_deg: float = 0.0
-
-        def __post_init__(self) -> None:
-            require(0 < self.length_px < 50, "length_px: expected 0 < length < 50 px")
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Convolve with a normalised line kernel (anti-aliased by 4x supersampling)."""
@@ -109,21 +100,13 @@ class MotionBlur(ImageEffect):
         return cv2.filter2D(img, -1, kernel, borderType=cv2.BORDER_REFLECT)
 
 
-@register
-class Vignetting(ImageEffect):
+class Vignetting(ImageEffect, name="vignetting", order=20):
     """Radial fall-off: gain ``1 - strength * (r / r_corner)^2`` about the principal point."""
 
-    name = "vignetting"
-    order = 20
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Fall-off at the image corner (0 = none)."""
 
-        strength: float = 0.3
-
-        def __post_init__(self) -> None:
-            require(0 <= self.strength < 1, "strength: expected 0 <= s < 1")
+        strength: float = param(0.3, "0 <= s < 1", lambda v: 0 <= v < 1)
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Multiply by the fall-off."""
@@ -136,45 +119,29 @@ class Vignetting(ImageEffect):
         return img * gain[..., None]
 
 
-@register
-class Exposure(ImageEffect):
+class Exposure(ImageEffect, name="exposure", order=30):
     """Exposure error in stops (EV): the linear signal is multiplied by ``2 ** ev``."""
 
-    name = "exposure"
-    order = 30
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Exposure offset."""
 
-        ev: float = 0.0
-
-        def __post_init__(self) -> None:
-            require(-8 < self.ev < 8, "ev: expected -8 < ev < 8")
+        ev: float = param(0.0, "-8 < ev < 8", lambda v: -8 < v < 8)
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Scale the linear signal."""
         return img * np.float32(2.0**self.params.ev)
 
 
-@register
-class SensorNoise(ImageEffect):
+class SensorNoise(ImageEffect, name="sensor_noise", order=40):
     """Shot (Poisson) and read (Gaussian) noise; linear 1.0 is ``full_well_e`` electrons."""
 
-    name = "sensor_noise"
-    order = 40
     stochastic = True
 
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Sensor noise model."""
 
-        full_well_e: float = 6000.0
-        read_noise_e: float = 4.0
-
-        def __post_init__(self) -> None:
-            require(self.full_well_e >= 10, "full_well_e: expected >= 10 electrons")
-            require(self.read_noise_e >= 0, "read_noise_e: expected >= 0 electrons")
+        full_well_e: float = param(6000.0, ">= 10 electrons", lambda v: v >= 10)
+        read_noise_e: float = param(4.0, ">= 0 electrons", lambda v: v >= 0)
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Draw noisy electron counts and convert back to linear units."""
@@ -184,22 +151,14 @@ class SensorNoise(ImageEffect):
         return electrons / np.float32(fw)
 
 
-@register
-class Gamma(Effect):
+class Gamma(Effect, name="gamma", stage="image"):
     """Transfer function of the 8-bit frame: ``srgb`` (IEC 61966-2-1), ``gamma`` or ``linear``."""
 
-    name = "gamma"
-    stage = "image"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Encoding."""
 
         encoding: Literal["srgb", "gamma", "linear"] = "gamma"
-        gamma: float = 2.2
-
-        def __post_init__(self) -> None:
-            require(0.5 <= self.gamma <= 4, "gamma: expected 0.5..4")
+        gamma: float = param(2.2, "0.5..4", lambda v: 0.5 <= v <= 4)
 
     def apply(self, state: VariantState) -> VariantState:
         """Set the pipeline's encoding."""
@@ -209,21 +168,13 @@ class Gamma(Effect):
         return dataclasses.replace(state, image=image)
 
 
-@register
-class Jpeg(ImageEffect):
+class Jpeg(ImageEffect, name="jpeg", order=70):
     """JPEG compression of the 8-bit frame at ``quality`` (0-100, OpenCV/libjpeg scale)."""
 
-    name = "jpeg"
-    order = 70
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """JPEG quality."""
 
-        quality: int = 75
-
-        def __post_init__(self) -> None:
-            require(1 <= self.quality <= 100, "quality: expected 1..100")
+        quality: int = param(75, "1..100", lambda v: 1 <= v <= 100)
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Compress and decompress (blocks aligned with the full frame)."""

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
 from typing import Literal
 
 import colour
 import numpy as np
 
-from simgap.core.config import require
-from simgap.effects.base import Effect, RelativeScale, register
+from simgap.effects.base import Check, Effect, EffectParams, RelativeScale, param
 from simgap.effects.state import RenderQuality, VariantState
 from simgap.scene.lights import LightSpec, default_target
 from simgap.scene.materials import Coating, Conductor, Diffuse, Plastic
@@ -48,33 +46,22 @@ def _spec(state: VariantState, spec: SceneSpec) -> VariantState:
     return _scene(state, spec=spec)
 
 
-@register
-class Lighting(Effect):
+class Lighting(Effect, name="lighting", stage="scene"):
     """The key light: type, placement, power and colour temperature (rail frame, m).
 
     ``power``: radiance (W m^-2 sr^-1) for ``area``, intensity (W sr^-1) for ``point``/``spot``.
     """
 
-    name = "lighting"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Key light parameters."""
 
         type: Literal["area", "point", "spot"] = "area"
         position: Vec3 = (0.12, -0.30, 0.40)
-        target: Vec3 = field(default_factory=default_target)
+        target: Vec3 = param(factory=default_target)
         size_m: tuple[float, float] = (0.30, 0.30)
-        power: float = 8.0
-        cct_k: float | None = None
+        power: float = param(8.0, ">= 0", lambda v: v >= 0)
+        cct_k: float | None = param(None, "1000..25000 K", lambda v: v is None or 1e3 <= v <= 25e3)
         cutoff_deg: float = 30.0
-
-        def __post_init__(self) -> None:
-            require(self.power >= 0, "power: expected >= 0")
-            require(
-                self.cct_k is None or 1000 <= self.cct_k <= 25000, "cct_k: expected 1000..25000 K"
-            )
 
     def apply(self, state: VariantState) -> VariantState:
         """Replace the scene's ``key`` light."""
@@ -92,22 +79,14 @@ class Lighting(Effect):
         return _spec(state, state.scene.spec.with_light("key", light))
 
 
-@register
-class Ambient(Effect):
+class Ambient(Effect, name="ambient", stage="scene"):
     """Uniform environment light (room ambient): radiance (W m^-2 sr^-1) and colour temperature."""
 
-    name = "ambient"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Ambient light parameters."""
 
-        radiance: float = 0.15
+        radiance: float = param(0.15, ">= 0", lambda v: v >= 0)
         cct_k: float | None = None
-
-        def __post_init__(self) -> None:
-            require(self.radiance >= 0, "radiance: expected >= 0")
 
     def apply(self, state: VariantState) -> VariantState:
         """Set the scene's ``ambient`` light (a uniform environment)."""
@@ -119,22 +98,15 @@ class Ambient(Effect):
         return _spec(state, spec.with_light("ambient", light))
 
 
-@register
-class TagMaterial(Effect):
+class TagMaterial(Effect, name="tag_material", stage="scene"):
     """Matte printed tag: diffuse albedo of the ink and of the paper (dimensionless, linear)."""
 
-    name = "tag_material"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Ink and paper albedo."""
 
         ink: float = 0.03
         paper: float = 0.80
-
-        def __post_init__(self) -> None:
-            require(0 <= self.ink < self.paper <= 1, "ink/paper: expected 0 <= ink < paper <= 1")
+        checks = (Check("ink/paper", "0 <= ink < paper <= 1", lambda p: 0 <= p.ink < p.paper <= 1),)
 
     def apply(self, state: VariantState) -> VariantState:
         """Set ink and paper albedo, keeping the print's coating and texture filter."""
@@ -143,27 +115,18 @@ class TagMaterial(Effect):
         return _spec(state, spec.with_tag(tag))
 
 
-@register
-class TagGloss(Effect):
+class TagGloss(Effect, name="tag_gloss", stage="scene"):
     """Laminated tag: a rough dielectric coating over the print.
 
     ``alpha`` is the microfacet roughness (dimensionless); ``int_ior`` the laminate's refractive
     index.
     """
 
-    name = "tag_gloss"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Laminate parameters."""
 
-        alpha: float = 0.08
-        int_ior: float = 1.49
-
-        def __post_init__(self) -> None:
-            require(0 < self.alpha <= 1, "alpha: expected 0 < alpha <= 1")
-            require(1 < self.int_ior < 3, "int_ior: expected 1 < int_ior < 3")
+        alpha: float = param(0.08, "0 < alpha <= 1", lambda v: 0 < v <= 1)
+        int_ior: float = param(1.49, "1 < int_ior < 3", lambda v: 1 < v < 3)
 
     def apply(self, state: VariantState) -> VariantState:
         """Laminate the tag print (ink, paper and texture filter kept)."""
@@ -172,29 +135,20 @@ class TagGloss(Effect):
         return _spec(state, spec.with_tag(dataclasses.replace(spec.tag, coating=coating)))
 
 
-@register
-class FixtureMaterial(Effect):
+class FixtureMaterial(Effect, name="fixture_material", stage="scene"):
     """Material of one fixture part (a material slot of the scene template).
 
     ``bare``: rough aluminium (a conductor of roughness ``alpha``); ``anodised``: rough plastic
     of base albedo ``reflectance``; ``painted``: diffuse paint of albedo ``reflectance``.
     """
 
-    name = "fixture_material"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Material slot and finish."""
 
         slot: Literal["node", "aluminium", "turntable", "table", "camera"] = "node"
         finish: Literal["bare", "anodised", "painted"] = "painted"
-        reflectance: float = 0.45
-        alpha: float = 0.25
-
-        def __post_init__(self) -> None:
-            require(0 <= self.reflectance <= 1, "reflectance: expected 0..1")
-            require(0 < self.alpha <= 1, "alpha: expected 0 < alpha <= 1")
+        reflectance: float = param(0.45, "0..1", lambda v: 0 <= v <= 1)
+        alpha: float = param(0.25, "0 < alpha <= 1", lambda v: 0 < v <= 1)
 
     def apply(self, state: VariantState) -> VariantState:
         """Replace the slot's material."""
@@ -207,26 +161,17 @@ class FixtureMaterial(Effect):
         return _spec(state, state.scene.spec.with_material(p.slot, material))
 
 
-@register
-class Defocus(Effect):
+class Defocus(Effect, name="defocus", stage="scene"):
     """Thin-lens depth of field: aperture radius (m) and in-focus distance (m).
 
     The D435i RGB lens (f ~ 1.9 mm, f/2) has an aperture radius of ~0.5 mm.
     """
 
-    name = "defocus"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Thin lens parameters."""
 
-        aperture_radius_m: float = 0.0005
-        focus_distance_m: float = 1.0
-
-        def __post_init__(self) -> None:
-            require(0 <= self.aperture_radius_m < 0.01, "aperture_radius_m: expected 0..0.01 m")
-            require(self.focus_distance_m > 0.05, "focus_distance_m: expected > 0.05 m")
+        aperture_radius_m: float = param(0.0005, "0..0.01 m", lambda v: 0 <= v < 0.01)
+        focus_distance_m: float = param(1.0, "> 0.05 m", lambda v: v > 0.05)
 
     def apply(self, state: VariantState) -> VariantState:
         """Set the thin lens."""
@@ -237,12 +182,8 @@ class Defocus(Effect):
         )
 
 
-@register
-class TagScale(Effect):
+class TagScale(Effect, name="tag_scale", stage="scene"):
     """Tags printed at a different size than nominal: relative scale error (e.g. 0.01 = +1 %)."""
-
-    name = "tag_scale"
-    stage = "scene"
 
     Params = RelativeScale
 
@@ -251,26 +192,17 @@ class TagScale(Effect):
         return _scene(state, tag_scale=state.scene.tag_scale * (1.0 + self.params.scale))
 
 
-@register
-class SamplingQuality(Effect):
+class SamplingQuality(Effect, name="render_quality", stage="scene"):
     """Renderer quality: samples per pixel, sampler and maximum path depth."""
 
-    name = "render_quality"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Integrator and sampling settings."""
 
-        spp: int = 16
+        spp: int = param(16, "an integer >= 1", lambda v: v >= 1)
         sampler: Literal["multijitter", "ldsampler", "stratified", "independent", "orthogonal"] = (
             "multijitter"
         )
-        max_depth: int = 3
-
-        def __post_init__(self) -> None:
-            require(self.spp >= 1, "spp: expected an integer >= 1")
-            require(self.max_depth >= 2 or self.max_depth == -1, "max_depth: expected >= 2 or -1")
+        max_depth: int = param(3, ">= 2 or -1", lambda v: v >= 2 or v == -1)
 
     def apply(self, state: VariantState) -> VariantState:
         """Set render quality."""
@@ -278,33 +210,22 @@ class SamplingQuality(Effect):
         return _scene(state, quality=RenderQuality(p.spp, p.sampler, p.max_depth))
 
 
-@register
-class LensDistortion(Effect):
+class LensDistortion(Effect, name="lens_distortion", stage="scene"):
     """Brown-Conrady distortion of the true lens (k1, k2, p1, p2, k3, dimensionless).
 
     Rendered exactly per ray by the OpenCV sensor (no resampling, no black borders). With
     ``calibrated: true`` the estimator's calibration knows the coefficients too.
     """
 
-    name = "lens_distortion"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Distortion coefficients."""
 
-        k1: float = 0.0
-        k2: float = 0.0
-        p1: float = 0.0
-        p2: float = 0.0
-        k3: float = 0.0
+        k1: float = param(0.0, "|k| < 2", lambda v: abs(v) < 2, key="k1/k2/k3")
+        k2: float = param(0.0, "|k| < 2", lambda v: abs(v) < 2, key="k1/k2/k3")
+        p1: float = param(0.0, "|p| < 0.1", lambda v: abs(v) < 0.1, key="p1/p2")
+        p2: float = param(0.0, "|p| < 0.1", lambda v: abs(v) < 0.1, key="p1/p2")
+        k3: float = param(0.0, "|k| < 2", lambda v: abs(v) < 2, key="k1/k2/k3")
         calibrated: bool = False
-
-        def __post_init__(self) -> None:
-            require(
-                all(abs(v) < 2 for v in (self.k1, self.k2, self.k3)), "k1/k2/k3: expected |k| < 2"
-            )
-            require(abs(self.p1) < 0.1 and abs(self.p2) < 0.1, "p1/p2: expected |p| < 0.1")
 
     def apply(self, state: VariantState) -> VariantState:
         """Distort the true camera (and the calibration when calibrated)."""
@@ -318,12 +239,8 @@ class LensDistortion(Effect):
         return out
 
 
-@register
-class FocalLength(Effect):
+class FocalLength(Effect, name="focal_length", stage="scene"):
     """The true focal length differs from the calibration by a relative ``scale`` (0.02 = +2 %)."""
-
-    name = "focal_length"
-    stage = "scene"
 
     Params = RelativeScale
 
@@ -334,25 +251,14 @@ class FocalLength(Effect):
         return _scene(state, camera=cam.replace(fx=cam.fx * s, fy=cam.fy * s))
 
 
-@register
-class PrincipalPoint(Effect):
+class PrincipalPoint(Effect, name="principal_point", stage="scene"):
     """The true principal point is offset from the calibration's by (dx_px, dy_px) (px)."""
 
-    name = "principal_point"
-    stage = "scene"
-
-    @dataclass(frozen=True)
-    class Params:
+    class Params(EffectParams):
         """Principal point offset."""
 
-        dx_px: float = 0.0
-        dy_px: float = 0.0
-
-        def __post_init__(self) -> None:
-            require(
-                abs(self.dx_px) < 200 and abs(self.dy_px) < 200,
-                "dx_px/dy_px: expected |d| < 200 px",
-            )
+        dx_px: float = param(0.0, "|d| < 200 px", lambda v: abs(v) < 200, key="dx_px/dy_px")
+        dy_px: float = param(0.0, "|d| < 200 px", lambda v: abs(v) < 200, key="dx_px/dy_px")
 
     def apply(self, state: VariantState) -> VariantState:
         """Move the true camera's principal point."""
