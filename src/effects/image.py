@@ -24,6 +24,9 @@ from simgap.render import imaging
 #: Crop offsets are multiples of this (px) so that JPEG's 8x8 blocks and 2x2 chroma subsampling of
 #: a crop align with those of the full frame.
 BLOCK_ALIGN_PX = 16
+#: Order at which the linear frame is encoded to 8 bits: operations before it see linear float
+#: RGB, operations at or after it the 8-bit frame (none is dropped).
+ENCODE_ORDER = 50
 
 
 @dataclass(frozen=True)
@@ -36,7 +39,7 @@ class ImageContext:
 
 
 class ImageEffect(Effect, stage="image"):
-    """An image operation: ``order`` < 50 works on linear float RGB, >= 50 on 8-bit RGB.
+    """An image operation on linear float RGB (``order`` < :data:`ENCODE_ORDER`) or 8-bit RGB.
 
     ``order`` is given in the class header with the name: ``class Blur(ImageEffect, name="blur",
     order=10)``.
@@ -203,10 +206,10 @@ def run_pipeline(hdr: np.ndarray, state: ImageState, ctx: ImageContext) -> np.nd
     ops = sorted((EFFECTS[name](params) for name, params in state.ops), key=lambda e: e.order)
     img = hdr * np.float32(state.exposure)
     for op in ops:
-        if op.order < 50:
+        if op.order < ENCODE_ORDER:
             img = op.process(img, ctx)
     img = encode(img, state)
     for op in ops:
-        if op.order > 50:
+        if op.order >= ENCODE_ORDER:
             img = op.process(img, ctx)
     return img
