@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from simgap.pipeline.experiment import load_experiment
-from simgap.pipeline.sweep import config_seed, run_experiment
+from simgap.pipeline.sweep import run_experiment
+from simgap.pipeline.variant import config_seed
 from simgap.pose.detect import Detector
 from simgap.pose.estimate import estimate_pose
 from simgap.render import imaging

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.pipeline.sweep import crop_offset
+from simgap.pipeline.variant import crop_offset
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import estimate_pose, pose_error, project_tag_corners
 from simgap.render import imaging

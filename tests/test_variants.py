@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 import simgap.pipeline.sweep as sweep
+import simgap.pipeline.variant as variant
 from simgap.core.config import ConfigError
 from simgap.pipeline.experiment import load_experiment
 from simgap.pose.detect import Detector, DetectorSettings
@@ -78,7 +79,7 @@ def test_circular_inheritance_is_an_error(tmp_path):
 @pytest.fixture
 def spies(monkeypatch):
     calls = {"render": 0, "pipeline": 0}
-    render, pipeline = FixtureScene.render, sweep.run_pipeline
+    render, pipeline = FixtureScene.render, variant.run_pipeline
 
     def spy_render(self, *a, **k):
         calls["render"] += 1
@@ -89,7 +90,7 @@ def spies(monkeypatch):
         return pipeline(*a, **k)
 
     monkeypatch.setattr(FixtureScene, "render", spy_render)
-    monkeypatch.setattr(sweep, "run_pipeline", spy_pipeline)
+    monkeypatch.setattr(variant, "run_pipeline", spy_pipeline)
     return calls
 
 
@@ -176,8 +177,8 @@ def test_distorted_render_corners_match_projectpoints(rig, tag, p, theta_deg):
     )
     theta = np.deg2rad(theta_deg)
     boxes = projected_sticker_boxes(rig, p, theta, camera=hi)
-    side = sweep.crop_side(boxes, 96, (hi.width, hi.height))
-    off = sweep.crop_offset(boxes, (side, side), (hi.width, hi.height))
+    side = variant.crop_side(boxes, 96, (hi.width, hi.height))
+    off = variant.crop_offset(boxes, (side, side), (hi.width, hi.height))
     scene = FixtureScene(rig, load_scene_spec(), (side, side), spp=8, camera=hi)
     scene.set_pose(p, theta)
     crop = imaging.encode_srgb8(imaging.quantise_half(scene.render(off, seed=2)))

@@ -52,14 +52,6 @@ class SceneState:
     quality: RenderQuality = field(default_factory=RenderQuality)
     render_seed: int = 0
 
-    @property
-    def overrides(self) -> SceneSpec:
-        """Deprecated name of :attr:`spec`, kept until :mod:`simgap.pipeline.sweep` reads ``spec``.
-
-        It passes it through :func:`simgap.scene.load_scene_spec`, which returns a spec as is.
-        """
-        return self.spec
-
 
 @dataclass(frozen=True)
 class ImageState:

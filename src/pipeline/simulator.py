@@ -25,8 +25,9 @@ import xarray as xr
 from simgap.effects.state import VariantState
 from simgap.pipeline.cache import Cache, content_hash
 from simgap.pipeline.experiment import Experiment
-from simgap.pipeline.sweep import ConfigResult, VariantPipeline, run_experiment
-from simgap.pipeline.sweep import _assets_hash as assets_hash
+from simgap.pipeline.sweep import run_experiment
+from simgap.pipeline.variant import VariantPipeline, assets_hash
+from simgap.pose.tags import ConfigResult
 
 
 class Simulator:

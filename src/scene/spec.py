@@ -174,15 +174,14 @@ def scene_spec_from_mapping(data: Mapping[str, Any], where: str = "") -> SceneSp
 
 
 def load_scene_spec(
-    overrides: dict | SceneSpec | None = None, template: str | Path | None = None
+    overrides: dict | None = None, template: str | Path | None = None
 ) -> SceneSpec:
     """Read a scene template (default ``mitsuba_scenes/pass_fixture.yaml``) with overrides.
 
     Parameters
     ----------
     overrides : dict, optional
-        An experiment's ``scene:`` section (template vocabulary). A :class:`SceneSpec` is
-        returned as it is (callers that still pass a variant's scene through this function).
+        An experiment's ``scene:`` section (template vocabulary).
     template : str or Path, optional
         Another template file.
 
@@ -191,8 +190,6 @@ def load_scene_spec(
     simgap.core.config.ConfigError
         Naming the template file and the key path.
     """
-    if isinstance(overrides, SceneSpec):
-        return overrides
     if not overrides and template is None:
         return default_scene_spec()
     return _load(Path(template) if template else scenes_dir() / DEFAULT_TEMPLATE, overrides or {})

@@ -1,0 +1,229 @@
+"""One variant's stages for any (p, theta): render -> frame -> result, each cached.
+
+The stage caches and what their keys depend on are listed in :mod:`simgap.pipeline.sweep`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from simgap.core.paths import assets_dir
+from simgap.core.rig import Rig
+from simgap.effects.image import BLOCK_ALIGN_PX, ImageContext, run_pipeline
+from simgap.effects.state import VariantState
+from simgap.pipeline.cache import Cache, content_hash, file_hash, write_text
+from simgap.pose.detect import Detector
+from simgap.pose.tags import ConfigResult, estimate_tags, measure_tags
+from simgap.render import imaging
+from simgap.render.scene import projected_sticker_boxes
+
+#: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
+CROP_STEP_PX = 32
+#: Part of every result key: bump when what a result holds changes (not the render or frame).
+RESULT_VERSION = "image-stats-4"
+
+
+@dataclass(frozen=True)
+class Frame:
+    """The camera's 8-bit RGB crop around the tags, and where it sits in the full image (px)."""
+
+    crop: np.ndarray
+    offset: tuple[int, int]
+    size: tuple[int, int]
+
+    def gray(self) -> np.ndarray:
+        """Full-size 8-bit grey frame for the detector (the crop pasted in)."""
+        return imaging.paste(imaging.to_gray(self.crop), self.offset, self.size)
+
+    def rgb(self) -> np.ndarray:
+        """Full-size 8-bit RGB frame."""
+        return imaging.paste(self.crop, self.offset, self.size)
+
+
+def _read_offset(path: Path) -> tuple[int, int]:
+    """The crop offset (x0, y0 px) stored beside a cached frame."""
+    offset = json.loads(path.read_text())["offset"]
+    if not (isinstance(offset, list) and len(offset) == 2 and all(type(v) is int for v in offset)):
+        raise ValueError(f"{path}: offset: expected two integers (px), got {offset!r}")
+    return offset[0], offset[1]
+
+
+def _union(boxes: dict) -> tuple[float, float, float, float]:
+    return (
+        min(b[0] for b in boxes.values()),
+        min(b[1] for b in boxes.values()),
+        max(b[2] for b in boxes.values()),
+        max(b[3] for b in boxes.values()),
+    )
+
+
+def crop_side(boxes: dict, margin_px: int, image: tuple[int, int]) -> int:
+    """Square crop side (px, multiple of :data:`CROP_STEP_PX`) holding the boxes plus a margin."""
+    u0, v0, u1, v1 = _union(boxes)
+    side = max(u1 - u0, v1 - v0) + 2 * margin_px
+    return int(min(math.ceil(side / CROP_STEP_PX) * CROP_STEP_PX, image[0], image[1]))
+
+
+def crop_offset(boxes: dict, size: tuple[int, int], image: tuple[int, int]) -> tuple[int, int]:
+    """Top-left pixel of a crop centred on the boxes, block-aligned and inside the image."""
+    u0, v0, u1, v1 = _union(boxes)
+    a = BLOCK_ALIGN_PX
+    x0 = int(round(((u0 + u1) / 2 - size[0] / 2) / a)) * a
+    y0 = int(round(((v0 + v1) / 2 - size[1] / 2) / a)) * a
+    return min(max(x0, 0), image[0] - size[0]), min(max(y0, 0), image[1] - size[1])
+
+
+def config_seed(base: int, p: int, theta: float, *extra) -> int:
+    """Deterministic per-configuration seed (31 bits)."""
+    return (
+        int(content_hash("seed", base, int(p), round(float(theta), 9), *extra)[:8], 16) & 0x7FFFFFFF
+    )
+
+
+#: Mitsuba scenes by (scene key, film side), shared by every pipeline of this process: a variant
+#: that changes only the image or estimation stage has the same scene key and reuses the scene
+#: and its compiled kernels, and a Dask worker keeps them between tasks. Keyed by content hashes,
+#: so sharing is safe; :func:`clear_scenes` empties it.
+_SCENES: dict[tuple[str, int], object] = {}
+
+
+def clear_scenes() -> None:
+    """Forget the Mitsuba scenes built in this process (they are rebuilt when next needed)."""
+    _SCENES.clear()
+
+
+class VariantPipeline:
+    """One variant's stages for any (p, theta), with caching."""
+
+    def __init__(
+        self, rig: Rig, state: VariantState, tags, margin_px: int, cache: Cache, assets: str
+    ):
+        self.rig, self.state, self.tags, self.cache = rig, state, tuple(tags), cache
+        self.margin_px = margin_px
+        cam = state.scene.camera
+        self.image_size = (cam.width, cam.height)
+        self.scene_key = content_hash("scene", rig, state.scene, assets)
+        self.detector = Detector(state.estimation.detector)
+
+    def scene(self, side: int):
+        """The Mitsuba scene of this variant with a ``side`` x ``side`` film (one per process)."""
+        key = (self.scene_key, side)
+        if key not in _SCENES:
+            from simgap.render.scene import FixtureScene
+
+            s = self.state.scene
+            _SCENES[key] = FixtureScene(
+                self.rig,
+                s.spec,
+                (side, side),
+                s.quality.spp,
+                s.quality.sampler,
+                errors=s.errors,
+                camera=s.camera,
+                tag_scale=s.tag_scale,
+                lens=(s.aperture_radius_m, s.focus_distance_m),
+                max_depth=s.quality.max_depth,
+            )
+        return _SCENES[key]
+
+    def crop(self, p: int, theta: float) -> tuple[int, tuple[int, int]] | None:
+        """Crop side and offset (px) of one configuration; None when no sticker faces it."""
+        s = self.state.scene
+        boxes = projected_sticker_boxes(self.rig, p, theta, s.errors, s.camera, s.tag_scale)
+        if not boxes:
+            return None
+        side = crop_side(boxes, self.margin_px, self.image_size)
+        return side, crop_offset(boxes, (side, side), self.image_size)
+
+    def render_key(self, p: int, theta: float, render_repeat: int) -> str:
+        """Cache key of the linear render of one configuration."""
+        return content_hash(self.scene_key, int(p), round(float(theta), 9), render_repeat)
+
+    def hdr(self, p: int, theta: float, render_repeat: int):
+        """The linear crop render and its offset, or None when no sticker faces the camera."""
+        crop = self.crop(p, theta)
+        if crop is None:
+            return None
+        side, offset = crop
+        path = self.cache.path("renders", self.render_key(p, theta, render_repeat), ".exr")
+        cached = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+        if cached is not None:
+            return cached, offset
+        scene = self.scene(side)
+        scene.set_pose(p, theta)
+        seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
+        hdr = imaging.quantise_half(scene.render(offset, seed))
+        try:
+            imaging.write_exr(path, hdr, exclusive=True)
+        except FileExistsError:  # another process published this render first: share its copy
+            shared = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+            if shared is None:  # it was corrupt (and is now moved aside): publish ours
+                imaging.write_exr(path, hdr)
+            else:
+                hdr = shared
+        return hdr, offset
+
+    def frame_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
+        """Cache key of the 8-bit frame (the repeat matters only for a stochastic pipeline)."""
+        noise = repeat if self.state.image.stochastic else 0
+        return content_hash(self.render_key(p, theta, render_repeat), self.state.image, noise)
+
+    def frame(self, p: int, theta: float, repeat: int, render_repeat: int) -> Frame | None:
+        """The 8-bit frame the camera delivers, or None when no sticker faces it."""
+        key = self.frame_key(p, theta, repeat, render_repeat)
+        png = self.cache.path("frames", key, ".png")
+        meta = png.with_suffix(".json")
+        if png.is_file() and meta.is_file():
+            offset = self.cache.read(meta, _read_offset)
+            crop8 = self.cache.read(png, imaging.read_png)
+            if offset is not None and crop8 is not None:
+                return Frame(crop8, offset, self.image_size)
+        rendered = self.hdr(p, theta, render_repeat)
+        if rendered is None:
+            return None
+        hdr, offset = rendered
+        seed = config_seed(self.state.scene.render_seed, p, theta, "image", repeat)
+        ctx = ImageContext(offset, self.state.scene.camera, np.random.default_rng(seed))
+        crop8 = run_pipeline(hdr, self.state.image, ctx)
+        write_text(meta, json.dumps({"offset": list(offset), "size": list(self.image_size)}))
+        imaging.write_png(png, crop8)
+        return Frame(crop8, offset, self.image_size)
+
+    def result_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
+        """Cache key of the detection, pose and image-evidence result of one frame."""
+        return content_hash(
+            self.frame_key(p, theta, repeat, render_repeat),
+            self.state.estimation,
+            self.tags,
+            RESULT_VERSION,
+        )
+
+    def run(self, p: int, theta: float, repeat: int, render_repeat: int) -> ConfigResult:
+        """Result of one configuration and repeat, from cache or computed (and then cached)."""
+        key = self.result_key(p, theta, repeat, render_repeat)
+        cached = self.cache.load_arrays("results", key)
+        if cached is not None:
+            return ConfigResult(**cached)
+        frame = self.frame(p, theta, repeat, render_repeat)
+        if frame is None:
+            result = estimate_tags(self.rig, self.state.estimation, self.tags, {}, p, theta)
+        else:
+            crop_gray = imaging.to_gray(frame.crop)
+            full = imaging.paste(crop_gray, frame.offset, frame.size)
+            found, rejected = self.detector.detect_with_rejected(full)
+            result = measure_tags(
+                self.rig, self.state.estimation, self.tags, crop_gray, frame.offset, found,
+                rejected, p, theta,
+            )
+        self.cache.save_arrays("results", key, result.arrays())
+        return result
+
+
+def assets_hash() -> str:
+    """Content hash of the fixture meshes and tag textures every render depends on."""
+    return file_hash(sorted(assets_dir().glob("*.ply")) + sorted(assets_dir().glob("tag_*.png")))
