@@ -344,6 +344,7 @@ def bootstrap_reductions(
     after. Returns the central ``level`` interval of each relative reduction.
     """
     h = scored.items
+    groups = detection_groups(h)
     rng = np.random.default_rng(seed)
     pose, evidence = [], []
     for _ in range(resamples):
@@ -363,9 +364,7 @@ def bootstrap_reductions(
             ]
             if pred_s is not None and h.real_stats is not None:
                 head.append(
-                    detection_score(
-                        h.real_detected[i], pred_d[i], detection_groups(h.subset(i))
-                    )
+                    detection_score(h.real_detected[i], pred_d[i], [g[i] for g in groups])
                 )
                 head += list(image_misfits(h.real_stats[i], pred_s[i]))
             channels.append(root_sum_square(np.asarray(head)))

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from simgap.scene.spec import default_scene_spec
+
 Sampler = Callable[[np.random.Generator], dict[str, Any]]
 
 
@@ -20,19 +22,17 @@ def _signed(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(rng.choice([-1.0, 1.0]) * rng.uniform(lo, hi))
 
 
-#: Key light of the scene template (mitsuba_scenes/pass_fixture.yaml): position, aim (m, rail).
-KEY_LIGHT = {"position": [0.12, -0.30, 0.40], "target": [0.036749, 0.321749, 0.06]}
-
-
 def _lighting(rng: np.random.Generator) -> dict[str, Any]:
-    """Another key light: dim or harsh.
+    """Another key light in the template's key light's place: dim or harsh.
 
     Dim: the template's area light at a quarter to a half of its radiance (8 W m^-2 sr^-1).
     Harsh: a point light in its place, intensity 2-4 W/sr (hard shading, brighter paper).
     """
+    key = default_scene_spec().lights["key"]
+    place = {"position": list(key.position), "target": list(key.target)}
     if rng.uniform() < 0.5:
-        return {"type": "area", **KEY_LIGHT, "power": float(rng.uniform(2.0, 4.0))}
-    return {"type": "point", **KEY_LIGHT, "power": float(rng.uniform(2.0, 4.0))}
+        return {"type": "area", **place, "power": float(rng.uniform(2.0, 4.0))}
+    return {"type": "point", **place, "power": float(rng.uniform(2.0, 4.0))}
 
 
 #: Hidden effects and how their magnitudes are drawn (realistic hardware ranges), with the

@@ -331,7 +331,7 @@ def tag_stats(
     # flat pixels: on the sticker and away from every cell edge of the marker and its border
     px_per_unit = float(np.mean(np.linalg.norm(np.diff(local, axis=0, append=local[:1]), axis=1)))
     edge_dist = np.abs((norm + 0.5) / c - np.round((norm + 0.5) / c)) * c * px_per_unit
-    rr = np.max(np.abs(norm), axis=1)
+    rr = r.ravel()
     near = np.where((rr <= 0.5)[:, None], edge_dist, np.inf).min(axis=1)
     near = np.minimum(near, np.minimum(np.abs(rr - 0.5), np.abs(rr - reach)) * px_per_unit)
     flat = sticker_mask & (near.reshape(patch.shape) >= BLOCK_EDGE_MARGIN_PX)
