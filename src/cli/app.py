@@ -6,7 +6,7 @@ import functools
 import inspect
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import click
 import typer
@@ -90,6 +90,38 @@ SCHEDULER_HELP = (
     "Dask scheduler address (tcp://HOST:PORT); default: an in-process LocalCluster. "
     "Workers must see the cache folder under the same path."
 )
+
+# Parameters several commands share, declared once (typer's ``Annotated`` form; defaults stay in
+# the signatures).
+#: ``--cache FOLDER`` (default ``None``: $SIMGAP_CACHE or ~/.cache/simgap).
+CacheOption = Annotated[Path | None, typer.Option("--cache", help=CACHE_HELP)]
+#: ``--scheduler ADDRESS`` (default ``None``: an in-process cluster).
+SchedulerOption = Annotated[str | None, typer.Option("--scheduler", help=SCHEDULER_HELP)]
+#: ``--progress/--no-progress`` (default ``True``).
+ProgressOption = Annotated[
+    bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")
+]
+#: ``--variant NAME`` of a result dataset (default ``None``: the first).
+VariantOption = Annotated[
+    str | None, typer.Option("--variant", help="Variant of the dataset (default: the first).")
+]
+
+
+def output_option(help_text: str) -> Any:
+    """The ``-o/--output PATH`` option, with what the command writes there as its help."""
+    return typer.Option("-o", "--output", help=help_text)
+
+
+def path_argument(help_text: str) -> Any:
+    """A positional path argument (a file or folder the command reads), with its help."""
+    return typer.Argument(help=help_text)
+
+
+def _read_result(path: Path):
+    """A result dataset (netCDF), checked against the contract (errors name the file)."""
+    from simgap.results.dataset import check_dataset, read_netcdf
+
+    return check_dataset(read_netcdf(path), path)
 
 
 def _fail(message: str) -> None:

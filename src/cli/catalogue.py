@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from simgap.cli.app import CACHE_HELP, SCHEDULER_HELP, _experiment, app
+from simgap.cli.app import CacheOption, SchedulerOption, _experiment, app
 from simgap.cli.simulate import report, run
 
 
@@ -40,8 +40,8 @@ def assets() -> None:
 def study(
     experiment: Path = typer.Argument(Path("experiments/baseline.yaml"), help="Experiment YAML."),
     output: Path = typer.Option(Path("results"), "-o", "--output", help="Output folder."),
-    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
-    scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
+    cache: CacheOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
     name = _experiment(experiment).name

@@ -3,28 +3,36 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
-from simgap.cli.app import CACHE_HELP, SCHEDULER_HELP, _experiment, _load_sim, app
+from simgap.cli.app import (
+    CacheOption,
+    SchedulerOption,
+    VariantOption,
+    _experiment,
+    _load_sim,
+    _read_result,
+    app,
+    output_option,
+    path_argument,
+)
 
 
 @app.command("errormodel")
 def errormodel(
-    result: Path = typer.Argument(..., help="Result dataset (netCDF): simulated or ingested."),
-    output: Path = typer.Option(..., "-o", "--output", help="Model to write (.nc; and .json)."),
-    variant: str | None = typer.Option(
-        None, "--variant", help="Variant to model (default: first)."
-    ),
+    result: Annotated[Path, path_argument("Result dataset (netCDF): simulated or ingested.")],
+    output: Annotated[Path, output_option("Model to write (.nc; and .json).")],
+    variant: VariantOption = None,
     check: bool = typer.Option(
         True, "--check/--no-check", help="Also fit on half the configurations, test on the rest."
     ),
 ) -> None:
     """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
     from simgap.analysis.errormodel import check_error_model, fit_error_model
-    from simgap.results.dataset import check_dataset, read_netcdf
 
-    ds = check_dataset(read_netcdf(result), result)
+    ds = _read_result(result)
     model = fit_error_model(ds, variant=variant, source=str(result))
     summary = check_error_model(ds, variant=variant) if check else None
     for path in model.save(output):
@@ -41,13 +49,13 @@ def errormodel(
 
 @app.command()
 def diagnose(
-    real: Path = typer.Argument(..., help="Real dataset (netCDF) from `simgap ingest`."),
-    sim: Path = typer.Option(..., "--sim", help="Simulation: experiment YAML or result .nc."),
-    output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
+    real: Annotated[Path, path_argument("Real dataset (netCDF) from `simgap ingest`.")],
+    sim: Annotated[Path, typer.Option("--sim", help="Simulation: experiment YAML or result .nc.")],
+    output: Annotated[Path, output_option("Report folder to write.")],
     json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
-    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+    cache: CacheOption = None,
     seed: int = typer.Option(0, "--seed", help="Seed of the train/held-out split."),
-    scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
     from simgap.core.paths import default_cache_dir
@@ -62,7 +70,7 @@ def diagnose(
     exp = _load_sim(sim)
     settings = DiagnoseSettings(seed=seed)
     simulator = Simulator(cache or default_cache_dir(), scheduler=scheduler)
-    result, state = run_diagnosis(data, exp, settings=settings, simulator=simulator)
+    result, state = run_diagnosis(data, exp, simulator, settings)
     for p in write_diagnosis_report(result, state, output):
         typer.echo(str(p))
     if json_path:
@@ -86,7 +94,7 @@ def validate(
     experiment: Path = typer.Option(
         Path("experiments/baseline.yaml"), "--experiment", help="Simulation experiment."
     ),
-    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+    cache: CacheOption = None,
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores."""
     from simgap.core.paths import default_cache_dir

@@ -3,22 +3,37 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
-from simgap.cli.app import CACHE_HELP, _experiment, _fail, _load_sim, app
+from simgap.cli.app import (
+    CacheOption,
+    ProgressOption,
+    VariantOption,
+    _experiment,
+    _fail,
+    _load_sim,
+    _read_result,
+    app,
+    output_option,
+    path_argument,
+)
 
 
 @app.command()
 def ingest(
-    capture: Path = typer.Argument(
-        ..., help="Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag."
-    ),
-    output: Path = typer.Option(..., "-o", "--output", help="Result dataset to write (netCDF)."),
+    capture: Annotated[
+        Path,
+        path_argument(
+            "Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag."
+        ),
+    ],
+    output: Annotated[Path, output_option("Result dataset to write (netCDF).")],
     experiment: Path | None = typer.Option(
         None, "--experiment", help="Take rig, detector and PnP settings from this experiment YAML."
     ),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+    progress: ProgressOption = True,
     ranges: Path | None = typer.Option(
         None,
         "--ranges",
@@ -67,20 +82,18 @@ def ingest(
 
 @app.command("export-bag")
 def export_bag(
-    source: Path = typer.Argument(
-        ..., help="Experiment YAML, simulated result dataset (.nc) or capture folder."
-    ),
-    output: Path = typer.Option(..., "-o", "--output", help="Bag to write: .bag file or folder."),
+    source: Annotated[
+        Path, path_argument("Experiment YAML, simulated result dataset (.nc) or capture folder.")
+    ],
+    output: Annotated[Path, output_option("Bag to write: .bag file or folder.")],
     fmt: str | None = typer.Option(
         None, "--format", help="ros1 or ros2 (default: ros1 for a .bag output, else ros2)."
     ),
     compressed: bool = typer.Option(
         False, "--compressed/--raw", help="CompressedImage (PNG, or the file's bytes) or raw bgr8."
     ),
-    variant: str | None = typer.Option(
-        None, "--variant", help="Variant to export (default: first)."
-    ),
-    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
+    variant: VariantOption = None,
+    cache: CacheOption = None,
 ) -> None:
     """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
     from simgap.core.paths import default_cache_dir
@@ -94,9 +107,7 @@ def export_bag(
     else:
         dataset = None
         if source.suffix == ".nc":
-            from simgap.results.dataset import check_dataset, read_netcdf
-
-            dataset = check_dataset(read_netcdf(source), source)
+            dataset = _read_result(source)
         exp = _load_sim(source)
         cache_dir = cache or default_cache_dir()
         path = experiment_to_bag(exp, cache_dir, output, fmt, dataset, variant, compressed)

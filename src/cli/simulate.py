@@ -3,19 +3,29 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
-from simgap.cli.app import CACHE_HELP, SCHEDULER_HELP, _experiment, app
+from simgap.cli.app import (
+    CacheOption,
+    ProgressOption,
+    SchedulerOption,
+    _experiment,
+    _read_result,
+    app,
+    output_option,
+    path_argument,
+)
 
 
 @app.command()
 def run(
-    experiment: Path = typer.Argument(..., help="Experiment YAML (e.g. experiments/smoke.yaml)."),
-    output: Path = typer.Option(..., "-o", "--output", help="Result dataset to write (netCDF)."),
-    cache: Path | None = typer.Option(None, "--cache", help=CACHE_HELP),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
-    scheduler: str | None = typer.Option(None, "--scheduler", help=SCHEDULER_HELP),
+    experiment: Annotated[Path, path_argument("Experiment YAML (e.g. experiments/smoke.yaml).")],
+    output: Annotated[Path, output_option("Result dataset to write (netCDF).")],
+    cache: CacheOption = None,
+    progress: ProgressOption = True,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Run an experiment and write its result dataset."""
     from simgap.core.paths import default_cache_dir
@@ -33,19 +43,19 @@ def run(
     )
 
 
+MODEL_HELP = "Error model (.nc or .json): draw its bands over the data."
+
+
 @app.command()
 def report(
-    result: Path = typer.Argument(..., help="Result dataset (netCDF) from `simgap run`."),
-    output: Path = typer.Option(..., "-o", "--output", help="Report folder to write."),
-    model: Path | None = typer.Option(
-        None, "--model", help="Error model (.nc or .json): draw its bands over the data."
-    ),
+    result: Annotated[Path, path_argument("Result dataset (netCDF) from `simgap run`.")],
+    output: Annotated[Path, output_option("Report folder to write.")],
+    model: Annotated[Path | None, typer.Option("--model", help=MODEL_HELP)] = None,
 ) -> None:
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
     from simgap.analysis.report import write_report
-    from simgap.results.dataset import check_dataset, read_netcdf
 
-    ds = check_dataset(read_netcdf(result), result)
+    ds = _read_result(result)
     paths = write_report(ds, output)
     if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
         from simgap.analysis.compare import write_comparison
@@ -61,17 +71,14 @@ def report(
 
 @app.command()
 def compare(
-    result: Path = typer.Argument(..., help="Result dataset (netCDF) with several variants."),
-    output: Path = typer.Option(..., "-o", "--output", help="Comparison folder to write."),
+    result: Annotated[Path, path_argument("Result dataset (netCDF) with several variants.")],
+    output: Annotated[Path, output_option("Comparison folder to write.")],
     baseline: str | None = typer.Option(
         None, "--baseline", help="Reference variant (default: 'baseline', else the first)."
     ),
 ) -> None:
     """Compare each variant of a result dataset with the reference variant."""
     from simgap.analysis.compare import write_comparison
-    from simgap.results.dataset import check_dataset, read_netcdf
 
-    ds = check_dataset(read_netcdf(result), result)
-    paths = write_comparison(ds, output, baseline)
-    for p in paths:
+    for p in write_comparison(_read_result(result), output, baseline):
         typer.echo(str(p))

@@ -158,12 +158,9 @@ class Diagnosis:
 def diagnose(
     real: xr.Dataset,
     exp: Experiment,
-    cache_dir: Path | None = None,
+    simulator: Simulator | Path,
     settings: DiagnoseSettings | None = None,
     candidates: list | None = None,
-    scheduler: str | None = None,
-    *,
-    simulator: Simulator | None = None,
 ) -> tuple[dict[str, Any], Diagnosis]:
     """Run the whole diagnosis; return the ``result.json`` mapping and the diagnosis state.
 
@@ -173,16 +170,12 @@ def diagnose(
         The real dataset (``simgap ingest``).
     exp : Experiment
         The simulation; restricted to ``real``'s configurations and calibration before it runs.
-    cache_dir : Path, optional
-        Cache folder; used only to build the default ``simulator``.
+    simulator : Simulator or Path
+        How to simulate, or a cache folder for ``Simulator(folder)`` (in-process scheduler).
     settings : DiagnoseSettings, optional
         Splits, subsample sizes and thresholds (default: :class:`DiagnoseSettings`).
     candidates : list, optional
         Candidate effects, projection, simulation or appearance (default: the whole catalogue).
-    scheduler : str, optional
-        Dask scheduler address; used only to build the default ``simulator``.
-    simulator : Simulator, optional
-        How to simulate; default ``Simulator(cache_dir, scheduler)``.
 
     Raises
     ------
@@ -191,10 +184,8 @@ def diagnose(
     """
     check_dataset(real, required=("error", "detected", "visible", "corners"))
     settings = settings or DiagnoseSettings()
-    if simulator is None:
-        if cache_dir is None:
-            raise ValueError("diagnose needs a simulator or a cache folder")
-        simulator = Simulator(cache_dir, scheduler=scheduler)
+    if not isinstance(simulator, Simulator):
+        simulator = Simulator(Path(simulator))
     t0 = time.perf_counter()
     sim_exp = simulation_experiment(real, exp)
     d = Diagnosis(real, simulator.dataset(sim_exp), sim_exp, simulator, settings)

@@ -66,6 +66,7 @@ __all__ = [
     "validation_markdown",
 ]
 
+
 @dataclass(frozen=True)
 class ValidateSettings:
     """Validation settings.
@@ -225,7 +226,7 @@ def run_validation(
         exp = pseudo_real_experiment(base, hidden, 1000 + settings.seed * 1000 + i, settings)
         render_capture(exp, simulator, folder)
         real = ingest(folder, exp.rig_model)
-        result, _ = diagnose(real, sim_exp, simulator=simulator)
+        result, _ = diagnose(real, sim_exp, simulator)
         trial = Trial(i, hidden, result, time.perf_counter() - t0)
         trials.append(trial)
         s = trial.score()

@@ -10,16 +10,10 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
+from simgap.analysis.errormodel import smoothing
 from simgap.analysis.errormodel.geometry import covariates
 from simgap.analysis.errormodel.io import SCHEMA
 from simgap.analysis.errormodel.model import Z90, ErrorModel
-from simgap.analysis.errormodel.smoothing import (
-    kernel,
-    local_linear_weights,
-    rank_correlation,
-    robust_local_linear,
-    weighted_median,
-)
 from simgap.core.axes import AXES
 from simgap.core.robust import MAD_TO_SIGMA
 from simgap.results.dataset import ERROR_UNITS
@@ -96,7 +90,9 @@ def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int)
         "calibration": np.full(6, np.nan),
         "correlation": np.eye(6),
     }
-    k_det, _ = kernel(nodes, xd, np.array([settings.h_distance, settings.h_obliquity_det]))
+    k_det, _ = smoothing.kernel(
+        nodes, xd, np.array([settings.h_distance, settings.h_obliquity_det])
+    )
     mass = k_det.sum(axis=1)
     hits = k_det @ flags.astype(float)
     rate = float(np.mean(flags)) if len(flags) else 0.5
@@ -105,19 +101,19 @@ def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int)
     out["p_detect_lo"] = stats.beta.ppf(0.05, a, b).reshape(shape)
     out["p_detect_hi"] = stats.beta.ppf(0.95, a, b).reshape(shape)
     out["support_detection"] = mass.reshape(shape)
-    k_err, _ = kernel(nodes, x, h) if len(x) else (np.zeros((len(nodes), 0)), None)
+    k_err, _ = smoothing.kernel(nodes, x, h) if len(x) else (np.zeros((len(nodes), 0)), None)
     out["support_error"] = k_err.sum(axis=1).reshape(shape)
     if len(x) < settings.min_detections:
         return out
-    k_data, _ = kernel(x, x, h)
+    k_data, _ = smoothing.kernel(x, x, h)
     np.fill_diagonal(k_data, 0.0)  # each point's spread from its neighbours only (held-out-like)
     z = np.empty_like(err)
     for j in range(6):
-        w, loo = robust_local_linear(x, err[:, j], h, settings.robust_iterations)
-        l_nodes = local_linear_weights(nodes, x, w, h)
-        l_data = local_linear_weights(x, x, w, h)
-        sigma_nodes = MAD_TO_SIGMA * weighted_median(np.abs(loo), k_err)
-        sigma_data = MAD_TO_SIGMA * weighted_median(np.abs(loo), k_data)
+        w, loo = smoothing.robust_local_linear(x, err[:, j], h, settings.robust_iterations)
+        l_nodes = smoothing.local_linear_weights(nodes, x, w, h)
+        l_data = smoothing.local_linear_weights(x, x, w, h)
+        sigma_nodes = MAD_TO_SIGMA * smoothing.weighted_median(np.abs(loo), k_err)
+        sigma_data = MAD_TO_SIGMA * smoothing.weighted_median(np.abs(loo), k_data)
         se_nodes = sigma_nodes * np.sqrt(np.sum(l_nodes**2, axis=1))
         se_data = sigma_data * np.sqrt(np.sum(l_data**2, axis=1))
         std_data = np.sqrt(sigma_data**2 + se_data**2)
@@ -129,7 +125,7 @@ def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int)
         out["spread"][..., j] = (calibration * sigma_nodes).reshape(shape)
         out["bias_se"][..., j] = (calibration * se_nodes).reshape(shape)
         out["calibration"][j] = calibration
-    out["correlation"] = rank_correlation(z)
+    out["correlation"] = smoothing.rank_correlation(z)
     return out
 
 

@@ -35,11 +35,9 @@ from simgap.pipeline.bag.formats import (
 from simgap.pipeline.bag.ranges import TimeRange, read_time_ranges
 from simgap.pipeline.capture import read_calibration
 from simgap.pipeline.capture.folder import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
-from simgap.pipeline.capture.ingest import DEFAULT_DETECTOR, DEFAULT_PNP, ingest
+from simgap.pipeline.capture.ingest import ingest
 from simgap.pipeline.capture.manifest import turntable_stop
 from simgap.pipeline.capture.writer import image_name
-from simgap.pose.detect import DetectorSettings
-from simgap.pose.estimate import PnPSettings
 
 
 @dataclass
@@ -311,14 +309,13 @@ def _write_frames(
 def ingest_bag(
     bag: Path,
     rig: Rig | None = None,
-    detector: DetectorSettings = DEFAULT_DETECTOR,
-    pnp: PnPSettings = DEFAULT_PNP,
     ranges_csv: Path | None = None,
     image_topic: str | None = None,
     camera_info_topic: str | None = None,
     fixture_topic: str | None = None,
     keep_capture: Path | None = None,
     show_progress: bool = False,
+    **estimator: Any,
 ) -> xr.Dataset:
     """Ingest a ROS bag: convert it to a capture folder, then ingest that folder.
 
@@ -326,14 +323,17 @@ def ingest_bag(
     ----------
     bag : Path
         ROS 1 ``.bag`` file or ROS 2 bag folder.
-    rig, detector, pnp
-        As :func:`simgap.pipeline.capture.ingest`.
+    rig : Rig, optional
+        The fixture (default: the packaged rig).
     ranges_csv, image_topic, camera_info_topic, fixture_topic
         As :func:`bag_to_capture`.
     keep_capture : Path, optional
         Write the intermediate capture folder here (default: a temporary folder, deleted).
     show_progress : bool
         Show a progress bar.
+    **estimator
+        ``detector``, ``pnp`` and ``calibration``, passed on to
+        :func:`simgap.pipeline.capture.ingest` (its defaults where absent).
 
     Returns
     -------
@@ -353,7 +353,7 @@ def ingest_bag(
         info = bag_to_capture(
             bag, folder, rig, ranges_csv, image_topic, camera_info_topic, fixture_topic
         )
-        ds = ingest(folder, rig, detector, pnp, show_progress=show_progress)
+        ds = ingest(folder, rig, show_progress=show_progress, **estimator)
     ds.attrs.update(
         {
             "title": f"simgap result: bag {Path(bag).name}",
