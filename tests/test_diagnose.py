@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -278,36 +279,46 @@ def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sam
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table."""
-    from simgap.diagnosis.validate import ValidateSettings, run_validation
+    from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
     from simgap.pipeline.experiment import load_experiment
 
     settings = ValidateSettings(
         trials=2,
         seed=3,
-        p=(0, 5, 10, 14),
-        theta_deg=(0, 20, 340, 160, 180, 200),
+        p=(0, 7, 14),  # 12 configurations: the smallest capture the three-way split still splits
+        theta_deg=(0, 20, 340, 180),
         p_none=0.5,
         p_pair=0.0,
         effects=("focal_length", "carriage_pitch"),
     )
-    summary = run_validation(
-        load_experiment("experiments/baseline.yaml"),
-        tmp_path,
-        session_cache,
-        settings,
-        log=lambda m: None,
-    )
-    assert summary["trials"] == 2
+    exp = load_experiment("experiments/baseline.yaml")
+    ran: list[str] = []
+    for shard in ((1, 2), (0, 2)):  # two shards, as two processes would run them side by side
+        part = run_validation(
+            exp, tmp_path, session_cache, replace(settings, shard=shard), log=ran.append
+        )
+        assert part["trials"] == 1 + (shard == (0, 2))  # the summary covers the finished trials
+    assert [m.split(":")[0] for m in ran] == ["trial 1", "trial 0"]
+    summary = run_validation(exp, tmp_path, session_cache, settings, log=ran.append)
+    assert len(ran) == 2  # resumed: nothing ran again
+    assert summary["trials"] == 2 and summary["trials_planned"] == 2
+    kept = tmp_path / "trials" / "trial_000.json"  # as if made by another seed: refused
+    kept.write_text(json.dumps(dict(json.loads(kept.read_text()), params={"x": {"v": 1}})))
+    with pytest.raises(ValueError, match="other hidden effects"):
+        run_validation(exp, tmp_path, session_cache, settings, log=ran.append)
     text = (tmp_path / "validation.md").read_text()
     assert "Confusion table" in text
     data = json.loads((tmp_path / "validation.json").read_text())
     assert len(data["trials"]) == 2
     assert (tmp_path / "captures" / "trial_000" / "manifest.csv").is_file()
     for t in data["trials"]:
-        if t["hidden"]:
+        geometric = set(t["selected"]) & geometric_effects()
+        if set(t["hidden"]) & set(OUTSIDE):  # outside the catalogue: must read "unexplained"
+            expected = bool(t["unexplained"]) and not geometric
+        elif t["hidden"]:
             expected = bool(t["selected"]) and t["selected"][0] in t["hidden"]
         else:  # another camera's image formation may be reported; no geometric cause may
-            expected = not set(t["selected"]) & geometric_effects()
+            expected = not geometric
         assert t["correct"] == expected
         combined = t["result"].get("combined")
         if combined:  # the reduction is measured on configurations that did not choose

@@ -53,7 +53,7 @@ DISK_10_90_PER_RADIUS = 2 * 0.68705
 RESIDUAL_CAP = 3.0
 #: Points of the coarse scan that brackets a 1-D fit before the bounded Brent search.
 SCAN_POINTS = 16
-#: An effect fitted by a scan is ranked only when its own statistics differ by at least
+#: An appearance effect is ranked only when its own statistics differ by at least
 #: :data:`SIGNATURE_MIN_MISFIT` floors (RMS over the training tags) and the fit lowers that by
 #: :data:`SIGNATURE_MIN_GAIN`, else the evidence does not call for it (a JPEG fitted where the
 #: blockiness matches within its floor would only be credited for side effects on noise). The
@@ -247,6 +247,8 @@ class DefocusCandidate(AppearanceCandidate):
             ),
             key=lambda s: s.cost,
         )
+        rms_before = _capped_rms(residual(np.array([0.0, best.x[1]])))
+        gain = rms_before - _capped_rms(residual(best.x))
         return Fit(
             self.effect,
             {
@@ -254,8 +256,20 @@ class DefocusCandidate(AppearanceCandidate):
                 "focus_distance_m": float(1.0 / best.x[1]),
             },
             time.perf_counter() - t0,
-            {"train_cost": float(best.cost)},
+            {
+                "train_cost": float(best.cost),
+                # the edge widths must call for a lens, as for every appearance effect: without
+                # this gate a lens too small to widen any edge was credited for the lower
+                # render noise of its 36-spp renders (the pose scatter), not for defocus
+                "supported": rms_before >= SIGNATURE_MIN_MISFIT and gain >= SIGNATURE_MIN_GAIN,
+            },
         )
+
+
+def _capped_rms(residual: np.ndarray) -> float:
+    """Root mean square of residuals in floors, each capped at :data:`RESIDUAL_CAP`."""
+    r = residual[np.isfinite(residual)]
+    return float(np.sqrt(np.mean(np.minimum(r**2, RESIDUAL_CAP**2)))) if r.size else 0.0
 
 
 class JpegCandidate(AppearanceCandidate):

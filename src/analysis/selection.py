@@ -37,6 +37,7 @@ from simgap.analysis.scoring import (
     improves,
     improves_on_nothing,
     parsimonious,
+    worsens_pose,
 )
 from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
@@ -263,6 +264,9 @@ class ModelSearch:
     def select(self, ranking: list[Scored], max_effects: int = 3) -> Scored | None:
         """Greedy forward search with joint refits, simplified after every step.
 
+        Geometric effects that leave a larger held-out pose gap (:func:`worsens_pose`) are
+        not considered.
+
         An effect is added while the combined held-out misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`). Effects are returned most important
@@ -271,6 +275,8 @@ class ModelSearch:
         stochastic effects (sensor noise) after the others: they explain noise and scatter, not
         the systematic gap, and every real camera has some, so they lead only when alone.
         """
+        # a geometric effect that leaves the pose further from the real one explains nothing
+        ranking = [s for s in ranking if not (_geometric(s.fits[0][0]) and worsens_pose(s))]
         if not ranking or not improves_on_nothing(ranking[0]):
             return None
         pool = [s.fits[0][0] for s in ranking]
@@ -278,7 +284,11 @@ class ModelSearch:
         seen = {frozenset(current.effects)}
         while len(current.fits) < max_effects:
             model = tuple(c for c, _ in current.fits)
-            options = [self.evaluate(model + (c,)) for c in pool if c not in model]
+            options = []
+            for c in (c for c in pool if c not in model):
+                option = self.evaluate(model + (c,))
+                if not (_geometric(c) and worsens_pose(option, current)):
+                    options.append(option)
             if not options:
                 break
             best = parsimonious(options)
@@ -401,3 +411,8 @@ class ModelSearch:
             }
             for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
         ]
+
+
+def _geometric(candidate: Any) -> bool:
+    """Whether a candidate is a geometric (projection) effect, predicted without rendering."""
+    return candidate.kind == "projection"

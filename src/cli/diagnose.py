@@ -95,13 +95,23 @@ def validate(
         Path("experiments/baseline.yaml"), "--experiment", help="Simulation experiment."
     ),
     cache: CacheOption = None,
+    shard: str = typer.Option(
+        "0/1", "--shard", help="K/N: run only trials K, K+N, ... (several processes, one folder)."
+    ),
 ) -> None:
-    """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores."""
+    """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores.
+
+    Finished trials are kept in OUTPUT/trials/: a stopped run resumes, and processes with
+    disjoint shards share one output folder; a last run without --shard writes the summary of all.
+    """
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.validate import ValidateSettings, run_validation
 
     exp = _experiment(experiment)
-    settings = ValidateSettings(trials=trials, seed=seed)
+    k, _, n = shard.partition("/")
+    if not (k.isdigit() and n.isdigit()):
+        raise ValueError(f"--shard: expected K/N (two whole numbers, e.g. 0/4), got {shard!r}")
+    settings = ValidateSettings(trials=trials, seed=seed, shard=(int(k), int(n)))
     summary = run_validation(exp, output, cache or default_cache_dir(), settings, log=typer.echo)
     typer.echo((output / "validation.md").read_text())
     typer.echo(

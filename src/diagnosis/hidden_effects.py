@@ -101,3 +101,8 @@ NUISANCE_SCENE: dict[str, Any] = {
 }
 #: ... rendered with more samples per pixel (supersampling; a square number for multijitter).
 NUISANCE_SPP = 25
+
+
+def found(hidden: str, selected: list[str]) -> bool:
+    """Whether a hidden effect is among the selected ones (itself or as :data:`REPORTED_AS`)."""
+    return hidden in selected or REPORTED_AS.get(hidden) in selected

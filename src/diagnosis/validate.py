@@ -39,8 +39,10 @@ from simgap.diagnosis.hidden_effects import (
     OUTSIDE,
     REPORTED_AS,
     Sampler,
+    found,
 )
-from simgap.diagnosis.result_json import write_json
+from simgap.diagnosis.result_json import jsonable, write_json
+from simgap.diagnosis.validation_report import confusion, summarize_scores, validation_markdown
 from simgap.pipeline.capture import ingest, write_capture
 from simgap.pipeline.experiment import Configurations, Experiment, VariantSpec
 from simgap.pipeline.simulator import Simulator
@@ -63,6 +65,7 @@ __all__ = [
     "summarize",
     "summarize_scores",
     "confusion",
+    "found",
     "validation_markdown",
 ]
 
@@ -86,6 +89,8 @@ class ValidateSettings:
         catalogue (:data:`OUTSIDE`).
     effects : tuple of str
         Hidden effects drawn from (default: all of :data:`HIDDEN`).
+    shard : (int, int)
+        ``(K, N)``: run only the trials whose index is K modulo N (processes side by side).
     """
 
     trials: int = 30
@@ -96,6 +101,12 @@ class ValidateSettings:
     p_pair: float = 0.2
     p_outside: float = 0.1
     effects: tuple[str, ...] = tuple(HIDDEN)
+    shard: tuple[int, int] = (0, 1)
+
+    def __post_init__(self) -> None:
+        k, n = self.shard
+        if not (n >= 1 and 0 <= k < n):
+            raise ValueError(f"shard: expected K/N with 0 <= K < N, got {k}/{n}")
 
 
 @dataclass
@@ -106,6 +117,18 @@ class Trial:
     hidden: dict[str, dict[str, Any]]
     result: dict[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
+
+    def record(self) -> dict[str, Any]:
+        """The trial as ``validation.json`` keeps it: its score, params, result and seconds."""
+        return jsonable(
+            dict(
+                self.score(),
+                index=self.index,
+                params=self.hidden,
+                result=self.result,
+                seconds=self.seconds,
+            )
+        )
 
     def score(self) -> dict[str, Any]:
         """Top-1, recall, magnitude errors and gap reduction of this trial."""
@@ -143,11 +166,6 @@ class Trial:
         out["reduction"] = self.result.get("confirmed", combined).get("reduction")
         out["reduction_interval_90"] = combined.get("reduction_interval_90")
         return out
-
-
-def found(hidden: str, selected: list[str]) -> bool:
-    """Whether a hidden effect is among the selected ones (itself or as :data:`REPORTED_AS`)."""
-    return hidden in selected or REPORTED_AS.get(hidden) in selected
 
 
 def draw_hidden(rng: np.random.Generator, settings: ValidateSettings) -> dict[str, dict[str, Any]]:
@@ -210,7 +228,18 @@ def run_validation(
 ) -> dict[str, Any]:
     """Run the trials and write ``validation.md`` and ``validation.json`` into ``out_dir``.
 
+    Each finished trial is kept in ``out_dir/trials/trial_NNN.json`` (atomic write): a run that is
+    stopped resumes where it was, and processes given disjoint shards (``settings.shard``) may
+    run side by side on one output folder and cache; the hidden draws are the same whatever the
+    shard, since every process draws all trials in order. The summary covers every trial finished
+    by then, by any shard: the last shard to finish writes the complete one.
+
     ``simulator`` renders the captures and runs the diagnoses (default: one on ``cache_dir``).
+
+    Raises
+    ------
+    ValueError
+        When a kept trial file was made with other hidden effects (another seed or settings).
     """
     simulator = simulator or Simulator(cache_dir)
     rng = np.random.default_rng(settings.seed)
@@ -218,9 +247,12 @@ def run_validation(
     sim_exp = dataclasses.replace(
         base, configurations=Configurations(tuple(settings.p), tuple(settings.theta_deg), ())
     )
-    trials = []
-    for i in range(settings.trials):
-        hidden = draw_hidden(rng, settings)
+    shard, shards = settings.shard
+    draws = [draw_hidden(rng, settings) for _ in range(settings.trials)]
+    for i, hidden in enumerate(draws):
+        path = out_dir / "trials" / f"trial_{i:03d}.json"
+        if i % shards != shard or _kept_trial(path, hidden) is not None:
+            continue
         t0 = time.perf_counter()
         folder = out_dir / "captures" / f"trial_{i:03d}"
         exp = pseudo_real_experiment(base, hidden, 1000 + settings.seed * 1000 + i, settings)
@@ -228,174 +260,34 @@ def run_validation(
         real = ingest(folder, exp.rig_model)
         result, _ = diagnose(real, sim_exp, simulator)
         trial = Trial(i, hidden, result, time.perf_counter() - t0)
-        trials.append(trial)
-        s = trial.score()
+        record = trial.record()
+        write_json(record, path)
         log(
-            f"trial {i}: hidden {s['hidden'] or ['none']} -> {s['top1']} "
-            f"({'ok' if s['correct'] else 'MISS'}, {trial.seconds:.0f} s)"
+            f"trial {i}: hidden {record['hidden'] or ['none']} -> {record['top1']} "
+            f"({'ok' if record['correct'] else 'MISS'}, {trial.seconds:.0f} s)"
         )
-        write_json(
-            {"trials": [dict(t.score(), params=t.hidden) for t in trials]},
-            out_dir / "validation.json",
-        )
-    summary = summarize(trials)
-    write_json(
-        {
-            "summary": summary,
-            "trials": [
-                dict(t.score(), params=t.hidden, result=t.result, seconds=t.seconds) for t in trials
-            ],
-        },
-        out_dir / "validation.json",
-    )
-    atomic_write(out_dir / "validation.md", validation_markdown(summary, trials))
+    kept = (_kept_trial(out_dir / "trials" / f"trial_{i:03d}.json", h) for i, h in enumerate(draws))
+    records = [r for r in kept if r is not None]  # every shard's trials finished so far
+    summary = summarize_scores(records)
+    summary["trials_planned"] = settings.trials
+    write_json({"summary": summary, "trials": records}, out_dir / "validation.json")
+    atomic_write(out_dir / "validation.md", validation_markdown(summary, records))
     return summary
 
 
-def _share(flags: list[bool]) -> float | None:
-    return float(np.mean(flags)) if flags else None
+def _kept_trial(path: Path, hidden: dict[str, Any]) -> dict[str, Any] | None:
+    """The trial kept at ``path`` (None if there is none yet), checked against its draw."""
+    if not path.is_file():
+        return None
+    record = json.loads(path.read_text())
+    if record["params"] != jsonable(hidden):
+        raise ValueError(
+            f"{path}: made with other hidden effects ({record['params']}, this run draws "
+            f"{jsonable(hidden)}); use another output folder for another seed or settings"
+        )
+    return record
 
 
 def summarize(trials: list[Trial]) -> dict[str, Any]:
     """Scores over trials (DESIGN §5 item 4; issue 8's done-when)."""
     return summarize_scores([t.score() for t in trials])
-
-
-def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
-    """Scores over trials from each trial's :meth:`Trial.score` (as validation.json keeps)."""
-    outside = [s for s in scores if s["hidden"] and set(s["hidden"]) <= set(OUTSIDE)]
-    inside = [s for s in scores if s["hidden"] and s not in outside]
-    single = [s for s in inside if len(s["hidden"]) == 1]
-    pairs = [s for s in inside if len(s["hidden"]) == 2]
-    none = [s for s in scores if not s["hidden"]]
-    mags = [v for s in inside for v in s.get("magnitude_error", {}).values()]
-    red = [s["reduction"] for s in inside if s.get("correct") and s.get("reduction") is not None]
-    per_effect = {}
-    for name in sorted({h for s in inside for h in s["hidden"]}):
-        alone = [s for s in single if s["hidden"] == [name]]
-        anywhere = [s for s in inside if name in s["hidden"]]
-        errors = [s["magnitude_error"][name] for s in anywhere if name in s["magnitude_error"]]
-        per_effect[name] = {
-            "single_trials": len(alone),
-            "top1_single": _share([s["correct"] for s in alone]),
-            "trials": len(anywhere),
-            "recall": _share([found(name, s["selected"]) for s in anywhere]),
-            "magnitude_error_median": float(np.median(errors)) if errors else None,
-        }
-    appearance = [s for s in single if s["hidden"][0] in APPEARANCE]
-    return {
-        "trials": len(scores),
-        "top1_accuracy": _share([s["correct"] for s in inside]),
-        "top1_accuracy_single": _share([s["correct"] for s in single]),
-        "top1_accuracy_appearance_single": _share([s["correct"] for s in appearance]),
-        "pair_recall": _share([s["recall"] for s in pairs]),
-        "no_effect_correct": _share([s["correct"] for s in none]),
-        "outside_unexplained": _share([s["correct"] for s in outside]),
-        "magnitude_within_25pct": _share([m <= 0.25 for m in mags]),
-        "magnitude_error_median": float(np.median(mags)) if mags else None,
-        "magnitude_error_p90": float(np.percentile(mags, 90)) if mags else None,
-        "reduction_median": float(np.median(red)) if red else None,
-        "reduction_at_least_70pct": _share([r >= 0.7 for r in red]),
-        "per_effect": per_effect,
-        "confusion": confusion(scores),
-    }
-
-
-def confusion(scores: list[dict]) -> dict[str, dict[str, int]]:
-    """Counts of (hidden effect -> answer), one count per hidden effect of each trial.
-
-    The answer is the hidden effect itself when the diagnosis selected it or the effect it is
-    reported as (:data:`REPORTED_AS`; a hit, on the diagonal), else the diagnosis' top-1 (or
-    ``none``). For an effect-free trial the answer is
-    ``none`` unless a geometric or calibration effect was selected (then the first of those);
-    for an effect outside the catalogue it is ``unexplained`` when reported so.
-    """
-    table: dict[str, dict[str, int]] = {}
-    for s in scores:
-        for h in s["hidden"] or ["none"]:
-            if h == "none":
-                answer = s["geometric_selected"][0] if s["geometric_selected"] else "none"
-            elif h in OUTSIDE:
-                answer = "unexplained" if s["correct"] else s["top1"]
-            else:
-                answer = h if found(h, s["selected"]) else s["top1"]
-            row = table.setdefault(h, {})
-            row[answer] = row.get(answer, 0) + 1
-    return table
-
-
-def validation_markdown(summary: dict[str, Any], trials: list[Trial]) -> str:
-    """The validation report with its confusion table."""
-
-    def pct(v):
-        return "n/a" if v is None else f"{v:.0%}"
-
-    def num(v):
-        return "n/a" if v is None else f"{v:.1%}"
-
-    lines = [
-        "# Blind validation of the gap diagnosis",
-        "",
-        f"{summary['trials']} trials. Pseudo-real captures are rendered as another camera: "
-        f"effects {json.dumps(NUISANCE_EFFECTS)}, scene {json.dumps(NUISANCE_SCENE)}, "
-        f"{NUISANCE_SPP} spp, another render seed; hidden effects drawn per trial.",
-        "",
-        "| score | value |",
-        "|---|---|",
-        f"| top-1 accuracy (trials with a catalogue effect) | {pct(summary['top1_accuracy'])} |",
-        f"| top-1 accuracy (single effect) | {pct(summary['top1_accuracy_single'])} |",
-        "| top-1 accuracy (single appearance effect) | "
-        f"{pct(summary['top1_accuracy_appearance_single'])} |",
-        f"| recall for pairs | {pct(summary['pair_recall'])} |",
-        "| no-effect trials free of geometric and calibration effects | "
-        f"{pct(summary['no_effect_correct'])} |",
-        f"| effect outside the catalogue reported unexplained | "
-        f"{pct(summary['outside_unexplained'])} |",
-        f"| fitted magnitude within 25 % | {pct(summary['magnitude_within_25pct'])} |",
-        f"| magnitude error, median / 90th percentile | {num(summary['magnitude_error_median'])} / "
-        f"{num(summary['magnitude_error_p90'])} |",
-        "| pose-gap reduction on the report split, median (correct trials) | "
-        f"{pct(summary['reduction_median'])} |",
-        f"| reduced >= 70 % | {pct(summary['reduction_at_least_70pct'])} |",
-        "",
-        "## Per effect",
-        "",
-        "| effect | single trials | top-1 (single) | trials | recall | magnitude error (median) |",
-        "|---|---|---|---|---|---|",
-    ]
-    lines += [
-        f"| {name} | {e['single_trials']} | {pct(e['top1_single'])} | {e['trials']} | "
-        f"{pct(e['recall'])} | {num(e['magnitude_error_median'])} |"
-        for name, e in summary["per_effect"].items()
-    ]
-    lines += [
-        "",
-        "## Confusion table (hidden -> answer)",
-        "",
-        "One count per hidden effect of each trial: on the diagonal when the diagnosis selected "
-        "it, otherwise under the diagnosis' top-1 answer (`unexplained` for an effect outside "
-        "the catalogue reported as unexplained).",
-        "",
-    ]
-    answers = sorted({a for row in summary["confusion"].values() for a in row})
-    lines.append("| hidden \\ answer | " + " | ".join(answers) + " |")
-    lines.append("|---|" + "---|" * len(answers))
-    for hidden, row in sorted(summary["confusion"].items()):
-        lines.append(f"| {hidden} | " + " | ".join(str(row.get(a, "")) for a in answers) + " |")
-    lines += [
-        "",
-        "## Trials",
-        "",
-        "| # | hidden | selected | unexplained | correct | magnitude error | seconds |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for t in trials:
-        s = t.score()
-        mags = ", ".join(f"{k} {v:.1%}" for k, v in s.get("magnitude_error", {}).items())
-        left = ", ".join(t.result.get("unexplained_evidence", [])) or "-"
-        lines.append(
-            f"| {t.index} | {', '.join(s['hidden']) or 'none'} | "
-            f"{', '.join(s['selected']) or '-'} | {left} | {'yes' if s['correct'] else 'no'} | "
-            f"{mags or '-'} | {t.seconds:.0f} |"
-        )
-    return "\n".join(lines) + "\n"
