@@ -263,16 +263,18 @@ def parsimonious(options: list[Scored]) -> Scored:
     return min(tied, key=lambda s: (s.n_params, s.evidence_after))
 
 
-def worsens_pose(scored: Scored, reference: Scored | None = None) -> bool:
+def worsens_pose(
+    scored: Scored, reference: Scored | None = None, tolerance: float = EQUIVALENT_REL
+) -> bool:
     """Whether ``scored`` leaves a larger held-out pose gap than ``reference`` (or no effect).
 
-    Larger by more than :data:`EQUIVALENT_REL` (all axes, :attr:`Scored.after_all`). A geometric
+    Larger by more than ``tolerance`` (relative; all axes, :attr:`Scored.after_all`). A geometric
     effect that does so is not an explanation of the gap, whatever it does to the corners: it is
     a look-alike absorbing an image effect outside the catalogue (motion blur shifts the corners
     the detector finds; a tag print scale follows them and moves every pose further away).
     """
     ref = scored.before_all if reference is None else reference.after_all
-    return bool(scored.after_all > (1.0 + EQUIVALENT_REL) * ref)
+    return bool(scored.after_all > (1.0 + tolerance) * ref)
 
 
 def improves_on_nothing(scored: Scored) -> bool:

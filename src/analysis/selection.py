@@ -264,8 +264,12 @@ class ModelSearch:
     def select(self, ranking: list[Scored], max_effects: int = 3) -> Scored | None:
         """Greedy forward search with joint refits, simplified after every step.
 
-        Geometric effects that leave a larger held-out pose gap (:func:`worsens_pose`) are
-        not considered.
+        A geometric effect is considered first only when, alone, it lowers the held-out pose
+        gap, and added to a model only when it leaves the pose gap no worse than the tolerance
+        (:func:`worsens_pose`): one that follows the corners while moving every pose further
+        from the real ones is a look-alike of an image effect (measured: a tag print scale
+        following the corners of a motion blur, pose gap 1-5 % larger; every true geometric
+        effect of seeds 22 and 23 lowered it by 19 % or more).
 
         An effect is added while the combined held-out misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); the model is then simplified
@@ -275,8 +279,10 @@ class ModelSearch:
         stochastic effects (sensor noise) after the others: they explain noise and scatter, not
         the systematic gap, and every real camera has some, so they lead only when alone.
         """
-        # a geometric effect that leaves the pose further from the real one explains nothing
-        ranking = [s for s in ranking if not (_geometric(s.fits[0][0]) and worsens_pose(s))]
+        # a geometric effect that does not bring the pose closer to the real one explains nothing
+        ranking = [
+            s for s in ranking if not (_geometric(s.fits[0][0]) and worsens_pose(s, tolerance=0.0))
+        ]
         if not ranking or not improves_on_nothing(ranking[0]):
             return None
         pool = [s.fits[0][0] for s in ranking]
