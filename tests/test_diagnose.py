@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import replace
 
@@ -154,6 +155,24 @@ def test_selection_finds_a_pair_a_richer_effect_would_mimic():
     assert fitted["principal_point"]["dx_px"] == pytest.approx(9.0, abs=0.3)
     assert chosen.reduction > 0.9
     assert min(search.contributions(chosen).values()) >= 1.0
+
+
+def test_a_geometric_effect_that_moves_the_pose_away_never_starts_the_selection():
+    """Regression (blind seed 23): a tag print scale that followed the corners of a motion blur
+    (outside the catalogue) lowered the held-out corner residual but left every pose 1-5 %
+    further from the real one, and was reported instead of "unexplained"."""
+    rig = load_rig()
+    items, base = _items(rig, {"tag_scale": {"scale": 0.01}}, noise_px=0.1, seed=2)
+    idx = np.arange(len(items))
+    train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
+    search = ModelSearch(rig, base, items, train, held, train, np.ones(6, bool))
+    cand = next(c for c in default_candidates() if c.effect == "tag_scale")
+    scored = search.rank([cand], significant=True)[0]
+    assert scored.after_all < scored.before_all  # a true print scale brings the pose closer
+    assert search.select([scored]).effects == ["tag_scale"]
+    # the same corners, but the pose 5 % further away than without the effect: no explanation
+    away = dataclasses.replace(scored, after_all=1.05 * scored.before_all)
+    assert search.select([away]) is None
 
 
 def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():

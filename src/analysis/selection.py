@@ -32,7 +32,6 @@ from simgap.analysis.scoring import (
     as_good,
     detection_groups,
     detection_score,
-    equivalent_models,
     image_misfits,
     improves,
     improves_on_nothing,
@@ -140,9 +139,7 @@ class ModelSearch:
             if not stochastic:
                 # a stochastic effect (sensor noise) leaves the expected corners where they are;
                 # one noisy realisation is no prediction of them (its evidence is the noise)
-                corners += np.nan_to_num(
-                    runner.corners(state, items) - runner.corners(base, items)
-                )
+                corners += np.nan_to_num(runner.corners(state, items) - runner.corners(base, items))
             if has_stats:
                 change = np.nan_to_num(runner.stats(state, items) - runner.stats(base, items))
                 if not stochastic:
@@ -264,8 +261,8 @@ class ModelSearch:
     def select(self, ranking: list[Scored], max_effects: int = 3) -> Scored | None:
         """Greedy forward search with joint refits, simplified after every step.
 
-        A geometric effect is considered first only when, alone, it lowers the held-out pose
-        gap, and added to a model only when it leaves the pose gap no worse than the tolerance
+        A geometric effect starts the search only when, alone, it lowers the held-out pose
+        gap, and is added to a model only when it leaves the pose gap no worse than the tolerance
         (:func:`worsens_pose`): one that follows the corners while moving every pose further
         from the real ones is a look-alike of an image effect (measured: a tag print scale
         following the corners of a motion blur, pose gap 1-5 % larger; every true geometric
@@ -279,21 +276,27 @@ class ModelSearch:
         stochastic effects (sensor noise) after the others: they explain noise and scatter, not
         the systematic gap, and every real camera has some, so they lead only when alone.
         """
-        # a geometric effect that does not bring the pose closer to the real one explains nothing
-        ranking = [
-            s for s in ranking if not (_geometric(s.fits[0][0]) and worsens_pose(s, tolerance=0.0))
+        # the search starts from the best single effect that explains something: a geometric
+        # effect that, alone, does not bring the pose closer to the real one explains nothing
+        # (it stays in the pool: with another effect it may)
+        starts = [
+            s
+            for s in ranking
+            if not (
+                isinstance(s.fits[0][0], ProjectionCandidate) and worsens_pose(s, tolerance=0.0)
+            )
         ]
-        if not ranking or not improves_on_nothing(ranking[0]):
+        if not starts or not improves_on_nothing(starts[0]):
             return None
         pool = [s.fits[0][0] for s in ranking]
-        current = self.simplify(ranking[0], pool)
+        current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}
         while len(current.fits) < max_effects:
             model = tuple(c for c, _ in current.fits)
             options = []
             for c in (c for c in pool if c not in model):
                 option = self.evaluate(model + (c,))
-                if not (_geometric(c) and worsens_pose(option, current)):
+                if not (isinstance(c, ProjectionCandidate) and worsens_pose(option, current)):
                     options.append(option)
             if not options:
                 break
@@ -345,6 +348,11 @@ class ModelSearch:
             scored = min(options, key=lambda o: o.evidence_after)
         return scored
 
+    @property
+    def tried(self) -> list[Scored]:
+        """Every model scored so far (the alternatives a report may list)."""
+        return list(self._evaluated.values())
+
     def minor(self, scored: Scored) -> list[str]:
         """Effects of a model seen in the evidence that move no pose beyond the floor."""
         return [e for e, w in self.contributions(scored).items() if w < 1.0]
@@ -393,32 +401,3 @@ class ModelSearch:
             effect: float(np.max((np.nanmedian(np.abs(d), axis=0) / held.scale)[axes]))
             for effect, d in self.member_deltas(scored).items()
         }
-
-    def alternatives(self, chosen: Scored, limit: int = 5) -> list[dict[str, Any]]:
-        """Other models tried that explain the held-out evidence indistinguishably from ``chosen``.
-
-        Only models within :func:`equivalent_models` on every channel are listed (a model that is
-        clearly better or worse is not a look-alike). Supersets of ``chosen`` are left out: that
-        an extra effect changes nothing is no news.
-        """
-        same = [
-            s
-            for s in self._evaluated.values()
-            if not set(chosen.effects) <= set(s.effects)  # not the choice plus extras
-            and equivalent_models(s, chosen)
-        ]
-        return [
-            {
-                "effects": s.effects,
-                "n_params": s.n_params,
-                "heldout_corner_gap_after_px": s.corner_after,
-                "heldout_evidence_after": s.evidence_after,
-                "heldout_gap_after": s.after,
-            }
-            for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
-        ]
-
-
-def _geometric(candidate: Any) -> bool:
-    """Whether a candidate is a geometric (projection) effect, predicted without rendering."""
-    return candidate.kind == "projection"

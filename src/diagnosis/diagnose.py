@@ -29,7 +29,12 @@ import xarray as xr
 from simgap.analysis import gap as gapmod
 from simgap.analysis.appearance import appearance_candidates
 from simgap.analysis.fitting import default_candidates, gap_score, median_abs_gap
-from simgap.analysis.scoring import Scored, bootstrap_reductions, corner_unit
+from simgap.analysis.scoring import (
+    Scored,
+    bootstrap_reductions,
+    corner_unit,
+    equivalent_models,
+)
 from simgap.analysis.selection import ModelSearch
 from simgap.core.axes import AXES
 from simgap.diagnosis.items import build_items, simulation_experiment, split_items, subsample
@@ -151,7 +156,7 @@ class Diagnosis:
                 "heldout_evidence_after": chosen.evidence_after,
                 "heldout_gap_after": chosen.after,
             },
-            "equivalent_models": self.search.alternatives(chosen),
+            "equivalent_models": equivalent_alternatives(chosen, self.search.tried),
         }
 
 
@@ -219,3 +224,30 @@ def diagnose(
             result["confirmed"] = conf
     result["seconds"] = time.perf_counter() - t0
     return result, d
+
+
+def equivalent_alternatives(
+    chosen: Scored, tried: list[Scored], limit: int = 5
+) -> list[dict[str, Any]]:
+    """Models of ``tried`` that explain the held-out evidence indistinguishably from ``chosen``.
+
+    Only models within :func:`equivalent_models` on every channel are listed (a model that is
+    clearly better or worse is not a look-alike). Supersets of ``chosen`` are left out: that
+    an extra effect changes nothing is no news.
+    """
+    same = [
+        s
+        for s in tried
+        if not set(chosen.effects) <= set(s.effects)  # not the choice plus extras
+        and equivalent_models(s, chosen)
+    ]
+    return [
+        {
+            "effects": s.effects,
+            "n_params": s.n_params,
+            "heldout_corner_gap_after_px": s.corner_after,
+            "heldout_evidence_after": s.evidence_after,
+            "heldout_gap_after": s.after,
+        }
+        for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
+    ]
