@@ -76,11 +76,30 @@ def evidence_misfit(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) 
     total = []
     for stat in stats:
         i = STAT_INDEX[stat]
-        r = compare_stat(stat, real[:, i], pred[:, i]) / IMAGE_FLOORS[stat][1]
-        r = r[np.isfinite(r)]
-        if r.size:
-            total.append(np.mean(np.minimum(r**2, RESIDUAL_CAP**2)))
+        square = _capped_mean_square(
+            compare_stat(stat, real[:, i], pred[:, i]) / IMAGE_FLOORS[stat][1]
+        )
+        if np.isfinite(square):
+            total.append(square)
     return float(np.mean(total)) if total else float("nan")
+
+
+def _capped_mean_square(residual: np.ndarray) -> float:
+    """Mean of the squared finite residuals (floors), each capped at :data:`RESIDUAL_CAP`.
+
+    NaN when none is finite.
+    """
+    r = residual[np.isfinite(residual)]
+    return float(np.mean(np.minimum(r**2, RESIDUAL_CAP**2))) if r.size else float("nan")
+
+
+def signature_supported(rms_before: float, rms_after: float) -> bool:
+    """Whether an effect's own statistics call for it.
+
+    ``rms_before`` and ``rms_after`` are their RMS misfits (floors) before and after the fit; see
+    :data:`SIGNATURE_MIN_MISFIT` and :data:`SIGNATURE_MIN_GAIN`.
+    """
+    return rms_before >= SIGNATURE_MIN_MISFIT and rms_before - rms_after >= SIGNATURE_MIN_GAIN
 
 
 class AppearanceCandidate(SimulationCandidate):
@@ -132,7 +151,6 @@ class AppearanceCandidate(SimulationCandidate):
         x, fun = (sol.x, sol.fun) if sol.fun <= values[k] else (grid[k], values[k])
         before = evidence_misfit(stats, items.real_stats, items.sim_stats)
         rms_before = float(np.sqrt(before)) if np.isfinite(before) else 0.0
-        gain = rms_before - float(np.sqrt(fun))
         return Fit(
             self.effect,
             self.params(x),
@@ -140,7 +158,7 @@ class AppearanceCandidate(SimulationCandidate):
             {
                 "train_misfit": float(fun),
                 "train_misfit_before": float(before),
-                "supported": rms_before >= SIGNATURE_MIN_MISFIT and gain >= SIGNATURE_MIN_GAIN,
+                "supported": signature_supported(rms_before, float(np.sqrt(fun))),
             },
         )
 
@@ -247,8 +265,10 @@ class DefocusCandidate(AppearanceCandidate):
             ),
             key=lambda s: s.cost,
         )
-        rms_before = _capped_rms(residual(np.array([0.0, best.x[1]])))
-        gain = rms_before - _capped_rms(residual(best.x))
+        rms_before, rms_after = (
+            float(np.sqrt(np.nan_to_num(_capped_mean_square(residual(x)))))
+            for x in (np.array([0.0, best.x[1]]), best.x)
+        )
         return Fit(
             self.effect,
             {
@@ -261,15 +281,9 @@ class DefocusCandidate(AppearanceCandidate):
                 # the edge widths must call for a lens, as for every appearance effect: without
                 # this gate a lens too small to widen any edge was credited for the lower
                 # render noise of its 36-spp renders (the pose scatter), not for defocus
-                "supported": rms_before >= SIGNATURE_MIN_MISFIT and gain >= SIGNATURE_MIN_GAIN,
+                "supported": signature_supported(rms_before, rms_after),
             },
         )
-
-
-def _capped_rms(residual: np.ndarray) -> float:
-    """Root mean square of residuals in floors, each capped at :data:`RESIDUAL_CAP`."""
-    r = residual[np.isfinite(residual)]
-    return float(np.sqrt(np.mean(np.minimum(r**2, RESIDUAL_CAP**2)))) if r.size else 0.0
 
 
 class JpegCandidate(AppearanceCandidate):

@@ -263,7 +263,6 @@ def parsimonious(options: list[Scored]) -> Scored:
     return min(tied, key=lambda s: (s.n_params, s.evidence_after))
 
 
-
 def worsens_pose(
     scored: Scored, reference: Scored | None = None, tolerance: float = EQUIVALENT_REL
 ) -> bool:

@@ -112,11 +112,6 @@ def output_option(help_text: str) -> Any:
     return typer.Option("-o", "--output", help=help_text)
 
 
-def path_argument(help_text: str) -> Any:
-    """A positional path argument (a file or folder the command reads), with its help."""
-    return typer.Argument(help=help_text)
-
-
 def _read_result(path: Path):
     """A result dataset (netCDF), checked against the contract (errors name the file)."""
     from simgap.results.dataset import check_dataset, read_netcdf

@@ -16,13 +16,12 @@ from simgap.cli.app import (
     _read_result,
     app,
     output_option,
-    path_argument,
 )
 
 
 @app.command("errormodel")
 def errormodel(
-    result: Annotated[Path, path_argument("Result dataset (netCDF): simulated or ingested.")],
+    result: Annotated[Path, typer.Argument(help="Result dataset (netCDF): simulated or ingested.")],
     output: Annotated[Path, output_option("Model to write (.nc; and .json).")],
     variant: VariantOption = None,
     check: bool = typer.Option(
@@ -49,7 +48,7 @@ def errormodel(
 
 @app.command()
 def diagnose(
-    real: Annotated[Path, path_argument("Real dataset (netCDF) from `simgap ingest`.")],
+    real: Annotated[Path, typer.Argument(help="Real dataset (netCDF) from `simgap ingest`.")],
     sim: Annotated[Path, typer.Option("--sim", help="Simulation: experiment YAML or result .nc.")],
     output: Annotated[Path, output_option("Report folder to write.")],
     json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),

@@ -17,7 +17,6 @@ from simgap.cli.app import (
     _read_result,
     app,
     output_option,
-    path_argument,
 )
 
 
@@ -25,8 +24,8 @@ from simgap.cli.app import (
 def ingest(
     capture: Annotated[
         Path,
-        path_argument(
-            "Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag."
+        typer.Argument(
+            help="Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag."
         ),
     ],
     output: Annotated[Path, output_option("Result dataset to write (netCDF).")],
@@ -83,7 +82,8 @@ def ingest(
 @app.command("export-bag")
 def export_bag(
     source: Annotated[
-        Path, path_argument("Experiment YAML, simulated result dataset (.nc) or capture folder.")
+        Path,
+        typer.Argument(help="Experiment YAML, simulated result dataset (.nc) or capture folder."),
     ],
     output: Annotated[Path, output_option("Bag to write: .bag file or folder.")],
     fmt: str | None = typer.Option(

@@ -15,13 +15,14 @@ from simgap.cli.app import (
     _read_result,
     app,
     output_option,
-    path_argument,
 )
 
 
 @app.command()
 def run(
-    experiment: Annotated[Path, path_argument("Experiment YAML (e.g. experiments/smoke.yaml).")],
+    experiment: Annotated[
+        Path, typer.Argument(help="Experiment YAML (e.g. experiments/smoke.yaml).")
+    ],
     output: Annotated[Path, output_option("Result dataset to write (netCDF).")],
     cache: CacheOption = None,
     progress: ProgressOption = True,
@@ -48,7 +49,7 @@ MODEL_HELP = "Error model (.nc or .json): draw its bands over the data."
 
 @app.command()
 def report(
-    result: Annotated[Path, path_argument("Result dataset (netCDF) from `simgap run`.")],
+    result: Annotated[Path, typer.Argument(help="Result dataset (netCDF) from `simgap run`.")],
     output: Annotated[Path, output_option("Report folder to write.")],
     model: Annotated[Path | None, typer.Option("--model", help=MODEL_HELP)] = None,
 ) -> None:
@@ -71,7 +72,7 @@ def report(
 
 @app.command()
 def compare(
-    result: Annotated[Path, path_argument("Result dataset (netCDF) with several variants.")],
+    result: Annotated[Path, typer.Argument(help="Result dataset (netCDF) with several variants.")],
     output: Annotated[Path, output_option("Comparison folder to write.")],
     baseline: str | None = typer.Option(
         None, "--baseline", help="Reference variant (default: 'baseline', else the first)."

@@ -62,7 +62,6 @@ __all__ = [
     "pseudo_real_experiment",
     "render_capture",
     "run_validation",
-    "summarize",
     "summarize_scores",
     "confusion",
     "found",
@@ -286,8 +285,3 @@ def _kept_trial(path: Path, hidden: dict[str, Any]) -> dict[str, Any] | None:
             f"{jsonable(hidden)}); use another output folder for another seed or settings"
         )
     return record
-
-
-def summarize(trials: list[Trial]) -> dict[str, Any]:
-    """Scores over trials (DESIGN §5 item 4; issue 8's done-when)."""
-    return summarize_scores([t.score() for t in trials])
