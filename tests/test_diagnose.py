@@ -309,6 +309,7 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         p_none=0.5,
         p_pair=0.0,
         effects=("focal_length", "carriage_pitch"),
+        spp=25,  # geometric effects only: fewer samples than the default's suffice
     )
     exp = load_experiment("experiments/baseline.yaml")
     ran: list[str] = []

@@ -11,7 +11,7 @@ effect              parameters (bounds)                    fitted on
 ``exposure``        ``ev`` (-4 - 4 stops)                  paper level (ink near black is flare
                                                            and print, not exposure); re-run
 ``sensor_noise``    ``full_well_e``, ``read_noise_e``      photon transfer of the excess noise
-                                                           variance (EMVA 1288), closed form
+                                                           variance (EMVA 1288), least squares
 ``defocus``         ``aperture_radius_m``,                 edge width against tag depth, thin-
                     ``focus_distance_m``                   lens blur circle, least squares
 ``jpeg``            ``quality`` (5 - 100, integer)         blockiness on the 8 px block grid;
@@ -27,16 +27,20 @@ candidate's).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from typing import Any
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator
 from scipy.optimize import least_squares, minimize_scalar
 
 from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
 from simgap.analysis.fitting import Fit, Items, SimulationCandidate
 from simgap.effects.state import VariantState
-from simgap.pose.image_stats import STAT_INDEX
+from simgap.pose.image_stats import STAT_INDEX, linearise
+from simgap.render import imaging
+from simgap.render.imaging import GRAY_NOISE_VARIANCE_RATIO
 
 #: Image statistics each candidate is fitted on.
 FIT_STATS: dict[str, tuple[str, ...]] = {
@@ -53,6 +57,14 @@ DISK_10_90_PER_RADIUS = 2 * 0.68705
 RESIDUAL_CAP = 3.0
 #: Points of the coarse scan that brackets a 1-D fit before the bounded Brent search.
 SCAN_POINTS = 16
+#: Largest photo-response non-uniformity of a real camera the noise fit allows (relative sigma):
+#: EMVA 1288 datasheets give below 1 % for machine-vision CMOS sensors; 2 % allows for the
+#: print's texture. Without a bound, shot noise and a multiplicative term cannot be told apart
+#: over the narrow range of paper levels of a training split (a blind capture's fit ran off to
+#: a 10^6 e full well when its renderer's noise was twice the simulation's).
+PRNU_MAX = 0.02
+#: Fixed-point steps that recover the level before clipping at black from a measured median.
+CLIP_STEPS = 12
 #: An appearance effect is ranked only when its own statistics differ by at least
 #: :data:`SIGNATURE_MIN_MISFIT` floors (RMS over the training tags) and the fit lowers that by
 #: :data:`SIGNATURE_MIN_GAIN`, else the evidence does not call for it (a JPEG fitted where the
@@ -166,10 +178,22 @@ class AppearanceCandidate(SimulationCandidate):
 class SensorNoiseCandidate(AppearanceCandidate):
     """Shot + read noise from the photon transfer of the excess noise (EMVA 1288).
 
-    The real noise variance in linear units is the simulation's (render noise, quantisation)
-    plus the sensor's ``mu / full_well + (read / full_well)^2`` at level ``mu``. The excess
-    variance of ink and paper regions of every training tag is regressed on their level by
-    bounded robust least squares: slope ``1 / full_well``, intercept ``(read / full_well)^2``.
+    The effect adds, in each of R, G and B at linear level ``mu``, the variance
+    ``mu / full_well + (read / full_well)^2`` (linear 1.0 = ``full_well`` electrons). What the
+    image statistics see of it on the grey frame, and what the fit models:
+
+    - the grey frame averages the channels: :data:`~simgap.render.imaging.GRAY_NOISE_VARIANCE_RATIO`
+      (0.447) of the per-channel variance;
+    - the 8-bit frame clips each channel at black and averages them in sRGB-encoded values: the
+      median and variance of the linearised grey value (:func:`_grey_noise`) at the ink's level;
+    - a multiplicative term ``c mu^2`` beside it: the real camera's spatial variance of flat
+      cells that grows with the level squared (photo-response non-uniformity in EMVA 1288,
+      print texture) less the simulation's own render noise, which the real camera does not
+      have: between minus the simulation's and :data:`PRNU_MAX` squared. It is not part of the
+      effect.
+
+    The excess variance (real minus simulated) of ink and paper regions of every training tag is
+    fitted by bounded robust least squares on ``(1 / full_well, (read / full_well)^2, c)``.
     """
 
     n_params = 2
@@ -177,28 +201,53 @@ class SensorNoiseCandidate(AppearanceCandidate):
     def __init__(self) -> None:
         super().__init__("sensor_noise", "full_well_e", (10.0, 1e6), 0.0)
 
+    @staticmethod
+    def excess_variance(x: np.ndarray, level: np.ndarray) -> np.ndarray:
+        """Predicted excess variance of the linearised grey frame at measured ``level``.
+
+        ``x`` = (1 / full well, (read / full well)^2, multiplicative c); linear units (squared).
+        ``level`` is the median of the linearised grey values; the level before clipping at
+        black is recovered from it by fixed-point steps (:func:`_grey_noise`).
+        """
+        slope, intercept, c = x
+        mu = level.copy()
+        for _ in range(CLIP_STEPS):
+            sigma = np.sqrt(slope * np.clip(mu, 0.0, None) + intercept) + 1e-12
+            median, variance = _grey_noise(mu, sigma)
+            mu = mu + (level - median)
+        return variance + c * level**2
+
     def fit(self, runner, base: VariantState, items: Items, target=None, axes=None) -> Fit:
         """Photon transfer fit of the excess noise variance."""
         t0 = time.perf_counter()
-        levels, excess = [], []
+        levels, excess, total = [], [], []
         pairs = (("ink_linear", "noise_ink_linear"), ("paper_linear", "noise_paper_linear"))
         for level, noise in pairs:
             mu = items.real_stats[:, STAT_INDEX[level]]
-            var = (
-                items.real_stats[:, STAT_INDEX[noise]] ** 2
-                - items.sim_stats[:, STAT_INDEX[noise]] ** 2
-            )
-            ok = np.isfinite(mu) & np.isfinite(var)
+            real_var = items.real_stats[:, STAT_INDEX[noise]] ** 2
+            var = real_var - items.sim_stats[:, STAT_INDEX[noise]] ** 2
+            ok = np.isfinite(mu) & np.isfinite(var) & (real_var > 0)
             levels.append(mu[ok])
             excess.append(var[ok])
-        mu, var = np.concatenate(levels), np.concatenate(excess)
+            total.append(real_var[ok])
+        mu, var, real_var = (np.concatenate(a) for a in (levels, excess, total))
         if mu.size < 4:
             return Fit(self.effect, {"full_well_e": 1e6, "read_noise_e": 0.0}, 0.0, {})
-        scale = max(float(np.median(np.abs(var))), 1e-10)
+        # c is the real multiplicative variance (>= 0) less the simulation's own render noise
+        # per level squared; it is at most PRNU_MAX^2: no real camera is noisier than the
+        # simulation by more than its non-uniformity (it has no render noise)
+        i_level, i_noise = STAT_INDEX["paper_linear"], STAT_INDEX["noise_paper_linear"]
+        sim_c = float(
+            np.nanmedian(items.sim_stats[:, i_noise] ** 2 / items.sim_stats[:, i_level] ** 2)
+        )
+        sim_c = sim_c if np.isfinite(sim_c) else 0.0
+        # a variance estimated from n pixel pairs has a standard error proportional to it:
+        # residuals relative to the real variance weigh every tag alike
         sol = least_squares(
-            lambda x: (x[0] * mu + x[1] - var) / scale,
-            x0=[max(float(np.median(var / np.maximum(mu, 1e-3))), 1e-6), 0.0],
-            bounds=([1e-6, 0.0], [0.1, 1e-2]),
+            lambda x: (self.excess_variance(x, mu) - var) / real_var,
+            x0=[1e-3, 1e-5, 0.5 * (PRNU_MAX**2 - sim_c)],
+            x_scale=[1e-3, 1e-4, 1e-3],
+            bounds=([1e-6, 0.0, -sim_c - 1e-12], [0.1, 1e-2, PRNU_MAX**2]),
             loss="soft_l1",
         )
         full_well = float(np.clip(1.0 / sol.x[0], 10.0, 1e6))
@@ -207,8 +256,57 @@ class SensorNoiseCandidate(AppearanceCandidate):
             self.effect,
             {"full_well_e": full_well, "read_noise_e": read},
             time.perf_counter() - t0,
-            {"slope_per_level": float(sol.x[0]), "intercept": float(sol.x[1])},
+            {
+                "slope_per_level": float(sol.x[0]),
+                "intercept": float(sol.x[1]),
+                "multiplicative_variance": float(sol.x[2]),
+            },
         )
+
+
+@functools.cache
+def _grey_noise_table() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Median and variance of the linearised grey value of noisy R, G, B (see :func:`_grey_noise`).
+
+    Each channel is ``max(mu + sigma n, 0)`` with ``n ~ N(0, 1)`` independent, encoded to 8-bit
+    sRGB, converted to grey and linearised: the camera pipeline and the image statistics'
+    own functions. Tabulated against ``z = mu / sigma`` (-3 to 6) and ``log sigma``; Monte
+    Carlo with a fixed seed (the same table in every run; ~1 s, once per process).
+    """
+    z = np.linspace(-3.0, 6.0, 61)
+    log_sigma = np.linspace(np.log(1e-3), np.log(0.3), 25)
+    n = np.random.default_rng(0).standard_normal((4000, 3)).astype(np.float32)
+    median = np.empty((z.size, log_sigma.size))
+    variance = np.empty_like(median)
+    for j, sigma in enumerate(np.exp(log_sigma)):
+        rgb = sigma * (z[:, None, None] + n[None])
+        grey = linearise(imaging.to_gray(imaging.encode_srgb8(rgb)))
+        median[:, j], variance[:, j] = np.median(grey, axis=1), np.var(grey, axis=1)
+    return z, log_sigma, median, variance
+
+
+def _grey_noise(mu: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Median and variance of the linearised grey value at channel level ``mu``, noise ``sigma``.
+
+    What the image statistics measure of independent noise ``sigma`` in R, G and B at linear
+    level ``mu``: the grey frame averages the channels (variance
+    :data:`~simgap.render.imaging.GRAY_NOISE_VARIANCE_RATIO` of one channel's), the 8-bit frame
+    clips each at black first and averages them in sRGB-encoded values. Far above black
+    (``mu / sigma`` > 6) the median is ``mu`` and the variance the ratio times ``sigma^2``.
+    """
+    z_grid, s_grid, median, variance = _grey_noise_table()
+    z = mu / sigma
+    far = z > z_grid[-1]
+    point = np.stack(
+        [np.clip(z, z_grid[0], z_grid[-1]), np.clip(np.log(sigma), s_grid[0], s_grid[-1])], -1
+    )
+    scale = sigma / np.exp(point[..., 1])  # beyond the sigma grid, scale the nearest column
+    at = RegularGridInterpolator((z_grid, s_grid), median)(point) * scale
+    var = RegularGridInterpolator((z_grid, s_grid), variance)(point) * scale**2
+    return (
+        np.where(far, mu, at),
+        np.where(far, GRAY_NOISE_VARIANCE_RATIO * sigma**2, var),
+    )
 
 
 class DefocusCandidate(AppearanceCandidate):

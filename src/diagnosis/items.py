@@ -23,6 +23,10 @@ from simgap.core.rig import CameraModel
 from simgap.pipeline.experiment import Configurations, Experiment
 from simgap.pose.image_stats import STAT_NAMES
 
+#: A rotation error beyond this (rad, 8.6 deg) is the other branch of a square marker's planar
+#: pose ambiguity, not a gap an effect explains (catalogue effects move rotations by mrad).
+FLIP_RAD = 0.15
+
 
 def calibration_from_attrs(real: xr.Dataset) -> CameraModel | None:
     """The calibration a capture was ingested with (``calibration_yaml`` attr), or None."""
@@ -51,9 +55,11 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
 def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> Items:
     """The visible (tag, p, theta) items with their errors, corners, image statistics, detection.
 
-    Errors (m, rad) and corners (px) are NaN where a side did not detect the tag; such items
-    still carry image statistics and detection outcomes. Each axis' scale is its gap noise, at
-    least :data:`simgap.analysis.gap.PRACTICAL_FLOOR`.
+    Errors (m, rad) and corners (px) are NaN where a side did not detect the tag, and errors
+    where either side's pose is a flip of the planar ambiguity (a rotation error beyond
+    :data:`FLIP_RAD`); such items still carry corners, image statistics and detection
+    outcomes. Each axis' scale is its gap noise, at least
+    :data:`simgap.analysis.gap.PRACTICAL_FLOOR`.
     """
     real, sim = gapmod.align(real, sim)
     visible = field.real_detection.notnull()
@@ -62,6 +68,12 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
     at = (idx[:, 0], idx[:, 1], idx[:, 2])
     r_err = gapmod.mean_error(real).values
     s_err = gapmod.mean_error(sim).values
+    # a pose on the other branch of the planar ambiguity on either side compares nothing: no
+    # effect of the catalogue turns a rotation by this much (a noise-driven flip of one far
+    # tag in a 9-item capture decided which effect "explained" the pose)
+    flipped = np.maximum(np.abs(r_err[..., 3:]), np.abs(s_err[..., 3:])).max(-1) > FLIP_RAD
+    r_err = np.where(flipped[..., None], np.nan, r_err)
+    s_err = np.where(flipped[..., None], np.nan, s_err)
     with warnings.catch_warnings():  # never-detected items are all-NaN
         warnings.simplefilter("ignore", RuntimeWarning)
         r_c = real.corners.isel(variant=0).mean("repeat", skipna=True).values

@@ -90,6 +90,8 @@ class ValidateSettings:
         Hidden effects drawn from (default: all of :data:`HIDDEN`).
     shard : (int, int)
         ``(K, N)``: run only the trials whose index is K modulo N (processes side by side).
+    spp : int
+        Samples per pixel of the pseudo-real captures (:data:`NUISANCE_SPP`).
     """
 
     trials: int = 30
@@ -101,6 +103,7 @@ class ValidateSettings:
     p_outside: float = 0.1
     effects: tuple[str, ...] = tuple(HIDDEN)
     shard: tuple[int, int] = (0, 1)
+    spp: int = NUISANCE_SPP
 
     def __post_init__(self) -> None:
         k, n = self.shard
@@ -189,7 +192,7 @@ def pseudo_real_experiment(
         name="pseudo_real",
         scene=deep_merge(base.scene, NUISANCE_SCENE),
         configurations=Configurations(tuple(settings.p), tuple(settings.theta_deg), ()),
-        render=dataclasses.replace(base.render, seed=seed, spp=NUISANCE_SPP),
+        render=dataclasses.replace(base.render, seed=seed, spp=settings.spp),
         effects=effects,
         variants=(VariantSpec("baseline"),),
         grid={},
@@ -269,6 +272,7 @@ def run_validation(
     records = [r for r in kept if r is not None]  # every shard's trials finished so far
     summary = summarize_scores(records)
     summary["trials_planned"] = settings.trials
+    summary["pseudo_real_spp"] = settings.spp
     write_json({"summary": summary, "trials": records}, out_dir / "validation.json")
     atomic_write(out_dir / "validation.md", validation_markdown(summary, records))
     return summary

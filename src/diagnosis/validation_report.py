@@ -107,7 +107,8 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "",
         f"{summary['trials']} trials. Pseudo-real captures are rendered as another camera: "
         f"effects {json.dumps(NUISANCE_EFFECTS)}, scene {json.dumps(NUISANCE_SCENE)}, "
-        f"{NUISANCE_SPP} spp, another render seed; hidden effects drawn per trial.",
+        f"{summary.get('pseudo_real_spp', NUISANCE_SPP)} spp, another render seed; hidden "
+        "effects drawn per trial.",
         "",
         "| score | value |",
         "|---|---|",

@@ -31,7 +31,7 @@ class CacheWarning(UserWarning):
 
 
 #: Bump when a change to the code changes renders or results for the same settings.
-PIPELINE_VERSION = "1"
+PIPELINE_VERSION = "2"  # 2: lights picked by their irradiance (sampling_weight)
 
 
 def content_hash(*parts: Any) -> str:

@@ -142,6 +142,13 @@ def read_png(path: Path) -> np.ndarray:
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
+#: Weights of R, G and B in the grey frame (ITU-R BT.601 luma, as ``cv2.COLOR_RGB2GRAY``).
+GRAY_WEIGHTS = (0.299, 0.587, 0.114)
+#: Variance of the grey frame per unit variance of independent, equal noise in R, G and B: the
+#: sum of the squared :data:`GRAY_WEIGHTS` (dimensionless).
+GRAY_NOISE_VARIANCE_RATIO = sum(w * w for w in GRAY_WEIGHTS)
+
+
 def to_gray(rgb8: np.ndarray) -> np.ndarray:
-    """Convert an 8-bit RGB frame to 8-bit grey (ITU-R BT.601 weights, as OpenCV does)."""
+    """Convert an 8-bit RGB frame to 8-bit grey (:data:`GRAY_WEIGHTS`, as OpenCV does)."""
     return rgb8 if rgb8.ndim == 2 else cv2.cvtColor(rgb8, cv2.COLOR_RGB2GRAY)

@@ -67,11 +67,37 @@ def tag_bsdf(tag: TagPrint, texture: np.ndarray, mi: ModuleType) -> dict[str, An
     }
 
 
+def sampling_weight(light: LightSpec) -> float:
+    """How often the integrator picks this light: its irradiance at its aim point (W m^-2).
+
+    Mitsuba picks one light per shading point, by default uniformly, and divides by the chance:
+    with a key light and a dim ambient environment every other sample looked at the ambient
+    and the key's contribution doubled in the others. A pixel's mean then depends on how many
+    of its samples chose the key: on flat paper two levels 7.8 % apart at 25 spp, 8 % relative
+    noise once a Gaussian pixel filter mixes neighbouring pixels' samples (measured
+    2026-11-22). Picking lights in proportion to the light they give removes most of it
+    (Mitsuba's ``sampling_weight``). Constant environment: ``pi L``; area light:
+    ``L A / d^2``; point and spot: ``I / d^2`` (``d``: distance to the aim point).
+    """
+    tint = float(np.mean(light.rgb))
+    if light.type == "constant":
+        return max(np.pi * light.radiance * tint, 1e-9)
+    d2 = float(np.sum((np.asarray(light.position) - np.asarray(light.target)) ** 2))
+    area = light.size[0] * light.size[1]
+    power = light.radiance * area if light.type == "area" else light.intensity
+    return max(power * tint / max(d2, 1e-6), 1e-9)
+
+
 def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
     """The Mitsuba dictionary of a light (an emitter, or an emitting rectangle for ``area``)."""
     colour = np.asarray(light.rgb, float)
+    weight = sampling_weight(light)
     if light.type == "constant":
-        return {"type": "constant", "radiance": {"type": "rgb", "value": colour * light.radiance}}
+        return {
+            "type": "constant",
+            "radiance": {"type": "rgb", "value": colour * light.radiance},
+            "sampling_weight": weight,
+        }
     look = mi.ScalarTransform4f().look_at(
         origin=list(light.position), target=list(light.target), up=[0, 0, 1]
     )
@@ -83,6 +109,7 @@ def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
             "emitter": {
                 "type": "area",
                 "radiance": {"type": "rgb", "value": colour * light.radiance},
+                "sampling_weight": weight,
             },
             "bsdf": {"type": "diffuse", "reflectance": 0.0},
         }
@@ -91,10 +118,12 @@ def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
             "type": "point",
             "position": list(light.position),
             "intensity": {"type": "rgb", "value": colour * light.intensity},
+            "sampling_weight": weight,
         }
     return {
         "type": "spot",
         "to_world": look,
         "cutoff_angle": light.cutoff_deg,
         "intensity": {"type": "rgb", "value": colour * light.intensity},
+        "sampling_weight": weight,
     }
