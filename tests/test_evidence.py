@@ -86,3 +86,23 @@ def test_fit_choose_and_report_splits_are_disjoint_and_complete(n):
     assert len(fit) and len(choose) and len(report)
     assert not (set(fit) & set(choose) or set(fit) & set(report) or set(choose) & set(report))
     assert sorted([*fit, *choose, *report]) == list(range(n))
+
+
+def test_a_pose_flip_on_either_side_is_left_out_of_the_pose_comparison():
+    """An item on the other branch of the planar ambiguity keeps its corners, not its errors."""
+    from simgap.analysis.gap import gap_field
+    from simgap.diagnosis.items import FLIP_RAD, build_items
+
+    real, sim = _dataset(1), _dataset(2)
+    err = real["error"].values.copy()
+    t, p, k = np.argwhere(np.isfinite(err[0, 0, ..., 5]))[0]
+    err[0, 0, t, p, k, 5] += 0.75  # rz: a flip as measured on a far inward tag (0.73-0.75 rad)
+    real["error"].values[:] = err
+    items = build_items(real, sim, gap_field(real, sim))
+    at = (items.tag == real.tag.values[t]) & (items.p == real.p.values[p])
+    at &= np.isclose(items.theta, real.theta.values[k])
+    assert at.sum() == 1 and 0.75 > FLIP_RAD
+    assert np.isnan(items.real_err[at]).all() and np.isnan(items.sim_err[at]).all()
+    # the other items compare as before, and no corner or detection is dropped
+    assert np.isfinite(items.real_err[~at]).all()
+    assert len(items) == int(real["visible"].values.sum())

@@ -210,7 +210,8 @@ class ModelSearch:
 
         Appearance effects whose fit does not explain their own statistics on the training
         tags (``supported`` false, :data:`simgap.analysis.appearance.SIGNATURE_MIN_GAIN`) are
-        left out. Ranked on the combined held-out misfit of all evidence
+        left out, and so are effects a supported one ``excludes`` (a depth-dependent widening
+        of the edges is a lens, not a blur). Ranked on the combined held-out misfit of all evidence
         (:attr:`Scored.evidence_after`: detected corners, image statistics, detections, each in
         units of its smallest relevant difference); among indistinguishable ones
         (:func:`equivalent_models`) the simpler first.
@@ -224,6 +225,8 @@ class ModelSearch:
             )
             if scored.fits[0][1].extra.get("supported", True)
         ]
+        excluded = {e for s in rest for e in s.fits[0][1].extra.get("excludes", ())}
+        rest = [s for s in rest if s.fits[0][1].effect not in excluded]
         out = []
         while rest:
             out.append(parsimonious(rest))
