@@ -100,12 +100,11 @@ NUISANCE_SCENE: dict[str, Any] = {
     },
 }
 #: ... rendered with more samples per pixel (supersampling; a square number for multijitter).
-#: A real camera has no render noise: at 25 spp the Gaussian pixel filter (which mixes the
-#: samples of neighbouring pixels and so undoes the sampler's stratification of the choice
-#: between the key and the ambient light) left 8 % relative noise on flat paper, twice the
-#: simulation's own at 16 spp (4.4 %) and as much as the hidden sensor noise; no capture can
-#: tell that apart from shot noise. At 64 spp it is about 5 % (measured 2026-11-22: 10 %, 8.1 %,
-#: 6.5 % and 3.9 % at 16, 25, 36 and 100 spp).
+#: A real camera has no render noise, and a capture noisier than the simulation cannot tell
+#: that noise from shot noise. Flat-paper noise of the pseudo-real renders with the lights
+#: weighted by their irradiance (measured 2026-11-22): 5.5 % at 25 spp, 3.4 % at 64 spp, against
+#: the simulation's 3.2 % at 16 spp (the Gaussian pixel filter mixes neighbouring pixels'
+#: samples and undoes the sampler's stratification).
 NUISANCE_SPP = 64
 
 
