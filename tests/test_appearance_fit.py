@@ -81,15 +81,17 @@ def _edge_items(runner, width) -> Items:
     tag, p, theta = (np.array(c) for c in zip(*rows, strict=True))
     n = len(tag)
     real, sim = np.full((n, len(STATS)), np.nan), np.full((n, len(STATS)), np.nan)
-    sim[:, STAT_INDEX["edge_width_px"]] = SHARP_EDGE_PX
     zeros = np.zeros((n, 6))
     items = Items(
         tag=tag, p=p, theta=theta, real_err=zeros, sim_err=zeros,
         real_corners=np.zeros((n, 4, 2)), sim_corners=np.zeros((n, 4, 2)), scale=np.ones(6),
         real_stats=real, sim_stats=sim,
     )  # fmt: skip
-    noise = np.random.default_rng(2).normal(0.0, 0.05, n)  # ~ the edge-width floor's spread
-    real[:, STAT_INDEX["edge_width_px"]] = width(runner.depths(items)) + noise
+    rng = np.random.default_rng(2)
+    for stat in ("edge_width_px", "edge_width_x_px", "edge_width_y_px"):
+        sim[:, STAT_INDEX[stat]] = SHARP_EDGE_PX
+        noise = rng.normal(0.0, 0.05, n)  # ~ the edge-width floor's spread
+        real[:, STAT_INDEX[stat]] = width(runner.depths(items)) + noise
     return items
 
 
@@ -121,3 +123,38 @@ def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path
     # a 1 px Gaussian blur everywhere: the lens fits it worse than one widening at every depth
     # (measured RMS 1.34 against 0.24 floors), so the blur stays a candidate
     assert flat.extra["excludes"] == ()
+
+
+def _blockiness_test(real_stops: np.ndarray) -> list[dict]:
+    """The where step's test of a real blockiness ``real_stops`` above the simulation's."""
+    from simgap.analysis.evidence import paired_test
+
+    row = paired_test("blockiness", 2.0**real_stops, np.ones_like(real_stops))
+    return [dict(row, stat="blockiness")]
+
+
+def test_an_appearance_effect_needs_a_significant_difference_of_its_own_statistic():
+    from simgap.analysis.appearance import evidence_misfit, signature_significant
+
+    rng = np.random.default_rng(3)
+    # sample-null: blockiness +0.1 stop over 9 tags with a spread of a third of a stop (p 0.06);
+    # its RMS misfit is above one floor, and a JPEG fitted on it was once selected
+    stops = 0.1 + rng.normal(0.0, 0.33, 9)
+    real = np.full((9, len(STATS)), np.nan)
+    real[:, STAT_INDEX["blockiness"]] = 2.0**stops
+    sim = np.where(np.isnan(real), np.nan, 1.0)
+    assert evidence_misfit(("blockiness",), real, sim) >= 1.0
+    assert not signature_significant("jpeg", _blockiness_test(stops))
+    # JPEG at quality 70 raises the blockiness by half a stop to a stop (tests/test_image_stats)
+    assert signature_significant("jpeg", _blockiness_test(0.6 + rng.normal(0.0, 0.33, 20)))
+    # the blockiness is no blur's statistic, and geometric effects have none
+    assert not signature_significant("blur", _blockiness_test(0.6 + rng.normal(0.0, 0.33, 20)))
+    assert signature_significant("focal_length", [])
+
+
+def test_sensor_noise_is_ranked_only_where_the_noise_differs():
+    noisy = SensorNoiseCandidate().fit(None, None, _items(800.0, 12.0, 0.01))
+    assert noisy.extra["supported"]
+    # no sensor noise: the real camera's render noise is the simulation's
+    clean = SensorNoiseCandidate().fit(None, None, _items(1e6, 0.0, SIM_RELATIVE_NOISE))
+    assert not clean.extra["supported"]

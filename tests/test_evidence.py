@@ -106,3 +106,21 @@ def test_a_pose_flip_on_either_side_is_left_out_of_the_pose_comparison():
     # the other items compare as before, and no corner or detection is dropped
     assert np.isfinite(items.real_err[~at]).all()
     assert len(items) == int(real["visible"].values.sum())
+
+
+def test_signed_rank_pvalue_is_scipys_wilcoxon():
+    """The vectorised exact test for small samples with ties or zeros gives SciPy's p-values."""
+    from scipy import stats
+
+    from simgap.core.robust import signed_rank_pvalue
+
+    rng = np.random.default_rng(0)
+    for _ in range(12):  # up to 9 pairs: SciPy's own permutations stay quick
+        d = np.round(rng.normal(0.3, 1.0, rng.integers(3, 10)), 1)  # rounding makes ties
+        d[: rng.integers(0, 3)] = 0.0
+        if np.all(d == 0):
+            continue
+        for alternative in ("two-sided", "greater"):
+            expected = stats.wilcoxon(d, alternative=alternative).pvalue
+            assert signed_rank_pvalue(d, alternative) == pytest.approx(expected, abs=1e-12)
+    assert signed_rank_pvalue(np.zeros(5)) == 1.0

@@ -42,8 +42,20 @@ SMALL = CameraModel(64, 48, 60.0, 60.0, 31.5, 23.5)
 NOT_DICTIONARIES = sorted(n for n in dir(cv2.aruco) if n[0] != "_" and n not in DICTIONARIES)
 
 
+#: Folder of this module's scratch folders (pytest's temporary tree, pruned by pytest).
+_SCRATCH_ROOT: list[Path] = []
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _scratch_root(tmp_path_factory):
+    _SCRATCH_ROOT.append(tmp_path_factory.mktemp("fuzz"))
+    yield
+    _SCRATCH_ROOT.pop()
+
+
 def scratch() -> Path:
-    return Path(tempfile.mkdtemp(prefix="simgap-fuzz-"))
+    """A new empty folder for one hypothesis example, inside pytest's temporary tree."""
+    return Path(tempfile.mkdtemp(prefix="example-", dir=_SCRATCH_ROOT[-1]))
 
 
 # --- experiment YAML --------------------------------------------------------------------------

@@ -108,13 +108,20 @@ def test_ideal_render_pose_accuracy(rig, ideal_render):
     assert abs(err[3]) < 0.02 and abs(err[4]) < 0.02, err
 
 
-def test_same_seed_same_render(rig, ideal_render):
-    """The box filter + multijitter sampler make renders bit-identical for the same seed."""
-    scene, hdr, offset = ideal_render
-    again = imaging.quantise_half(scene.render(offset, seed=7))
-    assert np.array_equal(hdr, again)
-    other = imaging.quantise_half(scene.render(offset, seed=8))
-    assert not np.array_equal(hdr, other)
+def test_same_seed_same_render(rig):
+    """The box filter + multijitter sampler make renders bit-identical for the same seed.
+
+    A small film at few samples: determinism does not depend on either (the 128-spp crop of
+    ``ideal_render`` took 28 s for the same check).
+    """
+    scene = FixtureScene(rig, load_scene_spec(), (96, 96), spp=4)
+    box = projected_sticker_boxes(rig, 0, 0.0)[0]  # the film's top-left on the sticker's
+    offset = (int(box[0]), int(box[1]))
+    scene.set_pose(0, 0.0)
+    first = imaging.quantise_half(scene.render(offset, seed=7))
+    assert first.max() > 0  # the sticker is in view
+    assert np.array_equal(first, imaging.quantise_half(scene.render(offset, seed=7)))
+    assert not np.array_equal(first, imaging.quantise_half(scene.render(offset, seed=8)))
 
 
 def test_crop_pasted_into_frame_detects_like_full_frame(rig):
@@ -124,14 +131,14 @@ def test_crop_pasted_into_frame_detects_like_full_frame(rig):
     """
     scene = FixtureScene(rig, load_scene_spec(), (rig.camera.width, rig.camera.height), spp=4)
     size = (rig.camera.width, rig.camera.height)
-    for refinement in ("SUBPIX", "NONE"):
-        det = Detector(DetectorSettings(corner_refinement=refinement))
-        for tag, p, theta in [(0, 0, 0.0), (1, 7, np.deg2rad(200))]:
-            scene.set_pose(p, theta)
-            full = imaging.encode_srgb8(imaging.quantise_half(scene.render((0, 0), seed=3)))
-            off = crop_offset(projected_sticker_boxes(rig, p, theta), (288, 288), size)
-            crop = full[off[1] : off[1] + 288, off[0] : off[0] + 288]
-            pasted = imaging.paste(crop, off, size)
+    for tag, p, theta in [(0, 0, 0.0), (1, 7, np.deg2rad(200))]:
+        scene.set_pose(p, theta)
+        full = imaging.encode_srgb8(imaging.quantise_half(scene.render((0, 0), seed=3)))
+        off = crop_offset(projected_sticker_boxes(rig, p, theta), (288, 288), size)
+        crop = full[off[1] : off[1] + 288, off[0] : off[0] + 288]
+        pasted = imaging.paste(crop, off, size)
+        for refinement in ("SUBPIX", "NONE"):
+            det = Detector(DetectorSettings(corner_refinement=refinement))
             a = det.detect(imaging.to_gray(full))
             b = det.detect(imaging.to_gray(pasted))
             assert tag in a and tag in b

@@ -65,10 +65,12 @@ SCAN_POINTS = 16
 PRNU_MAX = 0.02
 #: Fixed-point steps that recover the level before clipping at black from a measured median.
 CLIP_STEPS = 12
-#: An appearance effect is ranked only when its own statistics differ by at least
-#: :data:`SIGNATURE_MIN_MISFIT` floors (RMS over the training tags) and the fit lowers that by
-#: :data:`SIGNATURE_MIN_GAIN`, else the evidence does not call for it (a JPEG fitted where the
-#: blockiness matches within its floor would only be credited for side effects on noise). The
+#: An appearance effect is ranked only when one of its own statistics differs significantly in
+#: the where step (:func:`signature_significant`), differs by at least
+#: :data:`SIGNATURE_MIN_MISFIT` floors (RMS over the training tags), and the fit lowers that by
+#: :data:`SIGNATURE_MIN_GAIN`; else the evidence does not call for it (a JPEG fitted where the
+#: blockiness matches within its floor would only be credited for side effects on noise; on
+#: sample-null a JPEG passed the RMS gate on a blockiness difference of +0.1 stop, p 0.06). The
 #: gain is the quarter unit of the channels' tolerance
 #: (:data:`simgap.analysis.scoring.EQUIVALENT_UNITS`).
 SIGNATURE_MIN_MISFIT = 1.0
@@ -96,6 +98,11 @@ def evidence_misfit(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) 
     return float(np.mean(total)) if total else float("nan")
 
 
+def misfit_rms(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) -> float:
+    """Square root of :func:`evidence_misfit` (floors); 0 when no statistic is measured."""
+    return float(np.sqrt(np.nan_to_num(evidence_misfit(stats, real, pred))))
+
+
 def _capped_mean_square(residual: np.ndarray) -> float:
     """Mean of the squared finite residuals (floors), each capped at :data:`RESIDUAL_CAP`.
 
@@ -117,6 +124,18 @@ def signature_supported(rms_before: float, rms_after: float) -> bool:
     :data:`SIGNATURE_MIN_MISFIT` and :data:`SIGNATURE_MIN_GAIN`.
     """
     return rms_before >= SIGNATURE_MIN_MISFIT and rms_before - rms_after >= SIGNATURE_MIN_GAIN
+
+
+def signature_significant(effect: str, image_tests: list[dict[str, Any]]) -> bool:
+    """Whether one of ``effect``'s own statistics (:data:`FIT_STATS`) differs significantly.
+
+    ``image_tests`` are the where-step's paired tests over every comparable tag
+    (:func:`simgap.analysis.evidence.image_tests`). Effects without own statistics always pass.
+    """
+    own = FIT_STATS.get(effect)
+    if own is None:
+        return True
+    return any(row["significant"] for row in image_tests if row["stat"] in own)
 
 
 class AppearanceCandidate(SimulationCandidate):
@@ -167,7 +186,7 @@ class AppearanceCandidate(SimulationCandidate):
         )
         x, fun = (sol.x, sol.fun) if sol.fun <= values[k] else (grid[k], values[k])
         before = evidence_misfit(stats, items.real_stats, items.sim_stats)
-        rms_before = float(np.sqrt(before)) if np.isfinite(before) else 0.0
+        rms_before = misfit_rms(stats, items.real_stats, items.sim_stats)
         return Fit(
             self.effect,
             self.params(x),
@@ -257,6 +276,17 @@ class SensorNoiseCandidate(AppearanceCandidate):
         )
         full_well = float(np.clip(1.0 / sol.x[0], 10.0, 1e6))
         read = float(min(np.sqrt(sol.x[1]) * full_well, 1e3))
+        # the noise statistics the fitted excess predicts, for the signature gate
+        stats = FIT_STATS[self.effect]
+        pred = items.sim_stats.copy()
+        for level, noise in pairs:
+            i, j = STAT_INDEX[level], STAT_INDEX[noise]
+            variance = items.sim_stats[:, j] ** 2 + self.excess_variance(
+                sol.x, items.real_stats[:, i]
+            )
+            pred[:, j] = np.sqrt(np.clip(variance, 0.0, None))
+        rms_before = misfit_rms(stats, items.real_stats, items.sim_stats)
+        rms_after = misfit_rms(stats, items.real_stats, pred)
         return Fit(
             self.effect,
             {"full_well_e": full_well, "read_noise_e": read},
@@ -265,6 +295,7 @@ class SensorNoiseCandidate(AppearanceCandidate):
                 "slope_per_level": float(sol.x[0]),
                 "intercept": float(sol.x[1]),
                 "multiplicative_variance": float(sol.x[2]),
+                "supported": signature_supported(rms_before, rms_after),
             },
         )
 

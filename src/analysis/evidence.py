@@ -38,7 +38,7 @@ from scipy import stats as sps
 from simgap.analysis.gap import PRACTICAL_FLOOR, align
 from simgap.analysis.image_evidence import repeat_median_stats, tag_distance_and_view_angle
 from simgap.core.axes import AXES, axis_unit
-from simgap.core.robust import mad_sigma
+from simgap.core.robust import mad_sigma, signed_rank_pvalue
 
 #: Family-wise false-alarm rate of each family of tests.
 ALPHA = 0.01
@@ -228,8 +228,40 @@ def compare_stat(stat: str, real: np.ndarray, sim: np.ndarray) -> np.ndarray:
     return real - sim
 
 
+def paired_test(stat: str, real: np.ndarray, sim: np.ndarray) -> dict[str, Any] | None:
+    """Wilcoxon signed-rank test of the paired difference real - simulated of one statistic.
+
+    Parameters
+    ----------
+    stat : str
+        Statistic name (:data:`IMAGE_FLOORS`), which sets the comparison units.
+    real, sim : ndarray
+        The statistic on the same tags, real and simulated; pairs with a NaN are left out.
+
+    Returns
+    -------
+    dict or None
+        ``n``, ``median_difference`` (comparison units), ``p_value`` and ``significant`` (rejects
+        at :data:`ALPHA` and the median reaches the statistic's floor; never for a statistic
+        without a floor); None for fewer than 3 pairs.
+    """
+    d = compare_stat(stat, np.asarray(real, float), np.asarray(sim, float)).ravel()
+    d = d[np.isfinite(d)]
+    if d.size < 3:
+        return None
+    median = float(np.median(d))
+    pvalue = signed_rank_pvalue(d)
+    floor = IMAGE_FLOORS.get(stat, ("diff", None))[1]
+    return {
+        "n": int(d.size),
+        "median_difference": median,
+        "p_value": pvalue,
+        "significant": bool(floor is not None and pvalue < ALPHA and abs(median) >= floor),
+    }
+
+
 def image_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
-    """Wilcoxon signed-rank tests of paired real - simulated image statistics."""
+    """Paired real - simulated tests of every image statistic (:func:`paired_test`)."""
     if "image_stats" not in real or "image_stats" not in sim:
         return []
     real, sim = align(real, sim)
@@ -239,25 +271,21 @@ def image_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
     for stat, (transform, floor) in IMAGE_FLOORS.items():
         if stat not in r.stat.values:
             continue
-        d = compare_stat(stat, r.sel(stat=stat).values, s.sel(stat=stat).values).ravel()
-        d = d[np.isfinite(d)]
-        if d.size < 3:
+        test = paired_test(stat, r.sel(stat=stat).values, s.sel(stat=stat).values)
+        if test is None:
             continue
-        median = float(np.median(d))
-        pvalue = 1.0 if np.all(d == 0) else float(sps.wilcoxon(d).pvalue)
         rows.append(
             {
                 "stat": stat,
                 "compared_as": "log2 ratio (stops)" if transform == "log2" else "difference",
-                "n": int(d.size),
-                "median_difference": median,
+                "n": test["n"],
+                "median_difference": test["median_difference"],
                 "real_median": float(np.nanmedian(r.sel(stat=stat).values)),
                 "sim_median": float(np.nanmedian(s.sel(stat=stat).values)),
                 "floor": floor,
-                "p_value": pvalue,
-                "significant": bool(
-                    floor is not None and pvalue < ALPHA and abs(median) >= floor
-                ),
+                "p_value": test["p_value"],
+                "significant": test["significant"],
             }
         )
     return rows
+

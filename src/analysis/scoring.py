@@ -13,12 +13,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.stats import wilcoxon
 
 from simgap.analysis.appearance import RESIDUAL_CAP
 from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
 from simgap.analysis.fitting import Fit, Items, corner_score, gap_score
 from simgap.core.axes import AXES
+from simgap.core.robust import signed_rank_pvalue
 from simgap.pose.image_stats import STAT_INDEX
 
 #: Noise statistics: only stochastic effects change them (see :meth:`ModelSearch.evaluate`).
@@ -232,7 +232,7 @@ def corners_clearly_lower(a: np.ndarray | None, b: np.ndarray | None) -> bool:
     d = b[ok] - a[ok]
     if d.size < 6 or np.all(d == 0) or np.median(d) <= PAIRED_MIN_SHARE * np.median(b[ok]):
         return False
-    return bool(wilcoxon(d, alternative="greater").pvalue < PAIRED_ALPHA)
+    return bool(signed_rank_pvalue(d, alternative="greater") < PAIRED_ALPHA)
 
 
 def improves(a: Scored, b: Scored) -> bool:

@@ -58,3 +58,47 @@ def median_standard_error(scale: float, n: int) -> float:
         ``1.2533 * scale / sqrt(n)``, in the unit of ``scale``.
     """
     return MEDIAN_SE_FACTOR * scale / math.sqrt(n)
+
+
+def signed_rank_pvalue(differences: np.ndarray, alternative: str = "two-sided") -> float:
+    """P-value of Wilcoxon's signed-rank test of paired differences (zeros dropped).
+
+    :func:`scipy.stats.wilcoxon` (``zero_method="wilcox"``), whose p-value this is. For 13 pairs
+    or fewer with ties or zeros SciPy runs an exact permutation test calling its statistic once
+    per sign pattern (up to 8192 Python calls, about 1.4 s a test); here the same exact test
+    runs as :func:`scipy.stats.permutation_test` with a vectorised statistic.
+
+    Parameters
+    ----------
+    differences : numpy.ndarray
+        Paired differences (any unit; NaN must be removed).
+    alternative : {"two-sided", "greater", "less"}
+        As in :func:`scipy.stats.wilcoxon`.
+
+    Returns
+    -------
+    float
+        The p-value; 1 when every difference is zero.
+    """
+    every = np.asarray(differences, dtype=float).ravel()
+    d = every[every != 0]
+    if d.size == 0:
+        return 1.0
+    ranks = stats.rankdata(np.abs(d))
+    exact_by_scipy = np.unique(ranks).size == d.size == every.size  # no ties, no zeros
+    if every.size > 13 or exact_by_scipy or d.size < 2:
+        return float(stats.wilcoxon(every, alternative=alternative).pvalue)
+
+    def rank_sum_of_positives(x: np.ndarray, axis: int = -1) -> np.ndarray:
+        return np.sum(np.where(x > 0, ranks, 0.0), axis=axis)
+
+    return float(
+        stats.permutation_test(
+            (d,),
+            rank_sum_of_positives,
+            permutation_type="samples",
+            vectorized=True,
+            n_resamples=np.inf,
+            alternative=alternative,
+        ).pvalue
+    )

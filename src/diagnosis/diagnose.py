@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.appearance import appearance_candidates
+from simgap.analysis.appearance import appearance_candidates, signature_significant
 from simgap.analysis.fitting import default_candidates, gap_score, median_abs_gap
 from simgap.analysis.scoring import (
     Scored,
@@ -181,6 +181,8 @@ def diagnose(
         Splits, subsample sizes and thresholds (default: :class:`DiagnoseSettings`).
     candidates : list, optional
         Candidate effects, projection, simulation or appearance (default: the whole catalogue).
+        An appearance effect is kept only where one of its own image statistics differs
+        significantly (:func:`simgap.analysis.appearance.signature_significant`).
 
     Raises
     ------
@@ -198,6 +200,10 @@ def diagnose(
     significant = where["significant"]
     if candidates is None:
         candidates = default_candidates() + appearance_candidates(d.rig.camera.fx)
+    # an appearance effect is a candidate only where one of its own image statistics differs
+    # significantly (the where step, over every comparable tag; the report split's pose gap,
+    # on which the reduction is measured, plays no part in it)
+    candidates = [c for c in candidates if signature_significant(c.effect, where["image_tests"])]
     ranking = d.search.rank(candidates, significant) if len(d.items) >= 2 else []
     chosen = d.search.select(ranking) if significant else None
     left = unexplained_evidence(chosen, where, settings) if significant else []

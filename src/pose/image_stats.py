@@ -220,11 +220,12 @@ def pixel_esf(d: np.ndarray, sigma: float) -> np.ndarray:
     a pixel (the tag edges here are nearly aligned with the pixel grid, so the sub-pixel phases
     that a slanted edge would spread out are few).
     """
+    return sigma * (_g((d + 0.5) / sigma) - _g((d - 0.5) / sigma))
 
-    def g(t: np.ndarray) -> np.ndarray:
-        return t * ndtr(t) + np.exp(-0.5 * t * t) / np.sqrt(2 * np.pi)
 
-    return sigma * (g((d + 0.5) / sigma) - g((d - 0.5) / sigma))
+def _g(t: np.ndarray) -> np.ndarray:
+    """``t Phi(t) + phi(t)``: the antiderivative of the standard normal CDF."""
+    return t * ndtr(t) + np.exp(-0.5 * t * t) / np.sqrt(2 * np.pi)
 
 
 def esf_width_10_90(sigma: float) -> float:
@@ -242,10 +243,21 @@ def _esf_width(d: np.ndarray, v: np.ndarray, ink: float, paper: float) -> float:
         lo, hi, d0, sigma = x
         return lo + (hi - lo) * pixel_esf(d - d0, sigma) - v
 
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        # analytic (a third of the fit's time went to finite differences): with a, b the pixel's
+        # ends over sigma, dE/dd = Phi(a) - Phi(b) and dE/dsigma = phi(a) - phi(b)
+        lo, hi, d0, sigma = x
+        a, b = (d - d0 + 0.5) / sigma, (d - d0 - 0.5) / sigma
+        esf = sigma * (_g(a) - _g(b))
+        slope = ndtr(a) - ndtr(b)
+        spread = (np.exp(-0.5 * a * a) - np.exp(-0.5 * b * b)) / np.sqrt(2 * np.pi)
+        return np.stack([1.0 - esf, esf, -(hi - lo) * slope, (hi - lo) * spread], axis=1)
+
     try:
         sol = least_squares(
             residual,
             np.array([ink, paper, 0.0, 0.5]),
+            jac=jacobian,
             bounds=([-1.0, -1.0, -2.0, ESF_MIN_SIGMA_PX], [2.0, 2.0, 2.0, 5.0]),
             loss="soft_l1",
             f_scale=max(0.05 * (paper - ink), 1e-4),
