@@ -9,6 +9,7 @@ the simplest (:func:`parsimonious`); :mod:`simgap.analysis.selection` searches w
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -175,9 +176,10 @@ def corner_unit(reproj_px: np.ndarray) -> float:
     return max(CORNER_UNIT_PX, noise)
 
 
-def finite_or_zero(v: float) -> float:
+def finite_or_zero(v: float | np.ndarray) -> float | np.ndarray:
     """``v``, or 0 where it is not finite (a channel that measured nothing adds no misfit)."""
-    return float(v) if np.isfinite(v) else 0.0
+    out = np.where(np.isfinite(v), v, 0.0)
+    return float(out) if out.ndim == 0 else out
 
 
 def root_sum_square(v: np.ndarray) -> float:
@@ -293,17 +295,22 @@ def image_misfits(real: np.ndarray | None, pred: np.ndarray | None) -> np.ndarra
     per-tag noise). Misfits beyond the cap mean "not modelled" and count as the cap, so that an
     effect is not credited or blamed for a difference nothing in the catalogue explains (a print
     whose ink is blacker than the simulation's, say). Zeros when nothing is measured.
+    ``real`` and ``pred`` are (N, S), or (..., N, S) for a batch of item sets; the result is
+    (K,) or (..., K) for the K scored statistics.
     """
-    out = np.zeros(len(SCORED_STATS))
     if real is None or pred is None:
-        return out
+        return np.zeros(len(SCORED_STATS))
+    out = np.zeros(real.shape[:-2] + (len(SCORED_STATS),))
     for k, stat in enumerate(SCORED_STATS):
         floor = IMAGE_FLOORS[stat][1]
         i = STAT_INDEX[stat]
-        d = compare_stat(stat, real[:, i], pred[:, i])
-        d = d[np.isfinite(d)]
-        if d.size:
-            out[k] = min(abs(float(np.median(d))) / floor, RESIDUAL_CAP)
+        d = compare_stat(stat, real[..., i], pred[..., i])
+        with warnings.catch_warnings():  # a set without a measured tag scores 0
+            warnings.simplefilter("ignore", RuntimeWarning)
+            median = np.nanmedian(np.where(np.isfinite(d), d, np.nan), axis=-1)
+        out[..., k] = np.where(
+            np.isfinite(median), np.minimum(np.abs(median) / floor, RESIDUAL_CAP), 0.0
+        )
     return out
 
 
@@ -321,31 +328,45 @@ def detection_groups(items: Items) -> list[np.ndarray]:
 
 def detection_score(
     real: np.ndarray, pred: np.ndarray, groups: list[np.ndarray] | None = None
-) -> float:
+) -> float | np.ndarray:
     """Mismatch of detection rates, in units of :data:`DETECTION_UNIT`.
 
     Parameters
     ----------
-    real, pred : ndarray (N,)
-        Real and predicted detection rate of each item (share of repeats, 0-1).
-    groups : list of ndarray (N,), optional
+    real, pred : ndarray (N,) or (..., N)
+        Real and predicted detection rate of each item (share of repeats, 0-1); a leading batch
+        of item sets (bootstrap resamples) gives one score per set.
+    groups : list of ndarray (N,) or (..., N), optional
         Groupings of the items (:func:`detection_groups`). Per grouping, the item-weighted mean
         over groups of ``|real rate - predicted rate|``, then the mean over groupings: a model
         that loses as many tags as the capture where the capture loses them matches, even when
         threshold noise flips which ones. Without groupings, per item.
     """
+    real, pred = np.asarray(real, float), np.asarray(pred, float)
     ok = np.isfinite(real) & np.isfinite(pred)
-    if not ok.any():
-        return 0.0
+    diff = np.where(ok, real - pred, 0.0)
     if groups is None:
-        return float(np.mean(np.abs(real[ok] - pred[ok])) / DETECTION_UNIT)
-    mismatch = []
-    for labels in groups:
-        lab, r, p = labels[ok], real[ok], pred[ok]
-        _, inverse, counts = np.unique(lab, return_inverse=True, return_counts=True)
-        diff = np.bincount(inverse, weights=r - p) / counts
-        mismatch.append(float(np.sum(np.abs(diff) * counts) / counts.sum()))
-    return float(np.mean(mismatch) / DETECTION_UNIT)
+        with np.errstate(invalid="ignore"):
+            score = np.abs(diff).sum(axis=-1) / ok.sum(axis=-1) / DETECTION_UNIT
+    else:
+        # per item set (row), the mean difference per group from bincounts over (row, group)
+        rows = int(np.prod(real.shape[:-1], dtype=np.int64))
+        row = np.repeat(np.arange(rows), real.shape[-1]).reshape(real.shape)
+        mismatch = []
+        for labels in groups:
+            _, group = np.unique(labels, return_inverse=True)
+            group = group.reshape(np.shape(labels))
+            n_groups = int(group.max()) + 1 if group.size else 1
+            cell = (row * n_groups + group)[ok]
+            size = rows * n_groups
+            total = np.bincount(cell, weights=diff[ok], minlength=size).reshape(rows, n_groups)
+            count = np.bincount(cell, minlength=size).reshape(rows, n_groups)
+            mean = total / np.maximum(count, 1)
+            with np.errstate(invalid="ignore"):
+                mismatch.append(np.sum(np.abs(mean) * count, axis=1) / count.sum(axis=1))
+        score = np.mean(mismatch, axis=0).reshape(real.shape[:-1]) / DETECTION_UNIT
+    score = np.where(np.isfinite(score), score, 0.0)  # nothing comparable: no mismatch
+    return float(score) if score.ndim == 0 else score
 
 
 def bootstrap_reductions(
@@ -359,30 +380,25 @@ def bootstrap_reductions(
     """
     h = scored.items
     groups = detection_groups(h)
-    rng = np.random.default_rng(seed)
-    pose, evidence = [], []
-    for _ in range(resamples):
-        i = rng.integers(0, len(h), len(h))
-        before = gap_score(h.real_err[i], h.sim_err[i], h.scale, axes)
-        after = gap_score(h.real_err[i], scored.prediction[i], h.scale, axes)
-        pose.append(1.0 - after / before if before > 0 else 0.0)
-        channels = []
-        for pred_c, pred_s, pred_d in (
-            (h.sim_corners, h.sim_stats, h.sim_detected),
-            (scored.corners_pred, scored.stats_pred, scored.detected_pred),
-        ):
-            pred_e = h.sim_err if pred_c is h.sim_corners else scored.prediction
-            head = [
-                finite_or_zero(corner_score(h.real_corners[i], pred_c[i])) / scored.corner_unit_px,
-                finite_or_zero(gap_score(h.real_err[i], pred_e[i], h.scale)),
-            ]
-            if pred_s is not None and h.real_stats is not None:
-                head.append(
-                    detection_score(h.real_detected[i], pred_d[i], [g[i] for g in groups])
-                )
-                head += list(image_misfits(h.real_stats[i], pred_s[i]))
-            channels.append(root_sum_square(np.asarray(head)))
-        evidence.append(1.0 - channels[1] / channels[0] if channels[0] > 0 else 0.0)
+    i = np.random.default_rng(seed).integers(0, len(h), (resamples, len(h)))  # one set per row
+    before = gap_score(h.real_err[i], h.sim_err[i], h.scale, axes)
+    after = gap_score(h.real_err[i], scored.prediction[i], h.scale, axes)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pose = np.where(before > 0, 1.0 - after / before, 0.0)
+    channels = []
+    for pred_c, pred_e, pred_s, pred_d in (
+        (h.sim_corners, h.sim_err, h.sim_stats, h.sim_detected),
+        (scored.corners_pred, scored.prediction, scored.stats_pred, scored.detected_pred),
+    ):
+        corner = corner_score(h.real_corners[i], pred_c[i]) / scored.corner_unit_px
+        pose_gap = gap_score(h.real_err[i], pred_e[i], h.scale)
+        head = [finite_or_zero(corner), finite_or_zero(pose_gap)]
+        if pred_s is not None and h.real_stats is not None:
+            head.append(detection_score(h.real_detected[i], pred_d[i], [g[i] for g in groups]))
+            head += list(np.moveaxis(image_misfits(h.real_stats[i], pred_s[i]), -1, 0))
+        channels.append(np.sqrt(np.sum(np.square(head), axis=0)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        evidence = np.where(channels[0] > 0, 1.0 - channels[1] / channels[0], 0.0)
     q = [(1 - level) / 2 * 100, (1 + level) / 2 * 100]
     return {
         "pose_reduction": [float(v) for v in np.nanpercentile(pose, q)],
