@@ -7,6 +7,10 @@ from __future__ import annotations
 
 import json
 import math
+import time
+from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +22,7 @@ from simgap.effects.image import BLOCK_ALIGN_PX, ImageContext, run_pipeline
 from simgap.effects.state import VariantState
 from simgap.pipeline.cache import Cache, content_hash, file_hash, write_text
 from simgap.pose.detect import Detector
-from simgap.pose.tags import ConfigResult, estimate_tags, measure_tags
+from simgap.pose.tags import ConfigResult, add_image_stats, estimate_tags
 from simgap.render import imaging
 from simgap.render.scene import projected_sticker_boxes
 
@@ -26,6 +30,17 @@ from simgap.render.scene import projected_sticker_boxes
 CROP_STEP_PX = 32
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
 RESULT_VERSION = "image-stats-4"
+#: The stages :attr:`VariantPipeline.seconds` times (benchmarks/sweep_speed.py prints them).
+STAGES = (
+    "scene load",  # Mitsuba scene built for a film size (its first render compiles kernels)
+    "pose update",  # carriage, camera and turntable moved (mi.traverse)
+    "sampling",  # the path tracer's samples of the crop
+    "image pipeline",  # image-stage effects, 8-bit sRGB encoding
+    "detection",  # ArUco on the full-size grey frame
+    "pnp",  # pose of every detected tag and its error
+    "image statistics",  # levels, edge widths, noise ... of every visible tag
+    "io",  # cache reads and writes (EXR, PNG, JSON, results)
+)
 
 
 @dataclass(frozen=True)
@@ -109,6 +124,16 @@ class VariantPipeline:
         self.image_size = (cam.width, cam.height)
         self.scene_key = content_hash("scene", rig, state.scene, assets)
         self.detector = Detector(state.estimation.detector)
+        #: Wall seconds spent in each of :data:`STAGES` by this pipeline, in this process.
+        self.seconds: Counter[str] = Counter()
+
+    @contextmanager
+    def _timed(self, stage: str) -> Iterator[None]:
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[stage] += time.perf_counter() - t0
 
     def scene(self, side: int):
         """The Mitsuba scene of this variant with a ``side`` x ``side`` film (one per process)."""
@@ -117,18 +142,19 @@ class VariantPipeline:
             from simgap.render.scene import FixtureScene
 
             s = self.state.scene
-            _SCENES[key] = FixtureScene(
-                self.rig,
-                s.spec,
-                (side, side),
-                s.quality.spp,
-                s.quality.sampler,
-                errors=s.errors,
-                camera=s.camera,
-                tag_scale=s.tag_scale,
-                lens=(s.aperture_radius_m, s.focus_distance_m),
-                max_depth=s.quality.max_depth,
-            )
+            with self._timed("scene load"):
+                _SCENES[key] = FixtureScene(
+                    self.rig,
+                    s.spec,
+                    (side, side),
+                    s.quality.spp,
+                    s.quality.sampler,
+                    errors=s.errors,
+                    camera=s.camera,
+                    tag_scale=s.tag_scale,
+                    lens=(s.aperture_radius_m, s.focus_distance_m),
+                    max_depth=s.quality.max_depth,
+                )
         return _SCENES[key]
 
     def crop(self, p: int, theta: float) -> tuple[int, tuple[int, int]] | None:
@@ -151,21 +177,25 @@ class VariantPipeline:
             return None
         side, offset = crop
         path = self.cache.path("renders", self.render_key(p, theta, render_repeat), ".exr")
-        cached = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+        with self._timed("io"):
+            cached = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
         if cached is not None:
             return cached, offset
         scene = self.scene(side)
-        scene.set_pose(p, theta)
+        with self._timed("pose update"):
+            scene.set_pose(p, theta)
         seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
-        hdr = imaging.quantise_half(scene.render(offset, seed))
-        try:
-            imaging.write_exr(path, hdr, exclusive=True)
-        except FileExistsError:  # another process published this render first: share its copy
-            shared = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
-            if shared is None:  # it was corrupt (and is now moved aside): publish ours
-                imaging.write_exr(path, hdr)
-            else:
-                hdr = shared
+        with self._timed("sampling"):
+            hdr = imaging.quantise_half(scene.render(offset, seed))
+        with self._timed("io"):
+            try:
+                imaging.write_exr(path, hdr, exclusive=True)
+            except FileExistsError:  # another process published this render first: share it
+                shared = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+                if shared is None:  # it was corrupt (and is now moved aside): publish ours
+                    imaging.write_exr(path, hdr)
+                else:
+                    hdr = shared
         return hdr, offset
 
     def frame_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
@@ -179,8 +209,9 @@ class VariantPipeline:
         png = self.cache.path("frames", key, ".png")
         meta = png.with_suffix(".json")
         if png.is_file() and meta.is_file():
-            offset = self.cache.read(meta, _read_offset)
-            crop8 = self.cache.read(png, imaging.read_png)
+            with self._timed("io"):
+                offset = self.cache.read(meta, _read_offset)
+                crop8 = self.cache.read(png, imaging.read_png)
             if offset is not None and crop8 is not None:
                 return Frame(crop8, offset, self.image_size)
         rendered = self.hdr(p, theta, render_repeat)
@@ -189,9 +220,11 @@ class VariantPipeline:
         hdr, offset = rendered
         seed = config_seed(self.state.scene.render_seed, p, theta, "image", repeat)
         ctx = ImageContext(offset, self.state.scene.camera, np.random.default_rng(seed))
-        crop8 = run_pipeline(hdr, self.state.image, ctx)
-        write_text(meta, json.dumps({"offset": list(offset), "size": list(self.image_size)}))
-        imaging.write_png(png, crop8)
+        with self._timed("image pipeline"):
+            crop8 = run_pipeline(hdr, self.state.image, ctx)
+        with self._timed("io"):
+            write_text(meta, json.dumps({"offset": list(offset), "size": list(self.image_size)}))
+            imaging.write_png(png, crop8)
         return Frame(crop8, offset, self.image_size)
 
     def result_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
@@ -206,7 +239,8 @@ class VariantPipeline:
     def run(self, p: int, theta: float, repeat: int, render_repeat: int) -> ConfigResult:
         """Result of one configuration and repeat, from cache or computed (and then cached)."""
         key = self.result_key(p, theta, repeat, render_repeat)
-        cached = self.cache.load_arrays("results", key)
+        with self._timed("io"):
+            cached = self.cache.load_arrays("results", key)
         if cached is not None:
             return ConfigResult(**cached)
         frame = self.frame(p, theta, repeat, render_repeat)
@@ -214,13 +248,16 @@ class VariantPipeline:
             result = estimate_tags(self.rig, self.state.estimation, self.tags, {}, p, theta)
         else:
             crop_gray = imaging.to_gray(frame.crop)
-            full = imaging.paste(crop_gray, frame.offset, frame.size)
-            found, rejected = self.detector.detect_with_rejected(full)
-            result = measure_tags(
-                self.rig, self.state.estimation, self.tags, crop_gray, frame.offset, found,
-                rejected, p, theta,
-            )
-        self.cache.save_arrays("results", key, result.arrays())
+            with self._timed("detection"):
+                full = imaging.paste(crop_gray, frame.offset, frame.size)
+                found, rejected = self.detector.detect_with_rejected(full)
+            args = (self.rig, self.state.estimation, self.tags)
+            with self._timed("pnp"):
+                result = estimate_tags(*args, found, p, theta)
+            with self._timed("image statistics"):
+                add_image_stats(result, *args, crop_gray, frame.offset, found, rejected, p, theta)
+        with self._timed("io"):
+            self.cache.save_arrays("results", key, result.arrays())
         return result
 
 

@@ -148,6 +148,26 @@ def measure_tags(
         Pin hole and turntable angle (rad).
     """
     out = estimate_tags(rig, estimation, tags, found, p, theta)
+    add_image_stats(out, rig, estimation, tags, gray, offset, found, rejected, p, theta)
+    return out
+
+
+def add_image_stats(
+    out: ConfigResult,
+    rig: Rig,
+    estimation: Estimation,
+    tags,
+    gray: np.ndarray,
+    offset: tuple[int, int],
+    found: dict,
+    rejected: list,
+    p: int,
+    theta: float,
+) -> None:
+    """Fill ``out.image_stats`` with the image evidence of every visible tag.
+
+    The second half of :func:`measure_tags`, which takes the same arguments and documents them.
+    """
     cal = estimation.calibration
     layout = MarkerLayout(rig.marker_cells(), rig.tags.quiet_zone_cells)
     for i, tag in enumerate(tags):
@@ -161,4 +181,3 @@ def measure_tags(
         else:
             continue
         out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, with_edge)
-    return out
