@@ -117,41 +117,6 @@ def estimate_tags(
     return out
 
 
-def measure_tags(
-    rig: Rig,
-    estimation: Estimation,
-    tags,
-    gray: np.ndarray,
-    offset: tuple[int, int],
-    found: dict,
-    rejected: list,
-    p: int,
-    theta: float,
-) -> ConfigResult:
-    """:func:`estimate_tags` plus the image evidence of every visible tag.
-
-    The evidence is measured around the detected corners, or around the corners expected from
-    the nominal rig and the assumed calibration when the tag was not detected (then without the
-    edge-spread fit, which needs accurate corners).
-
-    Parameters
-    ----------
-    rig, estimation, tags
-        The fixture, the estimator's assumed calibration and PnP, and the tag ids.
-    gray : ndarray of uint8
-        The 8-bit grey frame, or a crop of it.
-    offset : tuple of int
-        Full-frame pixel of ``gray``'s top-left corner (px).
-    found, rejected
-        The detector's markers (tag id -> corners, px) and rejected candidates (px).
-    p, theta
-        Pin hole and turntable angle (rad).
-    """
-    out = estimate_tags(rig, estimation, tags, found, p, theta)
-    add_image_stats(out, rig, estimation, tags, gray, offset, found, rejected, p, theta)
-    return out
-
-
 def add_image_stats(
     out: ConfigResult,
     rig: Rig,
@@ -164,9 +129,26 @@ def add_image_stats(
     p: int,
     theta: float,
 ) -> None:
-    """Fill ``out.image_stats`` with the image evidence of every visible tag.
+    """Fill ``out.image_stats`` (from :func:`estimate_tags`) with every visible tag's evidence.
 
-    The second half of :func:`measure_tags`, which takes the same arguments and documents them.
+    The evidence is measured around the detected corners, or around the corners expected from
+    the nominal rig and the assumed calibration when the tag was not detected (then without the
+    edge-spread fit, which needs accurate corners).
+
+    Parameters
+    ----------
+    out : ConfigResult
+        The tags' detections and poses; its ``image_stats`` are filled in place.
+    rig, estimation, tags
+        The fixture, the estimator's assumed calibration and PnP, and the tag ids.
+    gray : ndarray of uint8
+        The 8-bit grey frame, or a crop of it.
+    offset : tuple of int
+        Full-frame pixel of ``gray``'s top-left corner (px).
+    found, rejected
+        The detector's markers (tag id -> corners, px) and rejected candidates (px).
+    p, theta
+        Pin hole and turntable angle (rad).
     """
     cal = estimation.calibration
     layout = MarkerLayout(rig.marker_cells(), rig.tags.quiet_zone_cells)

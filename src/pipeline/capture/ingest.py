@@ -22,7 +22,7 @@ from simgap.pipeline.capture.folder import (
 )
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
-from simgap.pose.tags import Estimation, measure_tags
+from simgap.pose.tags import Estimation, add_image_stats, estimate_tags
 from simgap.results.dataset import (
     CONVENTIONS,
     build_dataset,
@@ -59,8 +59,9 @@ def ingest(
     The dataset follows the contract of a simulated sweep (DESIGN §3): variant ``"real"``;
     coords ``p``, ``theta`` and ``repeat`` are the sorted unique values of the manifest,
     ``tag`` the rig's tag ids; configurations absent from the manifest are not detected (NaN).
-    Poses are estimated with the capture's calibration, exactly as
-    :func:`simgap.pose.tags.measure_tags` does for renders (image evidence included).
+    Poses are estimated with the capture's calibration, and the image evidence measured, exactly
+    as :func:`simgap.pose.tags.estimate_tags` and :func:`~simgap.pose.tags.add_image_stats` do
+    for renders.
 
     Parameters
     ----------
@@ -129,8 +130,9 @@ def ingest(
                 continue
             gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
             found, rejected = det.detect_with_rejected(gray)
-            out = measure_tags(
-                rig, estimation, tags, gray, (0, 0), found, rejected, frame.p, frame.theta
+            out = estimate_tags(rig, estimation, tags, found, frame.p, frame.theta)
+            add_image_stats(
+                out, rig, estimation, tags, gray, (0, 0), found, rejected, frame.p, frame.theta
             )
             idx = (0, repeats.index(frame.repeat), slice(None), ps.index(frame.p))
             idx = idx + (thetas.index(frame.theta),)
