@@ -186,7 +186,7 @@ class AppearanceCandidate(SimulationCandidate):
         )
         x, fun = (sol.x, sol.fun) if sol.fun <= values[k] else (grid[k], values[k])
         before = evidence_misfit(stats, items.real_stats, items.sim_stats)
-        rms_before = misfit_rms(stats, items.real_stats, items.sim_stats)
+        rms_before = float(np.sqrt(np.nan_to_num(before)))  # misfit_rms, without a second pass
         return Fit(
             self.effect,
             self.params(x),
