@@ -42,6 +42,11 @@ from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState
 
+#: Share by which a geometric effect must bring the held-out pose gap (all axes) closer to the
+#: real one to enter a model (see :meth:`ModelSearch.select`): between the look-alikes (at most
+#: 6 % closer) and the true effects (at least 19 %) of seeds 22, 23 and 25.
+MIN_POSE_REDUCTION = 0.10
+
 
 @dataclass
 class ModelSearch:
@@ -264,12 +269,13 @@ class ModelSearch:
     def select(self, ranking: list[Scored], max_effects: int = 3) -> Scored | None:
         """Greedy forward search with joint refits, simplified after every step.
 
-        A geometric effect starts the search only when, alone, it lowers the held-out pose
-        gap, and is added to a model only when it leaves the pose gap no worse than the tolerance
-        (:func:`worsens_pose`): one that follows the corners while moving every pose further
-        from the real ones is a look-alike of an image effect (measured: a tag print scale
-        following the corners of a motion blur, pose gap 1-5 % larger; every true geometric
-        effect of seeds 22 and 23 lowered it by 19 % or more).
+        A geometric effect enters a model (starts the search, or is added to it) only when it
+        brings the held-out pose at least :data:`MIN_POSE_REDUCTION` closer to the real one than
+        the model without it (:func:`worsens_pose`): one that follows the corners without
+        moving the poses closer is a look-alike of an image effect (measured: a tag print scale
+        following the corners of a motion blur, pose gap 1-5 % larger on seed 23 and 6 % smaller
+        on seed 25, 42 % larger on that trial's report split; every true geometric effect that
+        started a model on seeds 22, 23 and 25 lowered it by 19 % or more).
 
         An effect is added while the combined held-out misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); the model is then simplified
@@ -286,7 +292,8 @@ class ModelSearch:
             s
             for s in ranking
             if not (
-                isinstance(s.fits[0][0], ProjectionCandidate) and worsens_pose(s, tolerance=0.0)
+                isinstance(s.fits[0][0], ProjectionCandidate)
+                and worsens_pose(s, tolerance=-MIN_POSE_REDUCTION)
             )
         ]
         if not starts or not improves_on_nothing(starts[0]):
@@ -299,7 +306,8 @@ class ModelSearch:
             options = []
             for c in (c for c in pool if c not in model):
                 option = self.evaluate(model + (c,))
-                if not (isinstance(c, ProjectionCandidate) and worsens_pose(option, current)):
+                closer = not worsens_pose(option, current, tolerance=-MIN_POSE_REDUCTION)
+                if closer or not isinstance(c, ProjectionCandidate):
                     options.append(option)
             if not options:
                 break
