@@ -209,6 +209,41 @@ def test_written_capture_ingests_like_the_original(tmp_path, sample_rgb, sample_
         np.testing.assert_array_equal(got.corners.values, ref.corners.values)
 
 
+def test_two_frames_of_a_pose_give_its_temporal_noise(tmp_path, sample_rgb, sample):
+    from simgap.diagnosis.items import repeats_of_simulation
+
+    cal = read_calibration(sample / "camera.yaml")
+    rng = np.random.default_rng(5)
+    frames = []
+    for k, (p, t, rgb) in enumerate(sample_rgb):
+        frames.append((p, t, 0, rgb))
+        if k == 0:  # the same frame again: nothing changed between the exposures
+            frames.append((p, t, 1, rgb))
+        else:  # 3 DN of new noise in every channel
+            noisy = rgb + rng.normal(0.0, 3.0, rgb.shape)
+            frames.append((p, t, 1, np.clip(np.round(noisy), 0, 255).astype(np.uint8)))
+    folder = tmp_path / "repeats"
+    write_capture(folder, frames, cal)
+    ds = ingest(folder)
+    temporal = ds.image_stats.sel(stat="temporal_noise_paper_linear", variant="real")
+    seen = ds.detected.isel(variant=0, repeat=0) & ds.visible
+    first, second = temporal.sel(repeat=0).values[seen], temporal.sel(repeat=1).values[seen]
+    assert seen.sum() == 3 and np.isnan(second).all()  # measured once per pose, on its first
+    (same, *new) = [temporal.sel(repeat=0, p=p, theta=t, method="nearest") for p, t, _ in
+                    sample_rgb]  # fmt: skip
+    assert float(same.max(skipna=True)) == 0.0
+    assert all(float(v.max(skipna=True)) > 0 for v in new) and np.isfinite(first).all()
+    # against a simulation with one frame a pose, the first frames are compared and the
+    # temporal noise stays
+    one = repeats_of_simulation(ds, ds.isel(repeat=[0]))
+    assert list(one.repeat.values) == [0]
+    np.testing.assert_array_equal(one.error.values, ds.error.isel(repeat=[0]).values)
+    np.testing.assert_array_equal(
+        one.image_stats.sel(stat="temporal_noise_paper_linear").values[0, 0][seen.values],
+        first,
+    )
+
+
 def test_write_jpeg(tmp_path, sample_rgb, rig, sample):
     p, theta, rgb = sample_rgb[0]
     cal = read_calibration(sample / "camera.yaml")

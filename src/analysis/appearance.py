@@ -63,6 +63,12 @@ SCAN_POINTS = 16
 #: over the narrow range of paper levels of a training split (a blind capture's fit ran off to
 #: a 10^6 e full well when its renderer's noise was twice the simulation's).
 PRNU_MAX = 0.02
+#: (level, spatial noise) and (level, temporal noise) statistics of the ink and paper cells.
+NOISE_PAIRS = (("ink_linear", "noise_ink_linear"), ("paper_linear", "noise_paper_linear"))
+TEMPORAL_NOISE_PAIRS = (
+    ("ink_linear", "temporal_noise_ink_linear"),
+    ("paper_linear", "temporal_noise_paper_linear"),
+)
 #: Fixed-point steps that recover the level before clipping at black from a measured median.
 CLIP_STEPS = 12
 #: An appearance effect is ranked only when one of its own statistics differs significantly in
@@ -241,20 +247,39 @@ class SensorNoiseCandidate(AppearanceCandidate):
             mu = mu + (level - median)
         return variance + c * level**2
 
-    def fit(self, runner, base: VariantState, items: Items, target=None, axes=None) -> Fit:
-        """Photon transfer fit of the excess noise variance."""
-        t0 = time.perf_counter()
+    @staticmethod
+    def _samples(
+        items: Items, pairs: tuple[tuple[str, str], ...]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Levels, excess variances (real - simulated) and real variances of ``pairs``' cells.
+
+        The simulated noise of a temporal statistic is NaN (a render is one frame) and counts
+        as 0; cells without a measured real noise are left out.
+        """
         levels, excess, total = [], [], []
-        pairs = (("ink_linear", "noise_ink_linear"), ("paper_linear", "noise_paper_linear"))
         for level, noise in pairs:
             mu = items.real_stats[:, STAT_INDEX[level]]
             real_var = items.real_stats[:, STAT_INDEX[noise]] ** 2
-            var = real_var - items.sim_stats[:, STAT_INDEX[noise]] ** 2
+            var = real_var - np.nan_to_num(items.sim_stats[:, STAT_INDEX[noise]] ** 2)
             ok = np.isfinite(mu) & np.isfinite(var) & (real_var > 0)
             levels.append(mu[ok])
             excess.append(var[ok])
             total.append(real_var[ok])
-        mu, var, real_var = (np.concatenate(a) for a in (levels, excess, total))
+        return tuple(np.concatenate(a) for a in (levels, excess, total))
+
+    @classmethod
+    def _simulated_temporal_variance(cls, base: VariantState, level: np.ndarray) -> np.ndarray:
+        """Temporal variance the simulation's own sensor noise (if any) has at ``level``."""
+        for name, params in base.image.ops:
+            if name == "sensor_noise":
+                fw, read = params.full_well_e, params.read_noise_e
+                return cls.excess_variance((1.0 / fw, (read / fw) ** 2, 0.0), level)
+        return np.zeros_like(level)
+
+    def fit(self, runner, base: VariantState, items: Items, target=None, axes=None) -> Fit:
+        """Photon transfer fit of the excess noise variance (temporal where the capture has it)."""
+        t0 = time.perf_counter()
+        mu, var, real_var = self._samples(items, NOISE_PAIRS)
         if mu.size < 4:
             return Fit(self.effect, {"full_well_e": 1e6, "read_noise_e": 0.0}, 0.0, {})
         # c is the real multiplicative variance (>= 0) less the simulation's own render noise
@@ -265,25 +290,46 @@ class SensorNoiseCandidate(AppearanceCandidate):
             np.nanmedian(items.sim_stats[:, i_noise] ** 2 / items.sim_stats[:, i_level] ** 2)
         )
         sim_c = sim_c if np.isfinite(sim_c) else 0.0
+        c_bounds = (-sim_c - 1e-12, PRNU_MAX**2)
+        mu_t, var_t, real_t = self._samples(items, TEMPORAL_NOISE_PAIRS)
+        var_t = var_t - self._simulated_temporal_variance(base, mu_t)
+        temporal = mu_t.size >= 4 and bool(np.any(var_t > 0))
         # a variance estimated from n pixel pairs has a standard error proportional to it:
-        # residuals relative to the real variance weigh every tag alike
-        sol = least_squares(
-            lambda x: (self.excess_variance(x, mu) - var) / real_var,
-            x0=[1e-3, 1e-5, 0.5 * (PRNU_MAX**2 - sim_c)],
-            x_scale=[1e-3, 1e-4, 1e-3],
-            bounds=([1e-6, 0.0, -sim_c - 1e-12], [0.1, 1e-2, PRNU_MAX**2]),
-            loss="soft_l1",
-        )
-        full_well = float(np.clip(1.0 / sol.x[0], 10.0, 1e6))
-        read = float(min(np.sqrt(sol.x[1]) * full_well, 1e3))
+        # residuals relative to the measured variance weigh every tag alike
+        if temporal:
+            # EMVA 1288: the temporal variance has no fixed-pattern part, so shot and read noise
+            # are fitted alone; the spatial excess then gives the multiplicative term only
+            shot_read = least_squares(
+                lambda x: (self.excess_variance((x[0], x[1], 0.0), mu_t) - var_t) / real_t,
+                x0=[1e-3, 1e-5],
+                x_scale=[1e-3, 1e-4],
+                bounds=([1e-6, 0.0], [0.1, 1e-2]),
+                loss="soft_l1",
+            ).x
+            c = least_squares(
+                lambda x: (self.excess_variance((*shot_read, x[0]), mu) - var) / real_var,
+                x0=[0.5 * sum(c_bounds)],
+                x_scale=[1e-3],
+                bounds=c_bounds,
+                loss="soft_l1",
+            ).x
+            x = np.concatenate([shot_read, c])
+        else:
+            x = least_squares(
+                lambda x: (self.excess_variance(x, mu) - var) / real_var,
+                x0=[1e-3, 1e-5, 0.5 * sum(c_bounds)],
+                x_scale=[1e-3, 1e-4, 1e-3],
+                bounds=([1e-6, 0.0, c_bounds[0]], [0.1, 1e-2, c_bounds[1]]),
+                loss="soft_l1",
+            ).x
+        full_well = float(np.clip(1.0 / x[0], 10.0, 1e6))
+        read = float(min(np.sqrt(x[1]) * full_well, 1e3))
         # the noise statistics the fitted excess predicts, for the signature gate
         stats = FIT_STATS[self.effect]
         pred = items.sim_stats.copy()
-        for level, noise in pairs:
+        for level, noise in NOISE_PAIRS:
             i, j = STAT_INDEX[level], STAT_INDEX[noise]
-            variance = items.sim_stats[:, j] ** 2 + self.excess_variance(
-                sol.x, items.real_stats[:, i]
-            )
+            variance = items.sim_stats[:, j] ** 2 + self.excess_variance(x, items.real_stats[:, i])
             pred[:, j] = np.sqrt(np.clip(variance, 0.0, None))
         rms_before = misfit_rms(stats, items.real_stats, items.sim_stats)
         rms_after = misfit_rms(stats, items.real_stats, pred)
@@ -292,9 +338,10 @@ class SensorNoiseCandidate(AppearanceCandidate):
             {"full_well_e": full_well, "read_noise_e": read},
             time.perf_counter() - t0,
             {
-                "slope_per_level": float(sol.x[0]),
-                "intercept": float(sol.x[1]),
-                "multiplicative_variance": float(sol.x[2]),
+                "slope_per_level": float(x[0]),
+                "intercept": float(x[1]),
+                "multiplicative_variance": float(x[2]),
+                "temporal": temporal,
                 "supported": signature_supported(rms_before, rms_after),
             },
         )
@@ -322,8 +369,11 @@ def _grey_noise_table() -> tuple[
         grey = linearise(imaging.to_gray(imaging.encode_srgb8(rgb)))
         median[:, j], variance[:, j] = np.median(grey, axis=1), np.var(grey, axis=1)
     grids = (z, log_sigma)
-    return z, log_sigma, RegularGridInterpolator(grids, median), RegularGridInterpolator(
-        grids, variance
+    return (
+        z,
+        log_sigma,
+        RegularGridInterpolator(grids, median),
+        RegularGridInterpolator(grids, variance),
     )
 
 

@@ -37,7 +37,13 @@ from simgap.analysis.scoring import (
 )
 from simgap.analysis.selection import ModelSearch
 from simgap.core.axes import AXES
-from simgap.diagnosis.items import build_items, simulation_experiment, split_items, subsample
+from simgap.diagnosis.items import (
+    build_items,
+    repeats_of_simulation,
+    simulation_experiment,
+    split_items,
+    subsample,
+)
 from simgap.diagnosis.result_json import jsonable
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.sim_runner import SimRunner
@@ -77,6 +83,7 @@ class Diagnosis:
         settings: DiagnoseSettings,
     ) -> None:
         self.settings = settings
+        real = repeats_of_simulation(real, sim)
         self.real, self.sim, self.exp = real, sim, exp
         self.field = gapmod.gap_field(real, sim)
         self.items = build_items(real, sim, self.field)

@@ -106,6 +106,11 @@ NUISANCE_SCENE: dict[str, Any] = {
 #: the simulation's 3.2 % at 16 spp (the Gaussian pixel filter mixes neighbouring pixels'
 #: samples and undoes the sampler's stratification).
 NUISANCE_SPP = 64
+#: Frames per pose of a pseudo-real capture: one render, the camera's noise drawn anew for each
+#: (what two exposures of a still fixture give). The diagnosis compares the first with the
+#: simulation and reads the temporal noise from the pair (EMVA 1288): the spatial noise of flat
+#: cells alone cannot tell shot noise from fixed patterns (seed 25: full wells 1.4-2.2x too large).
+CAPTURE_REPEATS = 2
 
 
 def found(hidden: str, selected: list[str]) -> bool:

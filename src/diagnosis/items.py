@@ -52,6 +52,29 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
     return dataclasses.replace(exp, rig=rig, configurations=conf, variants=(), grid={})
 
 
+def repeats_of_simulation(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
+    """``real`` with no more repeats than ``sim`` has, so that like is compared with like.
+
+    A capture with two frames per pose against a simulation with one (a deterministic image
+    pipeline) would compare the real repeats' spread with the simulation's neighbour residuals
+    (:mod:`simgap.analysis.evidence`); its first frames are compared instead. The temporal
+    noise, measured across a pose's frames at ingest, is kept (on the first repeat).
+    """
+    n = sim.sizes["repeat"]
+    if real.sizes["repeat"] <= n:
+        return real
+    out = real.isel(repeat=slice(0, n))
+    if "image_stats" in real:
+        temporal = [s for s in real.stat.values if str(s).startswith("temporal_")]
+        with warnings.catch_warnings():  # poses with one readable frame are all-NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            kept = real.image_stats.sel(stat=temporal).median("repeat", skipna=True)
+        stats = out.image_stats.copy()
+        stats.loc[{"repeat": out.repeat.values[0], "stat": temporal}] = kept
+        out = out.assign(image_stats=stats)
+    return out
+
+
 def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> Items:
     """The visible (tag, p, theta) items with their errors, corners, image statistics, detection.
 

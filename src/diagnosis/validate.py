@@ -32,6 +32,7 @@ from simgap.core.config import deep_merge
 from simgap.diagnosis.diagnose import diagnose
 from simgap.diagnosis.hidden_effects import (
     APPEARANCE,
+    CAPTURE_REPEATS,
     HIDDEN,
     NUISANCE_EFFECTS,
     NUISANCE_SCENE,
@@ -196,7 +197,7 @@ def pseudo_real_experiment(
         effects=effects,
         variants=(VariantSpec("baseline"),),
         grid={},
-        repeats=1,
+        repeats=CAPTURE_REPEATS,
     )
 
 
@@ -214,7 +215,7 @@ def render_capture(exp: Experiment, simulator: Simulator | Path, folder: Path) -
     """
     if not isinstance(simulator, Simulator):
         simulator = Simulator(simulator, show_progress=False)
-    frames = [(p, theta, 0, rgb) for p, theta, rgb in simulator.frames(exp)]
+    frames = list(simulator.frames(exp))
     # the operator's calibration is the nominal camera, whatever the true one is
     write_capture(folder, frames, exp.rig_model.camera)
     return folder
@@ -273,6 +274,7 @@ def run_validation(
     summary = summarize_scores(records)
     summary["trials_planned"] = settings.trials
     summary["pseudo_real_spp"] = settings.spp
+    summary["pseudo_real_frames_per_pose"] = CAPTURE_REPEATS
     write_json({"summary": summary, "trials": records}, out_dir / "validation.json")
     atomic_write(out_dir / "validation.md", validation_markdown(summary, records))
     return summary

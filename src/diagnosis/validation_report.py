@@ -107,8 +107,9 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "",
         f"{summary['trials']} trials. Pseudo-real captures are rendered as another camera: "
         f"effects {json.dumps(NUISANCE_EFFECTS)}, scene {json.dumps(NUISANCE_SCENE)}, "
-        f"{summary.get('pseudo_real_spp', NUISANCE_SPP)} spp, another render seed; hidden "
-        "effects drawn per trial.",
+        f"{summary.get('pseudo_real_spp', NUISANCE_SPP)} spp, another render seed, "
+        f"{summary.get('pseudo_real_frames_per_pose', 1)} frame(s) a pose; hidden effects drawn "
+        "per trial.",
         "",
         "| score | value |",
         "|---|---|",

@@ -114,17 +114,21 @@ class Simulator:
         """
         return self._pipeline(exp, state).run(int(p), float(theta), int(repeat), 0)
 
-    def frames(self, exp: Experiment) -> Iterator[tuple[int, float, np.ndarray]]:
-        """``(p, theta (rad), RGB uint8 H x W x 3)`` of ``exp``'s first variant, repeat 0.
+    def frames(self, exp: Experiment) -> Iterator[tuple[int, float, int, np.ndarray]]:
+        """``(p, theta (rad), repeat, RGB uint8 H x W x 3)`` of ``exp``'s first variant.
 
-        Configurations where no sticker faces the camera are skipped. Frames already made by
-        :meth:`dataset` come from the cache.
+        Every repeat of ``exp`` (they differ in image-stage noise, and in the render too with
+        ``render.reseed_repeats``). Configurations where no sticker faces the camera are
+        skipped. Frames already made by :meth:`dataset` come from the cache.
         """
         state = exp.variant_states()[0][1]
         pipe = self._pipeline(exp, state)
         ps, thetas, _ = exp.configuration_axes()
         for p in ps:
             for theta in thetas:
-                frame = pipe.frame(int(p), float(theta), 0, 0)
-                if frame is not None:
-                    yield int(p), float(theta), frame.rgb()
+                for repeat in range(exp.repeats):
+                    render_repeat = repeat if exp.render.reseed_repeats else 0
+                    frame = pipe.frame(int(p), float(theta), repeat, render_repeat)
+                    if frame is None:
+                        break
+                    yield int(p), float(theta), repeat, frame.rgb()

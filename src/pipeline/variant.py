@@ -29,7 +29,7 @@ from simgap.render.scene import projected_sticker_boxes
 #: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
 CROP_STEP_PX = 32
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
-RESULT_VERSION = "image-stats-4"
+RESULT_VERSION = "image-stats-5"  # 5: temporal noise statistics
 #: The stages :attr:`VariantPipeline.seconds` times (benchmarks/sweep_speed.py prints them).
 STAGES = (
     "scene load",  # Mitsuba scene built for a film size (its first render compiles kernels)

@@ -34,6 +34,10 @@ Statistics (see :data:`STATS` for names, units and meanings):
 - noise: standard deviation of flat ink and paper pixels from differences of horizontal
   neighbours (``std(diff) / sqrt(2)``, insensitive to smooth shading), in DN and linear units;
   pairs of (level, variance) over many tags give the photon transfer curve (EMVA 1288);
+- temporal noise: where a second frame of the same pose is given (a repeat), the standard
+  deviation of the two frames' difference in the same flat ink and paper pixels over sqrt(2),
+  linearised: EMVA 1288's own temporal noise, which every fixed pattern (print texture, the
+  photo-response non-uniformity, a renderer's Monte Carlo noise) cancels from. NaN from one frame;
 - clipped fraction: share of sticker pixels at 0 or 255 DN;
 - highlight fraction: share of sticker pixels far above the tag's own paper level
   (more than ``max(5 sigma_paper, 12 DN)`` above it);
@@ -74,6 +78,16 @@ STATS: tuple[tuple[str, str, str], ...] = (
     ("noise_paper_dn", "DN", "noise standard deviation in flat paper pixels"),
     ("noise_ink_linear", "1", "noise standard deviation in flat ink pixels, linearised"),
     ("noise_paper_linear", "1", "noise standard deviation in flat paper pixels, linearised"),
+    (
+        "temporal_noise_ink_linear",
+        "1",
+        "temporal noise sigma in flat ink pixels (two frames of one pose), linearised",
+    ),
+    (
+        "temporal_noise_paper_linear",
+        "1",
+        "temporal noise sigma in flat paper pixels (two frames of one pose), linearised",
+    ),
     ("clipped_fraction", "1", "share of sticker pixels at 0 or 255 DN"),
     ("highlight_fraction", "1", "share of sticker pixels far above the tag's paper level"),
     ("rejected_candidates", "1", "detector candidates rejected on the sticker"),
@@ -140,7 +154,22 @@ def _noise(values: np.ndarray, mask: np.ndarray) -> float:
     pair = mask[:, :-1] & mask[:, 1:]
     if pair.sum() < MIN_PIXELS:
         return float("nan")
-    d = (values[:, 1:] - values[:, :-1])[pair]
+    return _difference_sigma((values[:, 1:] - values[:, :-1])[pair])
+
+
+def _temporal_noise(values: np.ndarray, repeat: np.ndarray, mask: np.ndarray) -> float:
+    """Noise sigma from the differences of two frames of one pose in the pixels of ``mask``."""
+    if mask.sum() < MIN_PIXELS:
+        return float("nan")
+    return _difference_sigma((values - repeat)[mask])
+
+
+def _difference_sigma(d: np.ndarray) -> float:
+    """Sigma of each of two noisy values from their differences ``d``: ``std(d) / sqrt(2)``.
+
+    Differences further than :data:`NOISE_CLIP_SIGMAS` robust sigmas from their median (edges,
+    texture, a moved edge) are left out.
+    """
     med = np.median(d)
     mad = MAD_TO_SIGMA * np.median(np.abs(d - med))
     keep = (
@@ -280,6 +309,7 @@ def tag_stats(
     offset: tuple[int, int] = (0, 0),
     rejected: list[np.ndarray] | tuple = (),
     with_edge: bool = True,
+    repeat: np.ndarray | None = None,
 ) -> np.ndarray:
     """Statistics of one tag, in the order of :data:`STATS`; NaN where not measurable.
 
@@ -297,6 +327,8 @@ def tag_stats(
         Rejected detector candidates in full-frame pixels.
     with_edge : bool
         Fit the edge-spread function (needs accurate corners).
+    repeat : ndarray of uint8 (H, W), optional
+        A second frame of the same pose (same crop): the temporal noise is measured from it.
     """
     out = np.full(len(STATS), np.nan)
     corners = np.asarray(corners, np.float64).reshape(4, 2)
@@ -335,6 +367,10 @@ def tag_stats(
     out[s["noise_paper_dn"]] = _noise(patch, paper_mask)
     out[s["noise_ink_linear"]] = _noise(lin, ink_mask)
     out[s["noise_paper_linear"]] = _noise(lin, paper_mask)
+    if repeat is not None:
+        lin_repeat = linearise(repeat[y0:y1, x0:x1])
+        out[s["temporal_noise_ink_linear"]] = _temporal_noise(lin, lin_repeat, ink_mask)
+        out[s["temporal_noise_paper_linear"]] = _temporal_noise(lin, lin_repeat, paper_mask)
     values = patch[sticker_mask]
     out[s["clipped_fraction"]] = float(np.mean((values <= 0) | (values >= 255)))
     sigma = out[s["noise_paper_dn"]]

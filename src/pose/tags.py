@@ -128,6 +128,7 @@ def add_image_stats(
     rejected: list,
     p: int,
     theta: float,
+    repeat: np.ndarray | None = None,
 ) -> None:
     """Fill ``out.image_stats`` (from :func:`estimate_tags`) with every visible tag's evidence.
 
@@ -149,6 +150,9 @@ def add_image_stats(
         The detector's markers (tag id -> corners, px) and rejected candidates (px).
     p, theta
         Pin hole and turntable angle (rad).
+    repeat : ndarray of uint8, optional
+        Another grey frame of the same pose (same crop and offset): the temporal noise
+        statistics are measured against it (else NaN).
     """
     cal = estimation.calibration
     layout = MarkerLayout(rig.marker_cells(), rig.tags.quiet_zone_cells)
@@ -162,4 +166,4 @@ def add_image_stats(
             with_edge = False
         else:
             continue
-        out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, with_edge)
+        out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, with_edge, repeat)

@@ -46,6 +46,23 @@ def _progress(show: bool) -> Progress:
     )
 
 
+def _read_gray(frame, cal: CameraModel, failed: list[str]) -> np.ndarray | None:
+    """The 8-bit grey frame, or None (warned and added to ``failed``) when unreadable."""
+    img = read_image(frame.image)
+    if img is None or img.shape[:2] != (cal.height, cal.width):
+        why = (
+            "cannot be decoded"
+            if img is None
+            else f"is {img.shape[1]}x{img.shape[0]}, expected {cal.width}x{cal.height}"
+        )
+        warnings.warn(
+            f"{frame.image}: frame {why}; recorded as not detected", CaptureWarning, stacklevel=3
+        )
+        failed.append(str(frame.image))
+        return None
+    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+
+
 def ingest(
     folder: Path,
     rig: Rig | None = None,
@@ -61,7 +78,8 @@ def ingest(
     ``tag`` the rig's tag ids; configurations absent from the manifest are not detected (NaN).
     Poses are estimated with the capture's calibration, and the image evidence measured, exactly
     as :func:`simgap.pose.tags.estimate_tags` and :func:`~simgap.pose.tags.add_image_stats` do
-    for renders.
+    for renders. Where a pose has more than one frame (repeats), its first frame's statistics
+    also carry the temporal noise measured against its second.
 
     Parameters
     ----------
@@ -110,34 +128,40 @@ def ingest(
     shape = (1, len(repeats), len(tags), len(ps), len(thetas))
     res = empty_results(shape)
     failed: list[str] = []
+    by_pose: dict[tuple[int, float], list] = {}
+    for frame in cap.frames:
+        by_pose.setdefault((frame.p, frame.theta), []).append(frame)
     with _progress(show_progress) as bar:
         task = bar.add_task(f"ingest {cap.folder.name}", total=len(cap.frames))
-        for frame in cap.frames:
-            bar.advance(task)
-            img = read_image(frame.image)
-            if img is None or img.shape[:2] != (cal.height, cal.width):
-                why = (
-                    "cannot be decoded"
-                    if img is None
-                    else f"is {img.shape[1]}x{img.shape[0]}, expected {cal.width}x{cal.height}"
+        for frames in by_pose.values():
+            frames = sorted(frames, key=lambda f: f.repeat)
+            greys = [_read_gray(frame, cal, failed) for frame in frames]
+            readable = [k for k, gray in enumerate(greys) if gray is not None]
+            for k, (frame, gray) in enumerate(zip(frames, greys, strict=True)):
+                bar.advance(task)
+                if gray is None:
+                    continue
+                # the first readable frame of a pose with another one also gets the temporal noise
+                other = greys[readable[1]] if len(readable) > 1 and k == readable[0] else None
+                found, rejected = det.detect_with_rejected(gray)
+                out = estimate_tags(rig, estimation, tags, found, frame.p, frame.theta)
+                add_image_stats(
+                    out,
+                    rig,
+                    estimation,
+                    tags,
+                    gray,
+                    (0, 0),
+                    found,
+                    rejected,
+                    frame.p,
+                    frame.theta,
+                    other,
                 )
-                warnings.warn(
-                    f"{frame.image}: frame {why}; recorded as not detected",
-                    CaptureWarning,
-                    stacklevel=2,
-                )
-                failed.append(str(frame.image))
-                continue
-            gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-            found, rejected = det.detect_with_rejected(gray)
-            out = estimate_tags(rig, estimation, tags, found, frame.p, frame.theta)
-            add_image_stats(
-                out, rig, estimation, tags, gray, (0, 0), found, rejected, frame.p, frame.theta
-            )
-            idx = (0, repeats.index(frame.repeat), slice(None), ps.index(frame.p))
-            idx = idx + (thetas.index(frame.theta),)
-            for k, v in out.arrays().items():
-                res[k][idx] = v
+                idx = (0, repeats.index(frame.repeat), slice(None), ps.index(frame.p))
+                idx = idx + (thetas.index(frame.theta),)
+                for key, v in out.arrays().items():
+                    res[key][idx] = v
     expected, visible = ground_truth(rig, tags, ps, thetas)
     attrs = {
         "title": f"simgap result: capture {cap.folder.name}",
