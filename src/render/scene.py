@@ -22,7 +22,13 @@ from simgap.render.camera import PLUGIN_NAME as SENSOR_PLUGIN
 from simgap.render.mitsuba_scene import bsdf, emitter, tag_bsdf
 from simgap.scene.spec import SceneSpec, load_scene_spec
 
-__all__ = ["FixtureScene", "SceneSpec", "load_scene_spec", "projected_sticker_boxes"]
+__all__ = [
+    "FixtureScene",
+    "SceneSpec",
+    "load_scene_spec",
+    "pose_transforms",
+    "projected_sticker_boxes",
+]
 
 
 class FixtureScene:
@@ -127,30 +133,17 @@ class FixtureScene:
         }
         self.pose: tuple[float, float] | None = None
 
-    def frames(self, p: float, theta: float) -> dict[str, np.ndarray]:
-        """Rail-frame poses of the movable frames at (p, theta) for the true fixture."""
-        rig, err = self.rig, self.errors
-        return {
-            "carriage": rig.rail_from_carriage(p, err),
-            "eyepoint": rig.rail_from_eyepoint(p, err),
-            "turntable": rig.rail_from_turntable(theta, err),
-        }
-
     def set_pose(self, p: float, theta: float) -> None:
         """Move carriage, camera, turntable and tags to pin hole ``p`` and angle ``theta`` (rad)."""
-        mi, rig, err = self.mi, self.rig, self.errors
-        frames = self.frames(p, theta)
+        mi = self.mi
+        world = pose_transforms(self.rig, p, theta, self.errors, self.tag_scale)
         for name, base in self._base.items():
-            moved = tf.apply(frames[self.spec.objects[name].frame], base)
+            moved = tf.apply(world[self.spec.objects[name].frame], base)
             self.params[f"{name}.vertex_positions"] = mi.Float(moved.ravel().astype(np.float32))
-        half = rig.sticker_size() * self.tag_scale / 2
-        for face in rig.tags.faces:
-            rail_from_tag = frames["turntable"] @ rig.turntable_from_tag(face.id, err)
-            self.params[f"tag_{face.id}.to_world"] = mi.ScalarTransform4f(
-                rail_from_tag @ np.diag([half, half, 1.0, 1.0])
-            )
+        for face in self.rig.tags.faces:
+            self.params[f"tag_{face.id}.to_world"] = mi.ScalarTransform4f(world[f"tag_{face.id}"])
         self.params.update()
-        self.camera.set_pose(frames["eyepoint"] @ tf.make(tf.GLOBAL_FROM_CV))
+        self.camera.set_pose(world["camera"])
         self.pose = (p, theta)
 
     def render(self, crop_offset: tuple[int, int] = (0, 0), seed: int = 0) -> np.ndarray:
@@ -166,6 +159,30 @@ class FixtureScene:
         self.camera.set_crop_offset(*crop_offset)
         img = self.mi.render(self.scene, spp=self.spp, seed=int(seed))
         return np.array(img, dtype=np.float32)
+
+
+def pose_transforms(
+    rig: Rig, p: float, theta: float, errors: FixtureErrors = NOMINAL, tag_scale: float = 1.0
+) -> dict[str, np.ndarray]:
+    """Rail-frame 4x4 transforms of everything that moves at (p, theta), for the true fixture.
+
+    ``carriage``, ``eyepoint`` and ``turntable`` (the frames objects are attached to; ``rail``
+    is the identity), ``camera`` (rail from the OpenCV camera frame: x right, y down, z along
+    the optical axis) and ``tag_<id>`` (rail from a sticker's 2 x 2 rectangle, z its normal:
+    the sticker's side scaled by ``tag_scale``). Renderer-agnostic (m, dimensionless).
+    """
+    frames = {
+        "rail": np.eye(4),
+        "carriage": rig.rail_from_carriage(p, errors),
+        "eyepoint": rig.rail_from_eyepoint(p, errors),
+        "turntable": rig.rail_from_turntable(theta, errors),
+    }
+    frames["camera"] = frames["eyepoint"] @ tf.make(tf.GLOBAL_FROM_CV)
+    half = rig.sticker_size() * tag_scale / 2
+    for face in rig.tags.faces:
+        rail_from_tag = frames["turntable"] @ rig.turntable_from_tag(face.id, errors)
+        frames[f"tag_{face.id}"] = rail_from_tag @ np.diag([half, half, 1.0, 1.0])
+    return frames
 
 
 def projected_sticker_boxes(
