@@ -20,6 +20,7 @@ from simgap.pipeline.capture.folder import (
     read_capture,
     read_image,
 )
+from simgap.pipeline.capture.manifest import CaptureFrame
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.tags import Estimation, add_image_stats, estimate_tags
@@ -46,7 +47,7 @@ def _progress(show: bool) -> Progress:
     )
 
 
-def _read_gray(frame, cal: CameraModel, failed: list[str]) -> np.ndarray | None:
+def _read_gray(frame: CaptureFrame, cal: CameraModel, failed: list[str]) -> np.ndarray | None:
     """The 8-bit grey frame, or None (warned and added to ``failed``) when unreadable."""
     img = read_image(frame.image)
     if img is None or img.shape[:2] != (cal.height, cal.width):
@@ -128,7 +129,7 @@ def ingest(
     shape = (1, len(repeats), len(tags), len(ps), len(thetas))
     res = empty_results(shape)
     failed: list[str] = []
-    by_pose: dict[tuple[int, float], list] = {}
+    by_pose: dict[tuple[int, float], list[CaptureFrame]] = {}
     for frame in cap.frames:
         by_pose.setdefault((frame.p, frame.theta), []).append(frame)
     with _progress(show_progress) as bar:
