@@ -411,3 +411,18 @@ def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
     assert detection_score(real, swapped, [views]) == pytest.approx(0.0)
     nothing_lost = np.ones(6)
     assert detection_score(real, nothing_lost, [views]) == pytest.approx(2 / 6 / DETECTION_UNIT)
+
+
+def test_targeted_validation_draws_only_the_named_effects(tmp_path):
+    from simgap.diagnosis.validate import ValidateSettings, draw_hidden
+
+    settings = replace(
+        ValidateSettings(), effects=("sensor_noise",), p_none=0.0, p_outside=0.0, p_pair=0.0
+    )
+    rng = np.random.default_rng(0)
+    assert {tuple(draw_hidden(rng, settings)) for _ in range(50)} == {("sensor_noise",)}
+    res = CliRunner().invoke(
+        app, ["validate", "--effects", "sensor_noise,nope", "-o", str(tmp_path / "v")]
+    )
+    assert res.exit_code == 2 and "--effects: expected names among" in res.output
+    assert "got nope" in res.output and not (tmp_path / "v").exists()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Annotated
 
@@ -97,11 +98,19 @@ def validate(
     shard: str = typer.Option(
         "0/1", "--shard", help="K/N: run only trials K, K+N, ... (several processes, one folder)."
     ),
+    effects: str = typer.Option(
+        "",
+        "--effects",
+        help="Comma-separated hidden effects to draw from, e.g. sensor_noise (default: all); "
+        "then every trial hides one of them (two when several are given, as often as usual).",
+    ),
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores.
 
     Finished trials are kept in OUTPUT/trials/: a stopped run resumes, and processes with
     disjoint shards share one output folder; a last run without --shard writes the summary of all.
+    With --effects the trials are targeted: no trial without a hidden effect or with one
+    outside the catalogue.
     """
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.validate import ValidateSettings, run_validation
@@ -111,6 +120,15 @@ def validate(
     if not (k.isdigit() and n.isdigit()):
         raise ValueError(f"--shard: expected K/N (two whole numbers, e.g. 0/4), got {shard!r}")
     settings = ValidateSettings(trials=trials, seed=seed, shard=(int(k), int(n)))
+    if effects:
+        names = tuple(e.strip() for e in effects.split(",") if e.strip())
+        pair = settings.p_pair if len(names) > 1 else 0.0
+        try:
+            settings = dataclasses.replace(
+                settings, effects=names, p_none=0.0, p_outside=0.0, p_pair=pair
+            )
+        except ValueError as exc:  # "effects: expected ...": name the option
+            raise ValueError(f"--{exc}") from exc
     summary = run_validation(exp, output, cache or default_cache_dir(), settings, log=typer.echo)
     typer.echo((output / "validation.md").read_text())
     typer.echo(

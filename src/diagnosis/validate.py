@@ -110,6 +110,13 @@ class ValidateSettings:
         k, n = self.shard
         if not (n >= 1 and 0 <= k < n):
             raise ValueError(f"shard: expected K/N with 0 <= K < N, got {k}/{n}")
+        unknown = [e for e in self.effects if e not in HIDDEN]
+        if unknown or not self.effects:
+            raise ValueError(
+                f"effects: expected names among {', '.join(HIDDEN)}, got {', '.join(unknown)}"
+                if unknown
+                else "effects: expected at least one hidden effect"
+            )
 
 
 @dataclass
