@@ -124,6 +124,10 @@ class RenderSettings:
         require(self.max_depth >= 2 or self.max_depth == -1, "max_depth: expected >= 2 or -1")
         require(self.crop_margin_px >= 4, "crop_margin_px: expected an integer >= 4 (px)")
 
+    def render_repeat(self, repeat: int) -> int:
+        """The render a repeat's frame is made from: its own with ``reseed_repeats``, else 0."""
+        return int(repeat) if self.reseed_repeats else 0
+
 
 @dataclass(frozen=True)
 class ImageSettings:

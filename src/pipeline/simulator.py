@@ -127,7 +127,7 @@ class Simulator:
         for p in ps:
             for theta in thetas:
                 for repeat in range(exp.repeats):
-                    render_repeat = repeat if exp.render.reseed_repeats else 0
+                    render_repeat = exp.render.render_repeat(repeat)
                     frame = pipe.frame(int(p), float(theta), repeat, render_repeat)
                     if frame is None:
                         break

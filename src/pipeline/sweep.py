@@ -63,7 +63,7 @@ def run_task(exp: Experiment, cache_dir: str, p: int, theta: float) -> dict[str,
     for pipe in pipes:
         rows = []
         for r in range(reps):
-            render_repeat = r if exp.render.reseed_repeats else 0
+            render_repeat = exp.render.render_repeat(r)
             if r > 0 and not pipe.state.image.stochastic and not exp.render.reseed_repeats:
                 rows.append(rows[0])  # deterministic pipeline: every repeat is the same frame
                 continue

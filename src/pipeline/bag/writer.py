@@ -288,7 +288,7 @@ def experiment_to_bag(
         for repeat in repeats:
             for p in ps:
                 for theta in thetas:
-                    render_repeat = int(repeat) if exp.render.reseed_repeats else 0
+                    render_repeat = exp.render.render_repeat(repeat)
                     frame = pipe.frame(int(p), float(theta), int(repeat), render_repeat)
                     if frame is None:
                         continue
