@@ -1,15 +1,16 @@
 """Seconds per configuration at equal noise: simgap's Mitsuba crops against Blender Cycles (CPU).
 
 What a user would pick instead of simgap's renderer: Blender Cycles on the CPU. Both render the
-same configurations of an experiment in one run (default: 8 spread over the baseline sweep),
-the same crops, meshes, tag textures, materials, lights and camera; adaptive sampling and
-denoising off (``benchmarks/cycles_worker.py`` says how the scene is carried over). Prints, per
-renderer and sample count, the seconds per configuration (pose update and sampling; scene load
-and kernel compilation apart) and the relative noise of the flat paper around each tag
-(sigma / level of the quiet zone, :func:`simgap.pose.image_stats.tag_stats`), then Cycles' time
-at simgap's noise level (noise ~ spp^-1/2 and time ~ spp, fitted over Cycles' sample counts)
-and the ratio. Checks that the two scenes agree: the tags detected in both, and the largest
-corner difference between them. Writes ``cycles_vs_simgap.png`` (one crop side by side).
+same configurations of an experiment in one run (default: 8 spread over the baseline sweep), the
+same crops (Cycles the whole rectangle as its render border, simgap only the pixels near the
+stickers, :mod:`simgap.pipeline.region`), meshes, tag textures, materials, lights and camera;
+adaptive sampling and denoising off (``benchmarks/cycles_worker.py`` says how the scene is carried
+over). Prints, per renderer and sample count, the seconds per configuration (pose update and
+sampling; scene load and kernel compilation apart) and the relative noise of the flat paper around
+each tag (sigma / level of the quiet zone, :func:`simgap.pose.image_stats.tag_stats`), then Cycles'
+time at simgap's noise level (noise ~ spp^-1/2 and time ~ spp, fitted over Cycles' sample counts)
+and the ratio. Checks that the two scenes agree: the tags detected in both, and the largest corner
+difference between them. Writes ``cycles_vs_simgap.png`` (one crop side by side).
 
 ``bpy`` (Blender as a Python module, Python 3.11) pins numpy 1.x, which simgap's environment
 cannot take, so it lives in an environment of its own: pass that Python as ``--bpy-python`` or
@@ -96,14 +97,14 @@ def scene_description(exp, pipe: VariantPipeline, configs, spp: list[int]) -> di
     )
     configurations = []
     for p, theta in configs:
-        side, offset = pipe.crop(p, theta)
+        region = pipe.region(p, theta)
         world = pose_transforms(rig, p, theta, state.errors, state.tag_scale)
         configurations.append(
             {
                 "p": int(p),
                 "theta": float(theta),
-                "side": side,
-                "offset": list(offset),
+                "size": list(region.size),
+                "offset": list(region.offset),
                 "transforms": {k: v.tolist() for k, v in world.items()},
             }
         )
@@ -167,14 +168,14 @@ def pipeline(exp, cache: Path) -> VariantPipeline:
     state = exp.variant_states()[0][1]
     tags = tuple(int(t) for t in exp.configuration_axes()[2])
     return VariantPipeline(
-        exp.rig_model, state, tags, exp.render.crop_margin_px, Cache(cache), assets_hash()
+        exp.rig_model, state, tags, exp.render.margin_px, Cache(cache), assets_hash()
     )
 
 
 def simgap_side(exp, configs, cache: Path) -> tuple[VariantPipeline, list, float]:
     """simgap's crops of ``configs`` (empty result cache, warm kernels); seconds per config."""
     warm = pipeline(exp, cache / "warmup")
-    for p, theta in configs:  # scene load and every crop side's kernels, not timed
+    for p, theta in configs:  # scene load and its kernels, not timed
         warm.hdr(p, theta, 1)
     pipe = pipeline(exp, cache / "timed")
     crops = [pipe.hdr(p, theta, 0) for p, theta in configs]
@@ -185,7 +186,7 @@ def simgap_side(exp, configs, cache: Path) -> tuple[VariantPipeline, list, float
 def pick_configurations(exp, pipe: VariantPipeline, n: int) -> list[tuple[int, float]]:
     """``n`` configurations spread evenly over the sweep's visible ones."""
     ps, thetas, _ = exp.configuration_axes()
-    visible = [(int(p), float(t)) for p in ps for t in thetas if pipe.crop(int(p), float(t))]
+    visible = [(int(p), float(t)) for p in ps for t in thetas if pipe.region(int(p), float(t))]
     idx = np.unique(np.linspace(0, len(visible) - 1, n).round().astype(int))
     return [visible[i] for i in idx]
 

@@ -199,9 +199,9 @@ def pose(objects: dict, desc: dict, config: dict) -> None:
         objects[f"tag_{tag_id}"].matrix_world = Matrix(world[f"tag_{tag_id}"].tolist())
     objects["camera"].matrix_world = Matrix((world["camera"] @ CV_TO_BLENDER).tolist())
     render, cam = bpy.context.scene.render, desc["camera"]
-    (x0, y0), side = config["offset"], config["side"]
-    render.border_min_x, render.border_max_x = x0 / cam["width"], (x0 + side) / cam["width"]
-    render.border_min_y = 1.0 - (y0 + side) / cam["height"]
+    (x0, y0), (w, h) = config["offset"], config["size"]
+    render.border_min_x, render.border_max_x = x0 / cam["width"], (x0 + w) / cam["width"]
+    render.border_min_y = 1.0 - (y0 + h) / cam["height"]
     render.border_max_y = 1.0 - y0 / cam["height"]
 
 

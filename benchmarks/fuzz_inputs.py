@@ -103,7 +103,7 @@ def experiment_cases(tmp: Path, rng: random.Random) -> list[Case]:
     values: dict[str, list[Any]] = {
         "render.spp": [0, -1, 1.5, "many", NAN, [4], None],
         "render.sampler": ["sobol", 3],
-        "render.crop_margin_px": [0, 3, -24],
+        "render.margin_px": [0, 3, -24],
         "render.max_depth": [1, 0, NAN],
         "render.seed": ["x", 1.5],
         "image.exposure": [0, -1, NAN, INF, "bright"],

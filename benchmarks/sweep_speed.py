@@ -76,7 +76,7 @@ def stage_pass(exp) -> dict:
 
     with tempfile.TemporaryDirectory() as tmp, dr.scoped_set_flag(dr.JitFlag.KernelHistory):
         pipe = VariantPipeline(
-            exp.rig_model, state, tags, exp.render.crop_margin_px, Cache(Path(tmp)), assets_hash()
+            exp.rig_model, state, tags, exp.render.margin_px, Cache(Path(tmp)), assets_hash()
         )
         t0 = time.perf_counter()
         for p in ps:

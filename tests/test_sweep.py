@@ -29,13 +29,13 @@ def _write(tmp_path, name, **overrides):
 @pytest.fixture
 def count_renders(monkeypatch):
     calls = []
-    original = FixtureScene.render
+    original = FixtureScene.render_pixels
 
-    def spy(self, crop_offset=(0, 0), seed=0):
-        calls.append((self.pose, crop_offset))
-        return original(self, crop_offset, seed)
+    def spy(self, pixels, seed=0):
+        calls.append((self.pose, len(pixels)))
+        return original(self, pixels, seed)
 
-    monkeypatch.setattr(FixtureScene, "render", spy)
+    monkeypatch.setattr(FixtureScene, "render_pixels", spy)
     return calls
 
 

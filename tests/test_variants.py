@@ -10,10 +10,11 @@ import simgap.pipeline.sweep as sweep
 import simgap.pipeline.variant as variant
 from simgap.core.config import ConfigError
 from simgap.pipeline.experiment import load_experiment
+from simgap.pipeline.region import sticker_region
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import project_tag_corners
 from simgap.render import imaging
-from simgap.render.scene import FixtureScene, load_scene_spec, projected_sticker_boxes
+from simgap.render.scene import FixtureScene, load_scene_spec, projected_sticker_outlines
 
 
 def _write(path, data):
@@ -79,7 +80,7 @@ def test_circular_inheritance_is_an_error(tmp_path):
 @pytest.fixture
 def spies(monkeypatch):
     calls = {"render": 0, "pipeline": 0}
-    render, pipeline = FixtureScene.render, variant.run_pipeline
+    render, pipeline = FixtureScene.render_pixels, variant.run_pipeline
 
     def spy_render(self, *a, **k):
         calls["render"] += 1
@@ -89,7 +90,7 @@ def spies(monkeypatch):
         calls["pipeline"] += 1
         return pipeline(*a, **k)
 
-    monkeypatch.setattr(FixtureScene, "render", spy_render)
+    monkeypatch.setattr(FixtureScene, "render_pixels", spy_render)
     monkeypatch.setattr(variant, "run_pipeline", spy_pipeline)
     return calls
 
@@ -176,14 +177,14 @@ def test_distorted_render_corners_match_projectpoints(rig, tag, p, theta_deg):
         distortion=dist,
     )
     theta = np.deg2rad(theta_deg)
-    boxes = projected_sticker_boxes(rig, p, theta, camera=hi)
-    side = variant.crop_side(boxes, 96, (hi.width, hi.height))
-    off = variant.crop_offset(boxes, (side, side), (hi.width, hi.height))
-    scene = FixtureScene(rig, load_scene_spec(), (side, side), spp=8, camera=hi)
+    outlines = projected_sticker_outlines(rig, p, theta, camera=hi, points_per_side=8)
+    region = sticker_region(outlines, 96, (hi.width, hi.height))
+    scene = FixtureScene(rig, load_scene_spec(), (hi.width, hi.height), spp=8, camera=hi)
     scene.set_pose(p, theta)
-    crop = imaging.encode_srgb8(imaging.quantise_half(scene.render(off, seed=2)))
+    crop = region.crop(scene.render_pixels(region.pixels(), seed=2))
+    crop = imaging.encode_srgb8(imaging.quantise_half(crop))
     found = Detector(DetectorSettings()).detect(
-        imaging.paste(imaging.to_gray(crop), off, (hi.width, hi.height))
+        imaging.paste(imaging.to_gray(crop), region.offset, (hi.width, hi.height))
     )
     lo_dist = cam.replace(distortion=dist)
     truth = project_tag_corners(

@@ -61,6 +61,10 @@ class ImageEffect(Effect, stage="image"):
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Apply the operation to a crop."""
 
+    def reach_px(self) -> float:
+        """How far the operation moves a pixel's value (px; 0 for a pixel-wise operation)."""
+        return 0.0
+
 
 class Blur(ImageEffect, name="blur", order=10):
     """Optical blur: isotropic Gaussian point spread function of standard deviation ``sigma_px``."""
@@ -73,6 +77,10 @@ class Blur(ImageEffect, name="blur", order=10):
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Convolve with the PSF."""
         return cv2.GaussianBlur(img, (0, 0), self.params.sigma_px, borderType=cv2.BORDER_REFLECT)
+
+    def reach_px(self) -> float:
+        """Three PSF sigmas (px)."""
+        return 3.0 * self.params.sigma_px
 
 
 class MotionBlur(ImageEffect, name="motion_blur", order=11):
@@ -101,6 +109,10 @@ class MotionBlur(ImageEffect, name="motion_blur", order=11):
         kernel = fine.reshape(size, 4, size, 4).sum(axis=(1, 3))
         kernel /= kernel.sum()
         return cv2.filter2D(img, -1, kernel, borderType=cv2.BORDER_REFLECT)
+
+    def reach_px(self) -> float:
+        """Half the blur length, and the anti-aliased kernel's extra pixel (px)."""
+        return self.params.length_px / 2 + 1.0
 
 
 class Vignetting(ImageEffect, name="vignetting", order=20):
@@ -201,9 +213,22 @@ def encode(linear: np.ndarray, state: ImageState) -> np.ndarray:
     return np.clip(np.round(x * 255.0), 0, 255).astype(np.uint8)
 
 
+def _operations(state: ImageState) -> list[ImageEffect]:
+    """The pipeline's operations in the order they run."""
+    return sorted((EFFECTS[name](params) for name, params in state.ops), key=lambda e: e.order)
+
+
+def pipeline_reach_px(state: ImageState) -> float:
+    """How far the whole camera pipeline moves a pixel's value (px): the sum of its reaches.
+
+    The render region must reach this far beyond the stickers (:mod:`simgap.pipeline.region`).
+    """
+    return float(sum(op.reach_px() for op in _operations(state)))
+
+
 def run_pipeline(hdr: np.ndarray, state: ImageState, ctx: ImageContext) -> np.ndarray:
     """Turn a linear HDR crop into the camera's 8-bit RGB crop."""
-    ops = sorted((EFFECTS[name](params) for name, params in state.ops), key=lambda e: e.order)
+    ops = _operations(state)
     img = hdr * np.float32(state.exposure)
     for op in ops:
         if op.order < ENCODE_ORDER:

@@ -77,7 +77,7 @@ class Simulator:
         if not self._assets:
             self._assets = assets_hash()
         return content_hash(
-            "simulator", exp.rig_model, state, self.tags(exp), exp.render.crop_margin_px,
+            "simulator", exp.rig_model, state, self.tags(exp), exp.render.margin_px,
             self._assets,
         )
 
@@ -88,7 +88,7 @@ class Simulator:
                 exp.rig_model,
                 state,
                 self.tags(exp),
-                exp.render.crop_margin_px,
+                exp.render.margin_px,
                 self._cache,
                 self._assets,
             )

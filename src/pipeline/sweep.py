@@ -7,13 +7,15 @@ only, so a variant reuses everything upstream of the first stage it changes (DES
 product    key depends on                                    stored as
 =========  ===============================================  ====================================
 render     scene state (lights, materials, optics, true      linear HDR crop, half-float EXR
-           camera, true geometry, quality, seed), p, theta
+           camera, true geometry, quality, seed), p,
+           theta, margin
 frame      render key, image state, noise seed (repeat)      8-bit sRGB crop PNG + offset JSON
 result     frame key, estimation state, tags                 ``.npz`` of corners, poses, errors
 =========  ===============================================  ====================================
 
-Only a square crop around the stickers facing the camera is rendered; the detector sees it pasted
-into a full-size frame so that its size-relative thresholds see the real image size (DESIGN §4).
+Only the pixels near the stickers facing the camera are rendered (:mod:`simgap.pipeline.region`),
+in their bounding crop; the detector sees it pasted into a full-size frame so that its
+size-relative thresholds see the real image size (DESIGN §4).
 Work is spread over a Dask scheduler: an in-process ``LocalCluster`` by default, or any cluster by
 address; one task is one (p, theta) for all variants and repeats, so renders are shared in a task.
 """
@@ -32,7 +34,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 import simgap
 from simgap.pipeline.cache import Cache, content_hash
 from simgap.pipeline.experiment import Experiment
-from simgap.pipeline.variant import CROP_STEP_PX, VariantPipeline, assets_hash
+from simgap.pipeline.variant import VariantPipeline, assets_hash
 from simgap.pose.tags import RESULT_FIELDS
 from simgap.results.dataset import build_dataset, empty_results
 
@@ -47,7 +49,7 @@ def experiment_pipelines(exp: Experiment, cache_dir: Path) -> list[VariantPipeli
         assets = assets_hash()
         cache = Cache(cache_dir)
         rig = exp.rig_model
-        margin = exp.render.crop_margin_px
+        margin = exp.render.margin_px
         _PIPELINES[key] = [
             VariantPipeline(rig, state, tags, margin, cache, assets)
             for _, state in exp.variant_states()
@@ -211,7 +213,7 @@ def dataset_attrs(exp: Experiment, scheduler: str | None) -> dict[str, str]:
         "python_version": platform.python_version(),
         "renderer_variant": choose_variant(),
         "scheduler": scheduler or "in-process LocalCluster",
-        "render_crop": f"square crops around facing tags, sides in steps of {CROP_STEP_PX} px",
+        "render_region": f"pixels within {exp.render.margin_px} px of a facing sticker",
         "detector": json.dumps({n: f"{s.estimation.detector}" for n, s in states}),
         "pnp": json.dumps({n: f"{s.estimation.pnp}" for n, s in states}),
         "conventions": "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)",

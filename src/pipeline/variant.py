@@ -18,24 +18,25 @@ import numpy as np
 
 from simgap.core.paths import assets_dir
 from simgap.core.rig import Rig
-from simgap.effects.image import BLOCK_ALIGN_PX, ImageContext, run_pipeline
+from simgap.effects.image import ImageContext, pipeline_reach_px, run_pipeline
 from simgap.effects.state import VariantState
 from simgap.pipeline.cache import Cache, content_hash, file_hash, write_text
+from simgap.pipeline.region import OUTLINE_POINTS_PER_SIDE, Region, sticker_region
 from simgap.pose.detect import Detector
 from simgap.pose.tags import ConfigResult, add_image_stats, estimate_tags
 from simgap.render import imaging
-from simgap.render.scene import projected_sticker_boxes
+from simgap.render.scene import projected_sticker_outlines
 
-#: Crop sides are rounded up to a multiple of this (px); each distinct side compiles one kernel.
-CROP_STEP_PX = 32
+#: Part of every render key: bump when what a render holds changes (its pixels or their samples).
+RENDER_VERSION = "sticker-region-1"  # 1: only the pixels near the stickers, rendered as a list
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
 RESULT_VERSION = "image-stats-5"  # 5: temporal noise statistics
 #: The stages :attr:`VariantPipeline.seconds` times (benchmarks/sweep_speed.py prints them).
 STAGES = (
-    "scene load",  # Mitsuba scene built for a film size (its first render compiles kernels)
+    "scene load",  # Mitsuba scene built (its first render compiles the kernels)
     "pose update",  # carriage, camera and turntable moved (mi.traverse)
-    "sampling",  # the path tracer's samples of the crop
-    "image pipeline",  # image-stage effects, 8-bit sRGB encoding
+    "sampling",  # the path tracer's samples of the region's pixels
+    "image pipeline",  # region into its crop, image-stage effects, 8-bit sRGB encoding
     "detection",  # ArUco on the full-size grey frame
     "pnp",  # pose of every detected tag and its error
     "image statistics",  # levels, edge widths, noise ... of every visible tag
@@ -68,31 +69,6 @@ def _read_offset(path: Path) -> tuple[int, int]:
     return offset[0], offset[1]
 
 
-def _union(boxes: dict) -> tuple[float, float, float, float]:
-    return (
-        min(b[0] for b in boxes.values()),
-        min(b[1] for b in boxes.values()),
-        max(b[2] for b in boxes.values()),
-        max(b[3] for b in boxes.values()),
-    )
-
-
-def crop_side(boxes: dict, margin_px: int, image: tuple[int, int]) -> int:
-    """Square crop side (px, multiple of :data:`CROP_STEP_PX`) holding the boxes plus a margin."""
-    u0, v0, u1, v1 = _union(boxes)
-    side = max(u1 - u0, v1 - v0) + 2 * margin_px
-    return int(min(math.ceil(side / CROP_STEP_PX) * CROP_STEP_PX, image[0], image[1]))
-
-
-def crop_offset(boxes: dict, size: tuple[int, int], image: tuple[int, int]) -> tuple[int, int]:
-    """Top-left pixel of a crop centred on the boxes, block-aligned and inside the image."""
-    u0, v0, u1, v1 = _union(boxes)
-    a = BLOCK_ALIGN_PX
-    x0 = int(round(((u0 + u1) / 2 - size[0] / 2) / a)) * a
-    y0 = int(round(((v0 + v1) / 2 - size[1] / 2) / a)) * a
-    return min(max(x0, 0), image[0] - size[0]), min(max(y0, 0), image[1] - size[1])
-
-
 def config_seed(base: int, p: int, theta: float, *extra) -> int:
     """Deterministic per-configuration seed (31 bits)."""
     return (
@@ -100,11 +76,11 @@ def config_seed(base: int, p: int, theta: float, *extra) -> int:
     )
 
 
-#: Mitsuba scenes by (scene key, film side), shared by every pipeline of this process: a variant
+#: Mitsuba scenes by scene key, shared by every pipeline of this process: a variant
 #: that changes only the image or estimation stage has the same scene key and reuses the scene
 #: and its compiled kernels, and a Dask worker keeps them between tasks. Keyed by content hashes,
 #: so sharing is safe; :func:`clear_scenes` empties it.
-_SCENES: dict[tuple[str, int], object] = {}
+_SCENES: dict[str, object] = {}
 
 
 def clear_scenes() -> None:
@@ -119,7 +95,9 @@ class VariantPipeline:
         self, rig: Rig, state: VariantState, tags, margin_px: int, cache: Cache, assets: str
     ):
         self.rig, self.state, self.tags, self.cache = rig, state, tuple(tags), cache
-        self.margin_px = margin_px
+        #: Render margin around the stickers (px): the experiment's, or more where the camera
+        #: pipeline spreads pixels further (a wide blur must not pull in the flat surround)
+        self.margin_px = max(int(margin_px), math.ceil(pipeline_reach_px(state.image)))
         cam = state.scene.camera
         self.image_size = (cam.width, cam.height)
         self.scene_key = content_hash("scene", rig, state.scene, assets)
@@ -135,18 +113,17 @@ class VariantPipeline:
         finally:
             self.seconds[stage] += time.perf_counter() - t0
 
-    def scene(self, side: int):
-        """The Mitsuba scene of this variant with a ``side`` x ``side`` film (one per process)."""
-        key = (self.scene_key, side)
-        if key not in _SCENES:
+    def scene(self):
+        """The Mitsuba scene of this variant (one per process and scene key)."""
+        if self.scene_key not in _SCENES:
             from simgap.render.scene import FixtureScene
 
             s = self.state.scene
             with self._timed("scene load"):
-                _SCENES[key] = FixtureScene(
+                _SCENES[self.scene_key] = FixtureScene(
                     self.rig,
                     s.spec,
-                    (side, side),
+                    self.image_size,
                     s.quality.spp,
                     s.quality.sampler,
                     errors=s.errors,
@@ -155,48 +132,51 @@ class VariantPipeline:
                     lens=(s.aperture_radius_m, s.focus_distance_m),
                     max_depth=s.quality.max_depth,
                 )
-        return _SCENES[key]
+        return _SCENES[self.scene_key]
 
-    def crop(self, p: int, theta: float) -> tuple[int, tuple[int, int]] | None:
-        """Crop side and offset (px) of one configuration; None when no sticker faces it."""
+    def region(self, p: int, theta: float) -> Region | None:
+        """The pixels rendered at one configuration; None when no sticker faces the camera."""
         s = self.state.scene
-        boxes = projected_sticker_boxes(self.rig, p, theta, s.errors, s.camera, s.tag_scale)
-        if not boxes:
-            return None
-        side = crop_side(boxes, self.margin_px, self.image_size)
-        return side, crop_offset(boxes, (side, side), self.image_size)
+        outlines = projected_sticker_outlines(
+            self.rig, p, theta, s.errors, s.camera, s.tag_scale, OUTLINE_POINTS_PER_SIDE
+        )
+        return sticker_region(outlines, self.margin_px, self.image_size)
 
     def render_key(self, p: int, theta: float, render_repeat: int) -> str:
         """Cache key of the linear render of one configuration."""
-        return content_hash(self.scene_key, int(p), round(float(theta), 9), render_repeat)
+        return content_hash(
+            self.scene_key, int(p), round(float(theta), 9), render_repeat, self.margin_px,
+            RENDER_VERSION,
+        )  # fmt: skip
 
     def hdr(self, p: int, theta: float, render_repeat: int):
         """The linear crop render and its offset, or None when no sticker faces the camera."""
-        crop = self.crop(p, theta)
-        if crop is None:
+        region = self.region(p, theta)
+        if region is None:
             return None
-        side, offset = crop
         path = self.cache.path("renders", self.render_key(p, theta, render_repeat), ".exr")
         with self._timed("io"):
-            cached = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+            cached = self.cache.read(path, lambda f: imaging.read_exr(f, region.size))
         if cached is not None:
-            return cached, offset
-        scene = self.scene(side)
+            return cached, region.offset
+        scene = self.scene()
         with self._timed("pose update"):
             scene.set_pose(p, theta)
         seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
         with self._timed("sampling"):
-            hdr = imaging.quantise_half(scene.render(offset, seed))
+            values = scene.render_pixels(region.pixels(), seed)
+        with self._timed("image pipeline"):
+            hdr = imaging.quantise_half(region.crop(values))
         with self._timed("io"):
             try:
                 imaging.write_exr(path, hdr, exclusive=True)
             except FileExistsError:  # another process published this render first: share it
-                shared = self.cache.read(path, lambda f: imaging.read_exr(f, (side, side)))
+                shared = self.cache.read(path, lambda f: imaging.read_exr(f, region.size))
                 if shared is None:  # it was corrupt (and is now moved aside): publish ours
                     imaging.write_exr(path, hdr)
                 else:
                     hdr = shared
-        return hdr, offset
+        return hdr, region.offset
 
     def frame_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
         """Cache key of the 8-bit frame (the repeat matters only for a stochastic pipeline)."""

@@ -108,10 +108,24 @@ def _sensor_class(mi: ModuleType) -> type:
 
         def sample_ray(self, time, sample1, sample2, sample3, active=True):
             """Return the ray through film position ``sample2`` (in [0, 1]^2 of the crop)."""
-            fx, fy, cx, cy = self._k
             size = mi.ScalarVector2f(self.film().crop_size())
             u = self._offset[0] + sample2.x * size.x - 0.5
             v = self._offset[1] + sample2.y * size.y - 0.5
+            return self.ray_through(u, v, sample3, time), mi.Spectrum(1.0)
+
+        def ray_through(self, u, v, aperture_sample, time=0.0) -> mi.Ray3f:
+            """The ray whose OpenCV projection is full-image pixel ``(u, v)``.
+
+            Parameters
+            ----------
+            u, v : mi.Float
+                Full-image pixel coordinates (px; OpenCV: pixel centres at integers).
+            aperture_sample : mi.Point2f
+                Uniform sample on [0, 1]^2 for the thin lens (unused by a pinhole).
+            time : float or mi.Float
+                Ray time (s; the fixture does not move during an exposure).
+            """
+            fx, fy, cx, cy = self._k
             x, y = (u - cx) / fx, (v - cy) / fy
             if self._has_distortion:
                 x, y = self._undistort(x, y)
@@ -120,7 +134,7 @@ def _sensor_class(mi: ModuleType) -> type:
             if self._thin_lens:
                 # chief ray through the lens centre is the pinhole ray: blur is centred on it
                 radius, focus = self._lens
-                lens = mi.warp.square_to_uniform_disk_concentric(sample3) * radius
+                lens = mi.warp.square_to_uniform_disk_concentric(aperture_sample) * radius
                 ox, oy = lens.x, lens.y
                 dx, dy, dz = x * focus - ox, y * focus - oy, focus
             m = self._m
@@ -134,7 +148,7 @@ def _sensor_class(mi: ModuleType) -> type:
                 m[1][0] * ox + m[1][1] * oy + m[1][3],
                 m[2][0] * ox + m[2][1] * oy + m[2][3],
             )
-            return mi.Ray3f(origin, dr.normalize(d), time, []), mi.Spectrum(1.0)
+            return mi.Ray3f(origin, dr.normalize(d), time, [])
 
         def sample_ray_differential(self, time, sample1, sample2, sample3, active=True):
             """Ray without differentials (textures use nearest filtering)."""

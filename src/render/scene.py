@@ -22,12 +22,16 @@ from simgap.render.camera import PLUGIN_NAME as SENSOR_PLUGIN
 from simgap.render.mitsuba_scene import bsdf, emitter, tag_bsdf
 from simgap.scene.spec import SceneSpec, load_scene_spec
 
+#: Most samples traced in one kernel launch of :meth:`FixtureScene.render_pixels` (bounds memory).
+SAMPLES_PER_LAUNCH = 1 << 22
+
 __all__ = [
     "FixtureScene",
     "SceneSpec",
     "load_scene_spec",
     "pose_transforms",
     "projected_sticker_boxes",
+    "projected_sticker_outlines",
 ]
 
 
@@ -123,6 +127,8 @@ class FixtureScene:
             raise ConfigError(f"scene: Mitsuba could not build the scene: {exc}") from exc
         self.params = mi.traverse(self.scene)
         self.camera = self.scene.sensors()[0]
+        # the sampler may round the count up (multijitter: to a product of two near-equal sides)
+        self.spp = int(self.camera.sampler().sample_count())
         cam = camera or rig.camera
         self.camera.set_intrinsics(cam.fx, cam.fy, cam.cx, cam.cy, cam.distortion)
         self.camera.set_lens(*lens)
@@ -147,18 +153,74 @@ class FixtureScene:
         self.pose = (p, theta)
 
     def render(self, crop_offset: tuple[int, int] = (0, 0), seed: int = 0) -> np.ndarray:
-        """Render the film at ``crop_offset`` (px, top-left in the full image).
+        """Render the film's rectangle at ``crop_offset`` (px, top-left in the full image).
 
         Returns
         -------
         numpy.ndarray
             Linear RGB radiance, float32, shape (height, width, 3).
         """
+        w, h = self.film_size
+        rows, cols = np.mgrid[0:h, 0:w]
+        pixels = np.stack([cols.ravel() + crop_offset[0], rows.ravel() + crop_offset[1]], axis=1)
+        return self.render_pixels(pixels, seed).reshape(h, w, 3)
+
+    def render_pixels(self, pixels: np.ndarray, seed: int = 0) -> np.ndarray:
+        """Render any set of full-image pixels: only these are sampled.
+
+        Each pixel gets :attr:`spp` stratified samples over its square, traced by the scene's
+        integrator and averaged (a box reconstruction filter, as the template's film). The
+        number of pixels is not part of the compiled kernel: regions of any size and shape reuse
+        it (one kernel per scene, launched in chunks of :data:`SAMPLES_PER_LAUNCH` samples).
+
+        Parameters
+        ----------
+        pixels : ndarray of int (N, 2)
+            Full-image pixel columns and rows ``(u, v)`` (px).
+        seed : int
+            Sampler seed (same seed, same image).
+
+        Returns
+        -------
+        numpy.ndarray
+            Linear RGB radiance, float32, shape (N, 3).
+        """
         if self.pose is None:
             raise RuntimeError("set_pose() must be called before render()")
-        self.camera.set_crop_offset(*crop_offset)
-        img = self.mi.render(self.scene, spp=self.spp, seed=int(seed))
-        return np.array(img, dtype=np.float32)
+        pixels = np.asarray(pixels).reshape(-1, 2)
+        out = np.empty((len(pixels), 3), np.float32)
+        step = max(SAMPLES_PER_LAUNCH // self.spp, 2)
+        for k, start in enumerate(range(0, len(pixels), step)):
+            chunk = pixels[start : start + step]
+            launch_seed = int(np.random.SeedSequence([int(seed), k]).generate_state(1)[0])
+            out[start : start + len(chunk)] = self._render_launch(chunk, launch_seed)
+        return out
+
+    def _render_launch(self, pixels: np.ndarray, seed: int) -> np.ndarray:
+        """One kernel launch of :meth:`render_pixels` (N, 3)."""
+        import drjit as dr
+
+        mi, spp, n = self.mi, self.spp, len(pixels)
+        # a one-element array would become a literal of the kernel (recompiled per value)
+        padded = np.resize(pixels, (max(n, 2), 2)).astype(np.float32)
+        lanes = len(padded) * spp
+        sampler = self.camera.sampler().clone()
+        sampler.set_samples_per_wavefront(spp)
+        sampler.seed(seed, lanes)
+        pixel = dr.arange(mi.UInt32, lanes) // spp
+        u = dr.gather(mi.Float, mi.Float(padded[:, 0]), pixel)
+        v = dr.gather(mi.Float, mi.Float(padded[:, 1]), pixel)
+        jitter, aperture = sampler.next_2d(), sampler.next_2d()
+        ray = self.camera.ray_through(u + jitter.x - 0.5, v + jitter.y - 0.5, aperture)
+        radiance, _, _ = self.scene.integrator().sample(
+            self.scene, sampler, mi.RayDifferential3f(ray)
+        )
+        dr.eval(radiance)
+        # the box filter: the mean of each pixel's consecutive samples; per channel, so that an
+        # evaluated Float converts to numpy without a (size-specific) kernel
+        means = [dr.block_sum(c, spp) / spp for c in (radiance.x, radiance.y, radiance.z)]
+        dr.eval(means)
+        return np.stack([np.asarray(c) for c in means], axis=-1)[:n]
 
 
 def pose_transforms(
@@ -185,6 +247,48 @@ def pose_transforms(
     return frames
 
 
+def projected_sticker_outlines(
+    rig: Rig,
+    p: float,
+    theta: float,
+    errors: FixtureErrors = NOMINAL,
+    camera: CameraModel | None = None,
+    tag_scale: float = 1.0,
+    points_per_side: int = 1,
+) -> dict[int, np.ndarray]:
+    """Image outlines of the stickers facing the camera, by tag id.
+
+    Parameters
+    ----------
+    rig, p, theta, errors, camera, tag_scale
+        As :class:`FixtureScene` (``camera`` default: the rig's), pin hole and angle (rad).
+    points_per_side : int
+        Points projected along each side: 1 gives the four corners, more follow the sides'
+        curvature under lens distortion.
+
+    Returns
+    -------
+    dict of int to ndarray (4 * points_per_side, 2)
+        Pixel coordinates (px) around each facing sticker, starting at its top-left corner.
+    """
+    half = rig.sticker_size() * tag_scale / 2
+    corners = np.array([[-half, half, 0], [half, half, 0], [half, -half, 0], [-half, -half, 0]])
+    t = np.arange(points_per_side)[:, None] / points_per_side
+    ends = np.roll(corners, -1, axis=0)
+    outline = np.concatenate([a + t * (b - a) for a, b in zip(corners, ends, strict=True)])
+    cv_from_eye = tf.make(tf.GLOBAL_FROM_CV.T)
+    cam = camera or rig.camera
+    outlines = {}
+    for face in rig.tags.faces:
+        if rig.view_angle(face.id, p, theta, errors) <= 0:
+            continue
+        cv_from_tag = cv_from_eye @ rig.eyepoint_from_tag(face.id, p, theta, errors)
+        pts = tf.apply(cv_from_tag, outline)
+        uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), cam.matrix, cam.dist_coeffs)
+        outlines[face.id] = uv.reshape(-1, 2)
+    return outlines
+
+
 def projected_sticker_boxes(
     rig: Rig,
     p: float,
@@ -192,19 +296,7 @@ def projected_sticker_boxes(
     errors: FixtureErrors = NOMINAL,
     camera: CameraModel | None = None,
     tag_scale: float = 1.0,
-):
+) -> dict[int, tuple[float, float, float, float]]:
     """Pixel bounding boxes ``(u0, v0, u1, v1)`` of the stickers facing the camera, by tag id."""
-    half = rig.sticker_size() * tag_scale / 2
-    corners = np.array([[-half, half, 0], [half, half, 0], [half, -half, 0], [-half, -half, 0]])
-    cv_from_eye = tf.make(tf.GLOBAL_FROM_CV.T)
-    cam = camera or rig.camera
-    boxes = {}
-    for face in rig.tags.faces:
-        if rig.view_angle(face.id, p, theta, errors) <= 0:
-            continue
-        cv_from_tag = cv_from_eye @ rig.eyepoint_from_tag(face.id, p, theta, errors)
-        pts = tf.apply(cv_from_tag, corners)
-        uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), cam.matrix, cam.dist_coeffs)
-        uv = uv.reshape(-1, 2)
-        boxes[face.id] = (*uv.min(axis=0), *uv.max(axis=0))
-    return boxes
+    outlines = projected_sticker_outlines(rig, p, theta, errors, camera, tag_scale)
+    return {k: (*uv.min(axis=0), *uv.max(axis=0)) for k, uv in outlines.items()}

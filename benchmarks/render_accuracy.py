@@ -1,6 +1,7 @@
-"""Fewer samples at equal accuracy? The sweep at lower sample counts against the 16-spp baseline.
+"""Fewer samples at equal accuracy? The sweep at fewer samples or pixels against the baseline's.
 
-For each sample count, one sequential pass over the experiment's configurations (every
+For each sample count and each render margin (:mod:`simgap.pipeline.region`: pixels within that
+distance of a sticker are rendered), one sequential pass over the experiment's configurations (every
 ``--every``-th, default all) from an empty cache in this process: sampling seconds per
 configuration, detections compared with the reference sample count's (identical?), and the mean
 absolute difference of the pose errors per axis over the tags detected at both (and the median;
@@ -10,7 +11,7 @@ be read against (measured 2026-11-23 on every 5th configuration of the baseline:
 7 mrad in rz between two 16-spp seeds). Poses on the other branch of the planar ambiguity (a
 rotation difference beyond ``simgap.diagnosis.items.FLIP_RAD``) are counted and left out.
 
-Usage: ``python benchmarks/spp_accuracy.py [--spp 4,8] [--reference 16] [--every 1]``
+Usage: ``python benchmarks/render_accuracy.py [--spp 4,8] [--margins 8,12] [--every 1]``
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def sweep(exp, configs, cache: Path) -> tuple[np.ndarray, np.ndarray, float]:
     state = exp.variant_states()[0][1]
     tags = tuple(int(t) for t in exp.configuration_axes()[2])
     pipe = VariantPipeline(
-        exp.rig_model, state, tags, exp.render.crop_margin_px, Cache(cache), assets_hash()
+        exp.rig_model, state, tags, exp.render.margin_px, Cache(cache), assets_hash()
     )
     detected, errors = [], []
     for p, theta in configs:
@@ -69,22 +70,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--experiment", default="experiments/baseline.yaml")
     ap.add_argument("--spp", default="4,8", help="sample counts to try, comma-separated")
-    ap.add_argument("--reference", type=int, default=16)
+    ap.add_argument("--margins", default="8,12", help="render margins to try (px), comma-separated")
+    ap.add_argument("--reference", type=int, default=16, help="reference samples per pixel")
+    ap.add_argument("--reference-margin", type=int, default=24, help="reference margin (px)")
     ap.add_argument("--every", type=int, default=1, help="every k-th configuration")
     args = ap.parse_args()
     base = load_experiment(args.experiment)
     ps, thetas, _ = base.configuration_axes()
     configs = [(int(p), float(t)) for p in ps for t in thetas][:: args.every]
 
-    def at(spp: int, seed: int):
-        render = dataclasses.replace(base.render, spp=spp, seed=seed)
+    def at(spp: int, seed: int, margin: int = args.reference_margin):
+        render = dataclasses.replace(base.render, spp=spp, seed=seed, margin_px=margin)
         return dataclasses.replace(base, render=render)
 
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         ref = sweep(at(args.reference, base.render.seed), configs, Path(tmp))
         print(f"{len(configs)} configurations of {base.name} ({time.perf_counter() - t0:.0f} s)")
-        print(f"{args.reference:3d} spp (reference)  sampling {1e3 * ref[2]:6.1f} ms/config")
+        print(f"{args.reference:3d} spp (reference, margin {args.reference_margin} px)  "
+              f"sampling {1e3 * ref[2]:6.1f} ms/config")  # fmt: skip
         again = sweep(at(args.reference, base.render.seed + 1), configs, Path(tmp))
         print(f"{args.reference:3d} spp, other seed  {compare(ref, again)}")
         for spp in (int(s) for s in args.spp.split(",")):
@@ -92,6 +96,11 @@ def main() -> None:
             ratio = ref[2] / low[2]
             print(f"{spp:3d} spp             sampling {1e3 * low[2]:6.1f} ms/config "
                   f"({ratio:.1f}x less); {compare(ref, low)}")  # fmt: skip
+        for margin in (int(m) for m in args.margins.split(",") if m):
+            tight = sweep(at(args.reference, base.render.seed, margin), configs, Path(tmp))
+            ratio = ref[2] / tight[2]
+            print(f"margin {margin:2d} px        sampling {1e3 * tight[2]:6.1f} ms/config "
+                  f"({ratio:.1f}x less); {compare(ref, tight)}")  # fmt: skip
 
 
 if __name__ == "__main__":
