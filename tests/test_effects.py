@@ -10,7 +10,7 @@ import pytest
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel
 from simgap.effects import EFFECTS, make_effect
-from simgap.effects.image import ImageContext, run_pipeline
+from simgap.effects.image import ImageContext, pipeline_reach_px, run_pipeline
 from simgap.effects.scene import cct_to_rgb
 from simgap.effects.state import ImageState, VariantState
 
@@ -74,6 +74,21 @@ def test_effects_change_only_their_stage():
         stage = {"geometry": "scene"}.get(cls.stage, cls.stage)
         allowed = {stage, "estimation"} if name == "lens_distortion" else {stage}
         assert changed <= allowed, (name, changed)
+
+
+def test_a_wide_blur_widens_the_render_margin(rig, tmp_path):
+    """The render region reaches as far as the camera pipeline spreads a pixel (3 sigma of a
+    blur, half a motion blur and one pixel), so that a wide blur never pulls in the surround."""
+    from simgap.pipeline.cache import Cache
+    from simgap.pipeline.variant import VariantPipeline
+
+    state = VariantState()
+    for name, params, reach in [("blur", {"sigma_px": 0.7}, 2.1), ("blur", {"sigma_px": 9.0}, 27.0),
+                                ("motion_blur", {"length_px": 40.0}, 21.0)]:  # fmt: skip
+        wide = make_effect(name, params).apply(state)
+        assert pipeline_reach_px(wide.image) == pytest.approx(reach)
+        pipe = VariantPipeline(rig, wide, (0, 1), 24, Cache(tmp_path), "assets")
+        assert pipe.margin_px == max(24, int(np.ceil(reach)))
 
 
 def _ctx(seed=0, offset=(0, 0)):
