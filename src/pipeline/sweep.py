@@ -14,8 +14,9 @@ result     frame key, estimation state, tags                 ``.npz`` of corners
 =========  ===============================================  ====================================
 
 Only the pixels near the stickers facing the camera are rendered (:mod:`simgap.pipeline.region`),
-in their bounding crop; the detector sees it pasted into a full-size frame so that its
-size-relative thresholds see the real image size (DESIGN §4).
+in their bounding crop; the detector reads the window of the full-size frame around that crop,
+with its size-relative thresholds set for the real image size (DESIGN §4), which finds what the
+whole frame would (:attr:`simgap.pose.detect.Detector.window_pad_px`).
 Work is spread over a Dask scheduler: an in-process ``LocalCluster`` by default, or any cluster by
 address; one task is one (p, theta) for all variants and repeats, so renders are shared in a task.
 """

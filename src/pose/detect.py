@@ -138,8 +138,27 @@ class Detector:
         params.cornerRefinementMinAccuracy = settings.subpix_min_accuracy_px
         for name, value in settings.extra.items():
             setattr(params, name, type(getattr(params, name))(value))
-        dictionary = predefined_dictionary(settings.dictionary)
-        self._detector = cv2.aruco.ArucoDetector(dictionary, params)
+        self._params = params
+        self._dictionary = predefined_dictionary(settings.dictionary)
+        self._detector = cv2.aruco.ArucoDetector(self._dictionary, params)
+
+    @property
+    def window_pad_px(self) -> int | None:
+        """How far the detector looks beyond the frame's non-flat pixels (px), or None.
+
+        A window of a frame that holds every non-flat pixel plus this much of the flat fill
+        around them detects exactly what the whole frame does (:meth:`detect_with_rejected`
+        with ``origin`` and ``frame_size``): the adaptive threshold of a flat area is empty, so
+        no contour starts further out than half its largest window, and candidates closer than
+        ``minDistanceToBorder`` to the window's edge could not exist there. None where the
+        detector looks at the whole image (ArUco 3's pyramid, AprilTag refinement): only the
+        whole frame is exact then.
+        """
+        p = self._params
+        if p.useAruco3Detection or p.cornerRefinementMethod == cv2.aruco.CORNER_REFINE_APRILTAG:
+            return None
+        threshold_reach = p.adaptiveThreshWinSizeMax // 2 + p.minDistanceToBorder
+        return threshold_reach + p.cornerRefinementWinSize + 4
 
     def detect(self, gray: np.ndarray) -> dict[int, np.ndarray]:
         """Detect markers in an 8-bit grey frame.
@@ -153,11 +172,33 @@ class Detector:
         return self.detect_with_rejected(gray)[0]
 
     def detect_with_rejected(
-        self, gray: np.ndarray
+        self,
+        gray: np.ndarray,
+        origin: tuple[int, int] = (0, 0),
+        frame_size: tuple[int, int] | None = None,
     ) -> tuple[dict[int, np.ndarray], list[np.ndarray]]:
-        """Detected markers (as :meth:`detect`) and the rejected candidate quads (4, 2) in px."""
-        corners, ids, rejected = self._detector.detectMarkers(gray)
-        rejected_quads = [np.asarray(q, np.float64).reshape(4, 2) for q in rejected]
+        """Detected markers (as :meth:`detect`) and the rejected candidate quads (4, 2) in px.
+
+        Parameters
+        ----------
+        gray : ndarray of uint8 (H, W)
+            The grey frame, or a window of it (see :attr:`window_pad_px`).
+        origin : tuple of int
+            Where the window's top-left pixel sits in the frame (x0, y0 px); corners are
+            returned in frame pixels.
+        frame_size : tuple of int, optional
+            The frame's (W, H) in px when ``gray`` is a window of it: the marker perimeter
+            limits, which OpenCV sets relative to the image's larger side, are those of the
+            frame.
+        """
+        detector = self._detector
+        if frame_size is not None and max(frame_size) != max(gray.shape):
+            detector = cv2.aruco.ArucoDetector(
+                self._dictionary, self._scaled_params(max(frame_size), max(gray.shape))
+            )
+        corners, ids, rejected = detector.detectMarkers(gray)
+        shift = np.asarray(origin, np.float64)
+        rejected_quads = [np.asarray(q, np.float64).reshape(4, 2) + shift for q in rejected]
         found: dict[int, np.ndarray] = {}
         if ids is None:
             return found, rejected_quads
@@ -167,4 +208,18 @@ class Detector:
                 found[int(i)].astype(np.float32)
             ):
                 found[int(i)] = c
-        return found, rejected_quads
+        return {i: c + shift for i, c in found.items()}, rejected_quads
+
+    def _scaled_params(self, frame_side: int, window_side: int) -> cv2.aruco.DetectorParameters:
+        """The detector's parameters with the frame's perimeter limits on a window's side (px).
+
+        OpenCV truncates ``rate * side`` to whole pixels; the rates given here truncate to the
+        same whole pixels on the window as the original rates on the frame.
+        """
+        params = cv2.aruco.DetectorParameters()
+        for name in PARAM_TYPES:
+            setattr(params, name, getattr(self._params, name))
+        for name in ("minMarkerPerimeterRate", "maxMarkerPerimeterRate"):
+            pixels = math.floor(getattr(self._params, name) * frame_side)
+            setattr(params, name, (pixels + 0.5) / window_side)
+        return params
