@@ -248,7 +248,6 @@ class VariantPipeline:
             self.cache.save_arrays("results", key, result.arrays())
         return result
 
-
     def _detect(self, frame: Frame) -> tuple[dict[int, np.ndarray], list[np.ndarray]]:
         """ArUco on the frame: on the window around the crop where that is exact (it is faster)."""
         pad = self.detector.window_pad_px
