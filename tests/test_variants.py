@@ -128,8 +128,14 @@ def test_variants_reuse_upstream_stages(tmp_path, spies):
     assert "variant_effects" in ds.attrs and "tag_gloss" in ds.attrs["variant_effects"]
 
 
-def test_dask_scheduler_over_tcp_gives_the_same_result(tmp_path):
-    """A real scheduler and worker process on loopback reproduce the default run exactly."""
+def test_dask_schedulers_give_the_same_result(tmp_path, monkeypatch):
+    """Two local worker processes, and a real scheduler and worker process on loopback,
+    reproduce the default run (one in-process worker) exactly.
+
+    Local worker processes are used from :data:`sweep.PROCESS_SWEEP_MIN_CONFIGS`
+    configurations on (the baseline study's 540 run that way); the threshold is lowered to this
+    4-configuration experiment.
+    """
     from distributed import LocalCluster
 
     path = _write(
@@ -143,6 +149,8 @@ def test_dask_scheduler_over_tcp_gives_the_same_result(tmp_path):
     )
     exp = load_experiment(path)
     local = sweep.run_experiment(exp, tmp_path / "cache-local", show_progress=False)
+    assert local.attrs["scheduler"] == "in-process LocalCluster"
+    assert int(local.detected.sum()) >= 2
     with LocalCluster(
         n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
     ) as cluster:
@@ -152,8 +160,12 @@ def test_dask_scheduler_over_tcp_gives_the_same_result(tmp_path):
             exp, tmp_path / "cache-remote", show_progress=False, scheduler=address
         )
     assert remote.attrs["scheduler"] == address
-    for name in ("detected", "error", "corners", "reproj_px"):
-        np.testing.assert_array_equal(remote[name].values, local[name].values)
+    monkeypatch.setattr(sweep, "PROCESS_SWEEP_MIN_CONFIGS", 4)
+    procs = sweep.run_experiment(exp, tmp_path / "cache-procs", show_progress=False)
+    assert procs.attrs["scheduler"] == "LocalCluster, 2 worker processes"
+    for other in (remote, procs):
+        for name in ("detected", "error", "corners", "reproj_px"):
+            np.testing.assert_array_equal(other[name].values, local[name].values)
 
 
 @pytest.mark.parametrize("tag, p, theta_deg", [(0, 0, 40), (1, 0, 140), (0, 3, 50)])

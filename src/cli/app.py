@@ -87,7 +87,7 @@ def main(
 
 CACHE_HELP = "Cache folder for renders and results (default: $SIMGAP_CACHE or ~/.cache/simgap)."
 SCHEDULER_HELP = (
-    "Dask scheduler address (tcp://HOST:PORT); default: an in-process LocalCluster. "
+    "Dask scheduler address (tcp://HOST:PORT); default: a LocalCluster on this machine. "
     "Workers must see the cache folder under the same path."
 )
 

@@ -41,7 +41,8 @@ class Simulator:
     cache_dir : Path
         Cache folder of renders, frames and results (see :mod:`simgap.pipeline.cache`).
     scheduler : str, optional
-        Address of a Dask scheduler for :meth:`dataset`; default: an in-process LocalCluster.
+        Address of a Dask scheduler for :meth:`dataset`; default: a LocalCluster on
+        this machine (:data:`simgap.pipeline.sweep.PROCESS_SWEEP_MIN_CONFIGS`).
     show_progress : bool
         Show a progress bar while :meth:`dataset` runs.
     """
