@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
 from pathlib import Path
 
@@ -44,16 +45,25 @@ def session_cache(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def smoke_variants_nc(tmp_path_factory, session_cache):
-    """`simgap run experiments/smoke_variants.yaml`: the real five-variant dataset (about 1 min)."""
+def smoke_variants_nc(tmp_path_factory, worker_id):
+    """`simgap run experiments/smoke_variants.yaml`: the real five-variant dataset (about 30 s).
+
+    Made once per test session: two test files use it, and under pytest-xdist the first worker
+    to need it makes it in the folder the workers share while the other waits on a lock.
+    """
     from typer.testing import CliRunner
 
     from simgap.cli import app
 
-    out = tmp_path_factory.mktemp("smoke-variants") / "v.nc"
-    res = CliRunner().invoke(
-        app,
-        ["run", "experiments/smoke_variants.yaml", "-o", str(out), "--cache", str(session_cache)],
-    )
-    assert res.exit_code == 0, res.output
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if worker_id != "master" else base  # this session's, for every worker
+    folder = shared / "smoke-variants"
+    folder.mkdir(exist_ok=True)
+    out = folder / "v.nc"
+    with open(folder / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not out.is_file():
+            args = ["run", "experiments/smoke_variants.yaml", "-o", str(out)]
+            res = CliRunner().invoke(app, [*args, "--cache", str(folder / "cache")])
+            assert res.exit_code == 0, res.output
     return out
