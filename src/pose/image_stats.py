@@ -249,12 +249,27 @@ def pixel_esf(d: np.ndarray, sigma: float) -> np.ndarray:
     a pixel (the tag edges here are nearly aligned with the pixel grid, so the sub-pixel phases
     that a slanted edge would spread out are few).
     """
-    return sigma * (_g((d + 0.5) / sigma) - _g((d - 0.5) / sigma))
+    return pixel_esf_terms(d, sigma)[0]
 
 
-def _g(t: np.ndarray) -> np.ndarray:
-    """``t Phi(t) + phi(t)``: the antiderivative of the standard normal CDF."""
-    return t * ndtr(t) + np.exp(-0.5 * t * t) / np.sqrt(2 * np.pi)
+def pixel_esf_terms(
+    d: np.ndarray, sigma: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`pixel_esf` and its derivatives, which share Phi and phi at the pixel's two ends.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``E``; ``dE/dd = Phi(a) - Phi(b)``; ``dE/dsigma = phi(a) - phi(b)``, with
+        ``a, b = (d +- 1/2) / sigma`` (``G(t) = t Phi(t) + phi(t)`` is the antiderivative of
+        the standard normal CDF).
+    """
+    a, b = (d + 0.5) / sigma, (d - 0.5) / sigma
+    cdf_a, cdf_b = ndtr(a), ndtr(b)
+    pdf_a, pdf_b = np.exp(-0.5 * a * a), np.exp(-0.5 * b * b)  # times sqrt(2 pi)
+    g_a = a * cdf_a + pdf_a / np.sqrt(2 * np.pi)
+    g_b = b * cdf_b + pdf_b / np.sqrt(2 * np.pi)
+    return sigma * (g_a - g_b), cdf_a - cdf_b, (pdf_a - pdf_b) / np.sqrt(2 * np.pi)
 
 
 def esf_width_10_90(sigma: float) -> float:
@@ -268,35 +283,25 @@ def _esf_width(d: np.ndarray, v: np.ndarray, ink: float, paper: float) -> float:
     if d.size < 2 * MIN_PIXELS or not paper > ink:
         return float("nan")
 
-    last: dict[str, object] = {}
+    # the solver asks for the Jacobian where it last evaluated the model: compute both once
+    last: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
-    def terms(x: np.ndarray) -> dict[str, object]:
-        # the model and its Jacobian share Phi and phi at both pixel ends: the solver asks for
-        # the Jacobian where it last evaluated the model, so they are computed once per point
-        if last.get("x") != x.tobytes():
-            sigma = x[3]
-            a, b = (d - x[2] + 0.5) / sigma, (d - x[2] - 0.5) / sigma
-            cdf_a, cdf_b = ndtr(a), ndtr(b)
-            exp_a, exp_b = np.exp(-0.5 * a * a), np.exp(-0.5 * b * b)
-            g_a = a * cdf_a + exp_a / np.sqrt(2 * np.pi)  # _g(a), same operations
-            g_b = b * cdf_b + exp_b / np.sqrt(2 * np.pi)
-            last.update(x=x.tobytes(), esf=sigma * (g_a - g_b), slope=cdf_a - cdf_b,
-                        spread=(exp_a - exp_b) / np.sqrt(2 * np.pi))  # fmt: skip
-        return last
+    def terms(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        key = x.tobytes()
+        if key not in last:
+            last.clear()
+            last[key] = pixel_esf_terms(d - x[2], x[3])
+        return last[key]
 
     def residual(x: np.ndarray) -> np.ndarray:
         lo, hi = x[0], x[1]
-        return lo + (hi - lo) * terms(x)["esf"] - v
+        return lo + (hi - lo) * terms(x)[0] - v
 
     def jacobian(x: np.ndarray) -> np.ndarray:
-        # analytic (a third of the fit's time went to finite differences): with a, b the pixel's
-        # ends over sigma, dE/dd = Phi(a) - Phi(b) and dE/dsigma = phi(a) - phi(b)
+        # analytic (a third of the fit's time went to finite differences)
         lo, hi = x[0], x[1]
-        t = terms(x)
-        esf = t["esf"]
-        return np.stack(
-            [1.0 - esf, esf, -(hi - lo) * t["slope"], (hi - lo) * t["spread"]], axis=1
-        )
+        esf, slope, spread = terms(x)
+        return np.stack([1.0 - esf, esf, -(hi - lo) * slope, (hi - lo) * spread], axis=1)
 
     try:
         sol = least_squares(
