@@ -12,6 +12,7 @@ from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -52,9 +53,14 @@ class Frame:
     offset: tuple[int, int]
     size: tuple[int, int]
 
+    @cached_property
+    def gray_crop(self) -> np.ndarray:
+        """The crop in 8-bit grey (what the detector and the image statistics read)."""
+        return imaging.to_gray(self.crop)
+
     def gray(self) -> np.ndarray:
         """Full-size 8-bit grey frame for the detector (the crop pasted in)."""
-        return imaging.paste(imaging.to_gray(self.crop), self.offset, self.size)
+        return imaging.paste(self.gray_crop, self.offset, self.size)
 
     def rgb(self) -> np.ndarray:
         """Full-size 8-bit RGB frame."""
@@ -66,8 +72,7 @@ class Frame:
         ch, cw = self.crop.shape[:2]
         x0, y0 = max(ox - pad_px, 0), max(oy - pad_px, 0)
         x1, y1 = min(ox + cw + pad_px, w), min(oy + ch + pad_px, h)
-        gray = imaging.to_gray(self.crop)
-        return imaging.paste(gray, (ox - x0, oy - y0), (x1 - x0, y1 - y0)), (x0, y0)
+        return imaging.paste(self.gray_crop, (ox - x0, oy - y0), (x1 - x0, y1 - y0)), (x0, y0)
 
 
 def _read_offset(path: Path) -> tuple[int, int]:
@@ -236,14 +241,14 @@ class VariantPipeline:
         if frame is None:
             result = estimate_tags(self.rig, self.state.estimation, self.tags, {}, p, theta)
         else:
-            crop_gray = imaging.to_gray(frame.crop)
             with self._timed("detection"):
                 found, rejected = self._detect(frame)
             args = (self.rig, self.state.estimation, self.tags)
             with self._timed("pnp"):
                 result = estimate_tags(*args, found, p, theta)
             with self._timed("image statistics"):
-                add_image_stats(result, *args, crop_gray, frame.offset, found, rejected, p, theta)
+                gray, offset = frame.gray_crop, frame.offset
+                add_image_stats(result, *args, gray, offset, found, rejected, p, theta)
         with self._timed("io"):
             self.cache.save_arrays("results", key, result.arrays())
         return result

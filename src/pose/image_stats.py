@@ -266,10 +266,11 @@ def pixel_esf_terms(
     """
     a, b = (d + 0.5) / sigma, (d - 0.5) / sigma
     cdf_a, cdf_b = ndtr(a), ndtr(b)
-    pdf_a, pdf_b = np.exp(-0.5 * a * a), np.exp(-0.5 * b * b)  # times sqrt(2 pi)
-    g_a = a * cdf_a + pdf_a / np.sqrt(2 * np.pi)
-    g_b = b * cdf_b + pdf_b / np.sqrt(2 * np.pi)
-    return sigma * (g_a - g_b), cdf_a - cdf_b, (pdf_a - pdf_b) / np.sqrt(2 * np.pi)
+    # exp(-t^2 / 2), the standard normal density times sqrt(2 pi)
+    gauss_a, gauss_b = np.exp(-0.5 * a * a), np.exp(-0.5 * b * b)
+    g_a = a * cdf_a + gauss_a / np.sqrt(2 * np.pi)
+    g_b = b * cdf_b + gauss_b / np.sqrt(2 * np.pi)
+    return sigma * (g_a - g_b), cdf_a - cdf_b, (gauss_a - gauss_b) / np.sqrt(2 * np.pi)
 
 
 def esf_width_10_90(sigma: float) -> float:
