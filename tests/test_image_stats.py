@@ -6,7 +6,13 @@ import colour
 import numpy as np
 import pytest
 
-from simgap.pose.image_stats import STAT_INDEX, MarkerLayout, linearise, tag_stats
+from simgap.pose.image_stats import (
+    EDGE_WIDTH_STATS,
+    STAT_INDEX,
+    MarkerLayout,
+    linearise,
+    tag_stats,
+)
 from simgap.render.assets import tag_texture
 
 LAYOUT = MarkerLayout(cells=8, quiet_cells=2)
@@ -127,6 +133,22 @@ def test_offset_crop_gives_the_same_statistics():
     full = tag_stats(frame, corners, LAYOUT)
     crop = tag_stats(frame[20:230, 16:220], corners, LAYOUT, offset=(16, 20))
     np.testing.assert_allclose(crop, full, rtol=1e-9)
+
+
+def test_only_the_edge_widths_asked_for_are_fitted_and_the_rest_is_unchanged():
+    frame, corners = synthetic_tag(sigma_px=1.0, angle=0.3)
+    full = tag_stats(frame, corners, LAYOUT)
+    xy = ("edge_width_x_px", "edge_width_y_px")
+    some = tag_stats(frame, corners, LAYOUT, edge_widths=xy)
+    none = tag_stats(frame, corners, LAYOUT, edge_widths=())
+    widths = [STAT_INDEX[n] for n in EDGE_WIDTH_STATS]
+    others = [i for i in range(len(full)) if i not in widths]
+    assert np.isfinite(full[widths]).all()
+    for i, name in zip(widths, EDGE_WIDTH_STATS, strict=True):  # the same fit, bit for bit
+        assert (some[i] == full[i]) if name in xy else np.isnan(some[i])
+    assert np.isnan(none[widths]).all()
+    np.testing.assert_array_equal(some[others], full[others])
+    np.testing.assert_array_equal(none[others], full[others])
 
 
 def test_linearise_is_the_srgb_curve():

@@ -38,7 +38,7 @@ from scipy.optimize import least_squares, minimize_scalar
 from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
 from simgap.analysis.fitting import Fit, Items, SimulationCandidate
 from simgap.effects.state import VariantState
-from simgap.pose.image_stats import STAT_INDEX, linearise
+from simgap.pose.image_stats import EDGE_WIDTH_STATS, STAT_INDEX, linearise
 from simgap.render import imaging
 from simgap.render.imaging import GRAY_NOISE_VARIANCE_RATIO
 
@@ -123,6 +123,18 @@ def _capped_rms(residual: np.ndarray) -> float:
     return float(np.sqrt(np.nan_to_num(_capped_mean_square(residual))))
 
 
+def measuring_only(state: VariantState, stats: tuple[str, ...]) -> VariantState:
+    """``state`` with only the edge widths among ``stats`` fitted in its image statistics.
+
+    The edge-spread fits are most of the statistics' time; a search that reads levels, noise or
+    blockiness (exposure, JPEG) skips them, and blur skips the all-sides width it does not read.
+    The statistics it reads are the same numbers either way.
+    """
+    widths = tuple(name for name in EDGE_WIDTH_STATS if name in stats)
+    estimation = dataclasses.replace(state.estimation, edge_widths=widths)
+    return dataclasses.replace(state, estimation=estimation)
+
+
 def signature_supported(rms_before: float, rms_after: float) -> bool:
     """Whether an effect's own statistics call for it.
 
@@ -176,7 +188,7 @@ class AppearanceCandidate(SimulationCandidate):
         stats = FIT_STATS[self.effect]
 
         def misfit(x: float) -> float:
-            state = self.apply(base, self.params(x))
+            state = measuring_only(self.apply(base, self.params(x)), stats)
             return evidence_misfit(stats, items.real_stats, runner.stats(state, items))
 
         # the misfit is capped and can be flat far from its minimum: a coarse scan brackets the

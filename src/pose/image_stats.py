@@ -98,6 +98,14 @@ STATS: tuple[tuple[str, str, str], ...] = (
     ),
 )
 STAT_NAMES: tuple[str, ...] = tuple(s[0] for s in STATS)
+#: The statistics that each take an edge-spread fit (most of a tag's measuring time), and the
+#: marker sides (0 top, 1 right, 2 bottom, 3 left) each one pools.
+EDGE_WIDTH_SIDES: dict[str, tuple[int, ...]] = {
+    "edge_width_px": (0, 1, 2, 3),
+    "edge_width_x_px": (1, 3),
+    "edge_width_y_px": (0, 2),
+}
+EDGE_WIDTH_STATS: tuple[str, ...] = tuple(EDGE_WIDTH_SIDES)
 STAT_INDEX = {name: i for i, name in enumerate(STAT_NAMES)}
 
 #: 10-90 % width of a Gaussian edge-spread function in units of its standard deviation:
@@ -252,9 +260,7 @@ def pixel_esf(d: np.ndarray, sigma: float) -> np.ndarray:
     return pixel_esf_terms(d, sigma)[0]
 
 
-def pixel_esf_terms(
-    d: np.ndarray, sigma: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pixel_esf_terms(d: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`pixel_esf` and its derivatives, which share Phi and phi at the pixel's two ends.
 
     Returns
@@ -330,7 +336,7 @@ def tag_stats(
     layout: MarkerLayout,
     offset: tuple[int, int] = (0, 0),
     rejected: list[np.ndarray] | tuple = (),
-    with_edge: bool = True,
+    edge_widths: tuple[str, ...] = EDGE_WIDTH_STATS,
     repeat: np.ndarray | None = None,
 ) -> np.ndarray:
     """Statistics of one tag, in the order of :data:`STATS`; NaN where not measurable.
@@ -347,8 +353,10 @@ def tag_stats(
         Full-frame pixel of the crop's top-left corner (px).
     rejected : sequence of ndarray (4, 2)
         Rejected detector candidates in full-frame pixels.
-    with_edge : bool
-        Fit the edge-spread function (needs accurate corners).
+    edge_widths : tuple of str
+        The edge widths (of :data:`EDGE_WIDTH_STATS`) to fit; the others are NaN. Empty where
+        the corners are only expected, not detected (the fit needs accurate corners), or where
+        the caller reads no edge width (the fits are most of a tag's measuring time).
     repeat : ndarray of uint8 (H, W), optional
         A second frame of the same pose (same crop): the temporal noise is measured from it.
     """
@@ -407,18 +415,14 @@ def tag_stats(
     flat = sticker_mask & (near.reshape(patch.shape) >= BLOCK_EDGE_MARGIN_PX)
     full_x0, full_y0 = int(offset[0]) + x0, int(offset[1]) + y0
     out[s["blockiness"]] = _blockiness(patch, flat, full_x0, full_y0)
-    samples = _edge_samples(pts, norm, local, layout) if with_edge else None
+    samples = _edge_samples(pts, norm, local, layout) if edge_widths else None
     if samples is not None:
         flat = lin.ravel()
-
-        def width(sides: tuple[int, ...]) -> float:
+        for name in edge_widths:
+            sides = EDGE_WIDTH_SIDES[name]
             idx = np.concatenate([samples[k][0] for k in sides]).astype(np.intp)
             d = np.concatenate([samples[k][1] for k in sides])
-            return _esf_width(d, flat[idx], ink_lin, paper_lin)
-
-        out[s["edge_width_px"]] = width((0, 1, 2, 3))
-        out[s["edge_width_x_px"]] = width((1, 3))
-        out[s["edge_width_y_px"]] = width((0, 2))
+            out[s[name]] = _esf_width(d, flat[idx], ink_lin, paper_lin)
     n_rejected = 0
     for quad in rejected:
         centre = np.asarray(quad, np.float64).reshape(4, 2).mean(axis=0) - offset

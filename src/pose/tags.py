@@ -17,7 +17,7 @@ from simgap.core.axes import AXES
 from simgap.core.rig import CameraModel, Rig
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings, estimate_pose, pose_error
-from simgap.pose.image_stats import STATS, MarkerLayout, tag_stats
+from simgap.pose.image_stats import EDGE_WIDTH_STATS, STATS, MarkerLayout, tag_stats
 
 RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners", "image_stats")
 #: Corners per marker (TL, TR, BR, BL) and pixel coordinates per corner (u, v).
@@ -36,11 +36,17 @@ class Estimation:
         ArUco detector settings.
     pnp : PnPSettings
         PnP solver settings.
+    edge_widths : tuple of str
+        The edge widths measured among the image statistics (default all of
+        :data:`simgap.pose.image_stats.EDGE_WIDTH_STATS`; the others are NaN). Each is an
+        edge-spread fit, most of the statistics' time: a search that reads none of them (an
+        appearance fit of exposure, say) leaves them out.
     """
 
     calibration: CameraModel = field(default_factory=CameraModel)
     detector: DetectorSettings = field(default_factory=DetectorSettings)
     pnp: PnPSettings = field(default_factory=PnPSettings)
+    edge_widths: tuple[str, ...] = EDGE_WIDTH_STATS
 
 
 def empty_tag_arrays(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
@@ -158,12 +164,12 @@ def add_image_stats(
     layout = MarkerLayout(rig.marker_cells(), rig.tags.quiet_zone_cells)
     for i, tag in enumerate(tags):
         if tag in found:
-            corners, with_edge = found[tag], True
+            corners, edge_widths = found[tag], estimation.edge_widths
         elif rig.is_visible(tag, p, theta):
             corners = project_tag_corners(
                 rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal.matrix, cal.dist_coeffs
             )
-            with_edge = False
+            edge_widths = ()
         else:
             continue
-        out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, with_edge, repeat)
+        out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, edge_widths, repeat)
