@@ -1,4 +1,8 @@
-"""Shared fixtures: a temporary cache per test session, the default rig, the shared sample."""
+"""Shared fixtures: a temporary cache per test session, the default rig, the shared sample.
+
+Under pytest-xdist the session's folders are shared by its workers (in the folder that holds
+each worker's own temporary folder), so that a render one worker made is read by the other.
+"""
 
 from __future__ import annotations
 
@@ -39,9 +43,19 @@ def rig():
     return load_rig()
 
 
+def _session_folder(tmp_path_factory, worker_id: str, name: str) -> Path:
+    """A folder of this test session that every xdist worker sees (made if missing)."""
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if worker_id != "master" else base  # this session's, for every worker
+    folder = shared / name
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
 @pytest.fixture(scope="session")
-def session_cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("simgap-cache")
+def session_cache(tmp_path_factory, worker_id):
+    """One simgap cache for the session's workers (safe: the cache is made for concurrent runs)."""
+    return _session_folder(tmp_path_factory, worker_id, "simgap-cache")
 
 
 @pytest.fixture(scope="session")
@@ -55,10 +69,7 @@ def smoke_variants_nc(tmp_path_factory, worker_id):
 
     from simgap.cli import app
 
-    base = tmp_path_factory.getbasetemp()
-    shared = base.parent if worker_id != "master" else base  # this session's, for every worker
-    folder = shared / "smoke-variants"
-    folder.mkdir(exist_ok=True)
+    folder = _session_folder(tmp_path_factory, worker_id, "smoke-variants")
     out = folder / "v.nc"
     with open(folder / "lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
