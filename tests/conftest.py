@@ -59,11 +59,13 @@ def session_cache(tmp_path_factory, worker_id):
 
 
 @pytest.fixture(scope="session")
-def smoke_variants_nc(tmp_path_factory, worker_id):
+def smoke_variants_nc(tmp_path_factory, worker_id, session_cache):
     """`simgap run experiments/smoke_variants.yaml`: the real five-variant dataset (about 30 s).
 
     Made once per test session: two test files use it, and under pytest-xdist the first worker
-    to need it makes it in the folder the workers share while the other waits on a lock.
+    to need it makes it in the folder the workers share while the other waits on a lock. Its
+    renders go to the session cache, where `experiments/smoke.yaml`'s baseline renders are the
+    same ones.
     """
     from typer.testing import CliRunner
 
@@ -75,6 +77,6 @@ def smoke_variants_nc(tmp_path_factory, worker_id):
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not out.is_file():
             args = ["run", "experiments/smoke_variants.yaml", "-o", str(out)]
-            res = CliRunner().invoke(app, [*args, "--cache", str(folder / "cache")])
+            res = CliRunner().invoke(app, [*args, "--cache", str(session_cache)])
             assert res.exit_code == 0, res.output
     return out

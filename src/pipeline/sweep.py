@@ -17,8 +17,10 @@ Only the pixels near the stickers facing the camera are rendered (:mod:`simgap.p
 in their bounding crop; the detector reads the window of the full-size frame around that crop,
 with its size-relative thresholds set for the real image size (DESIGN §4), which finds what the
 whole frame would (:attr:`simgap.pose.detect.Detector.window_pad_px`).
-Work is spread over a Dask scheduler: an in-process ``LocalCluster`` by default, or any cluster by
-address; one task is one (p, theta) for all variants and repeats, so renders are shared in a task.
+Work is spread over a Dask scheduler: a ``LocalCluster`` by default (two worker processes from
+:data:`PROCESS_SWEEP_MIN_CONFIGS` configurations on, else one in-process worker thread), or any
+cluster by address; one task is one (p, theta) for all variants and repeats, so renders are
+shared in a task.
 """
 
 from __future__ import annotations

@@ -417,12 +417,12 @@ def tag_stats(
     out[s["blockiness"]] = _blockiness(patch, flat, full_x0, full_y0)
     samples = _edge_samples(pts, norm, local, layout) if edge_widths else None
     if samples is not None:
-        flat = lin.ravel()
+        lin_values = lin.ravel()
         for name in edge_widths:
             sides = EDGE_WIDTH_SIDES[name]
             idx = np.concatenate([samples[k][0] for k in sides]).astype(np.intp)
             d = np.concatenate([samples[k][1] for k in sides])
-            out[s[name]] = _esf_width(d, flat[idx], ink_lin, paper_lin)
+            out[s[name]] = _esf_width(d, lin_values[idx], ink_lin, paper_lin)
     n_rejected = 0
     for quad in rejected:
         centre = np.asarray(quad, np.float64).reshape(4, 2).mean(axis=0) - offset
