@@ -54,8 +54,9 @@ class Items:
         Repeat-median image statistics (:data:`simgap.pose.image_stats.STATS`).
     real_detected, sim_detected : ndarray (N,)
         Detection rate over repeats.
-    scale : ndarray (6,)
-        Per-axis normalisation of residuals (m, rad): noise or practical floor, the larger.
+    scale : ndarray (N, 6)
+        Per-item, per-axis normalisation of residuals (m, rad): noise or practical floor, the
+        larger. A per-axis (6,) scale is broadcast to every item.
     """
 
     tag: np.ndarray
@@ -71,6 +72,9 @@ class Items:
     real_detected: np.ndarray | None = None
     sim_detected: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        self.scale = np.broadcast_to(np.asarray(self.scale, float), (len(self.tag), 6))
+
     def __len__(self) -> int:
         return len(self.tag)
 
@@ -78,9 +82,7 @@ class Items:
         """Items at ``index``."""
         return Items(
             **{
-                f.name: getattr(self, f.name)
-                if f.name == "scale" or getattr(self, f.name) is None
-                else getattr(self, f.name)[index]
+                f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[index]
                 for f in dataclasses.fields(self)
             }
         )
@@ -135,7 +137,6 @@ def median_abs_gap(real: np.ndarray, pred: np.ndarray) -> np.ndarray:
         Median absolute gap per axis (m for tx, ty, tz; rad for rx, ry, rz). Not an RMS.
     """
     return np.nanmedian(np.abs(real - pred), axis=0)
-
 
 
 @dataclass

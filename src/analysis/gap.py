@@ -60,7 +60,9 @@ def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
     for axis in AXES:
         e = err.sel(axis=axis).values  # (repeat, tag, p, theta)
         if e.shape[0] > 1:
-            sd = np.nanstd(e, axis=0, ddof=1)
+            with warnings.catch_warnings():  # configurations detected in one repeat or none
+                warnings.simplefilter("ignore", RuntimeWarning)
+                sd = np.nanstd(e, axis=0, ddof=1)
             s = float(np.nanmedian(sd) / np.sqrt(e.shape[0])) if np.isfinite(sd).any() else np.nan
         else:
             with warnings.catch_warnings():  # configurations never detected are all-NaN
@@ -68,6 +70,41 @@ def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
                 s = _roughness(np.moveaxis(np.nanmean(e, axis=0), 1, -1))  # p last
         out.append(s if np.isfinite(s) else DEFAULT_NOISE[axis_unit(axis)])
     return xr.DataArray(out, coords={"axis": list(AXES)}, dims="axis", attrs={"units": "m or rad"})
+
+
+def frame_noise(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
+    """Noise of one frame's error at each configuration (tag, p, theta, axis) (m, rad).
+
+    The standard deviation over repeats (one degree of freedom less than the repeats that
+    detected the tag); NaN with fewer than two.
+    """
+    err = ds.error.sel(variant=variant) if variant else ds.error.isel(variant=0)
+    n = err.notnull().sum("repeat")
+    with warnings.catch_warnings():  # configurations detected once or never
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return err.std("repeat", ddof=1, skipna=True).where(n >= 2)
+
+
+def configuration_noise(
+    real: xr.Dataset, sim: xr.Dataset, sim_variant: str | None = None
+) -> xr.DataArray:
+    """Noise of the gap of each configuration (tag, p, theta, axis) (m, rad), from repeats.
+
+    Each side's repeat mean carries its frame noise (:func:`frame_noise`) over the square root
+    of its repeats. A side with one frame is taken to be as noisy as one frame of the other: a
+    capture's single frame at a pose is assumed no quieter than one simulated frame there. The
+    noise differs much between configurations (a far, oblique tag's depth and rotation move
+    several millimetres with a tenth of a pixel of corner noise, a near one's do not), which a
+    per-axis noise level does not show. NaN where neither side has repeats. ``sim`` is aligned
+    to ``real`` (:func:`align`).
+    """
+    real, sim = align(real, sim)
+    s_frame = frame_noise(sim, sim_variant)
+    r_frame = frame_noise(real)
+    r_frame = r_frame.fillna(s_frame) if real.sizes["repeat"] < 2 else r_frame
+    s_frame = s_frame.fillna(r_frame) if sim.sizes["repeat"] < 2 else s_frame
+    var = r_frame**2 / real.sizes["repeat"] + s_frame**2 / sim.sizes["repeat"]
+    return np.sqrt(var)
 
 
 @dataclass(frozen=True)

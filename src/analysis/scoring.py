@@ -381,8 +381,8 @@ def bootstrap_reductions(
     h = scored.items
     groups = detection_groups(h)
     i = np.random.default_rng(seed).integers(0, len(h), (resamples, len(h)))  # one set per row
-    before = gap_score(h.real_err[i], h.sim_err[i], h.scale, axes)
-    after = gap_score(h.real_err[i], scored.prediction[i], h.scale, axes)
+    before = gap_score(h.real_err[i], h.sim_err[i], h.scale[i], axes)
+    after = gap_score(h.real_err[i], scored.prediction[i], h.scale[i], axes)
     with np.errstate(invalid="ignore", divide="ignore"):
         pose = np.where(before > 0, 1.0 - after / before, 0.0)
     channels = []
@@ -391,7 +391,7 @@ def bootstrap_reductions(
         (scored.corners_pred, scored.prediction, scored.stats_pred, scored.detected_pred),
     ):
         corner = corner_score(h.real_corners[i], pred_c[i]) / scored.corner_unit_px
-        pose_gap = gap_score(h.real_err[i], pred_e[i], h.scale)
+        pose_gap = gap_score(h.real_err[i], pred_e[i], h.scale[i])
         head = [finite_or_zero(corner), finite_or_zero(pose_gap)]
         if pred_s is not None and h.real_stats is not None:
             head.append(detection_score(h.real_detected[i], pred_d[i], [g[i] for g in groups]))

@@ -401,14 +401,14 @@ class ModelSearch:
 
         Per effect: the change of the model's held-out pose predictions that this effect makes
         with the others held at their fitted values (:meth:`member_deltas`, no refit: a refit
-        would let a look-alike take over its share and make both look irrelevant); the median
-        absolute change per axis over the noise (or the practical floor, the larger), the
-        largest over the axes with a significant gap. Below 1 the effect changes no pose by a
-        relevant amount.
+        would let a look-alike take over its share and make both look irrelevant); per axis the
+        median over items of the absolute change over the item's noise (or the practical floor,
+        the larger), the largest over the axes with a significant gap. Below 1 the effect
+        changes no pose by a relevant amount.
         """
         held = self.items.subset(self.held)
         axes = self.axes if np.any(self.axes) else np.ones(6, bool)
         return {
-            effect: float(np.max((np.nanmedian(np.abs(d), axis=0) / held.scale)[axes]))
+            effect: float(np.max(np.nanmedian(np.abs(d) / held.scale, axis=0)[axes]))
             for effect, d in self.member_deltas(scored).items()
         }

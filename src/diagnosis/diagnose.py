@@ -43,6 +43,7 @@ from simgap.diagnosis.items import (
     simulation_experiment,
     split_items,
     subsample,
+    with_render_seeds,
 )
 from simgap.diagnosis.result_json import jsonable
 from simgap.diagnosis.settings import DiagnoseSettings
@@ -202,7 +203,9 @@ def diagnose(
         simulator = Simulator(Path(simulator))
     t0 = time.perf_counter()
     sim_exp = simulation_experiment(real, exp)
-    d = Diagnosis(real, simulator.dataset(sim_exp), sim_exp, simulator, settings)
+    seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"])
+    sim = simulator.dataset(with_render_seeds(sim_exp, seeds))
+    d = Diagnosis(real, sim, sim_exp, simulator, settings)
     where = where_summary(d.real, d.sim, d.field, d.where)
     significant = where["significant"]
     if candidates is None:
@@ -227,6 +230,7 @@ def diagnose(
             "report": int(len(d.report)),
             "seed": settings.seed,
         },
+        "render_seeds": seeds,
     }
     if chosen is not None:
         result["combined"] = d.combined(chosen)

@@ -52,6 +52,18 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
     return dataclasses.replace(exp, rig=rig, configurations=conf, variants=(), grid={})
 
 
+def with_render_seeds(exp: Experiment, seeds: int) -> Experiment:
+    """``exp`` with at least ``seeds`` repeats, each rendered with its own seed (one: unchanged).
+
+    The simulation's render noise at each configuration is then measured by its repeats
+    (:func:`simgap.analysis.gap.configuration_noise`), and their mean carries less of it.
+    """
+    if seeds <= 1:
+        return exp
+    render = dataclasses.replace(exp.render, reseed_repeats=True)
+    return dataclasses.replace(exp, repeats=max(exp.repeats, seeds), render=render)
+
+
 def repeats_of_simulation(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
     """``real`` with no more repeats than ``sim`` has, so that like is compared with like.
 
@@ -81,8 +93,9 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
     Errors (m, rad) and corners (px) are NaN where a side did not detect the tag, and errors
     where either side's pose is a flip of the planar ambiguity (a rotation error beyond
     :data:`FLIP_RAD`); such items still carry corners, image statistics and detection
-    outcomes. Each axis' scale is its gap noise, at least
-    :data:`simgap.analysis.gap.PRACTICAL_FLOOR`.
+    outcomes. Each item's scale (N, 6) is the per-axis gap noise, at least
+    :data:`simgap.analysis.gap.PRACTICAL_FLOOR`, or the item's own noise measured by the repeats
+    when larger (:func:`simgap.analysis.gap.configuration_noise`).
     """
     real, sim = gapmod.align(real, sim)
     visible = field.real_detection.notnull()
@@ -103,6 +116,9 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
         s_c = sim.corners.isel(variant=0).mean("repeat", skipna=True).values
     floors = np.array([gapmod.PRACTICAL_FLOOR[axis_unit(a)] for a in AXES])
     scale = np.maximum(field.sigma.values, floors)
+    # a configuration whose repeats show more noise than the per-axis level gets its own
+    noise = gapmod.configuration_noise(real, sim).transpose("tag", "p", "theta", "axis").values
+    scale = np.fmax(scale, noise[at])
     stats = {}
     for name, ds in (("real", real), ("sim", sim)):
         if "image_stats" in ds:
