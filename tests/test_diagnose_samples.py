@@ -7,7 +7,6 @@ pytest-xdist runs them beside the blind validation's trials instead of after the
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import pytest
@@ -61,26 +60,9 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
         "image_stats_vs_distance.png",
     ):
         assert (out / name).is_file()
-
-
-def test_public_sample_reads_as_focal_length_at_another_render_seed(session_cache, sample):
-    """sample-focal against a simulation rendered at seed 5 instead of 0.
-
-    Before each configuration's own noise was measured (4 render seeds for a 9-configuration
-    capture), this seed read as a camera mount: one far, oblique tag's depth moved 9 mm with the
-    render noise and decided the choice (docs/results/sample_focal_render_seeds.md).
-    """
-    from simgap.diagnosis.diagnose import diagnose
-    from simgap.pipeline.capture import ingest
-    from simgap.pipeline.experiment import load_experiment
-
-    exp = load_experiment("experiments/baseline.yaml")
-    exp = dataclasses.replace(exp, render=dataclasses.replace(exp.render, seed=5))
-    result, _ = diagnose(ingest(sample), exp, session_cache)
+    # 9 configurations: simulated at 4 render seeds, and the report says so
     assert result["render_seeds"] == 4
-    assert [e for e in result["selected"] if e in geometric_effects()] == ["focal_length"]
-    # measured at this seed: 0.0193 (0.0194 at seed 0)
-    assert result["ranking"][0]["params"]["scale"] == pytest.approx(0.02, abs=0.003)
+    assert "rendered at 4 seeds per configuration" in (out / "diagnosis.md").read_text()
 
 
 def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sample_null):

@@ -161,6 +161,18 @@ def evidence_markdown(where: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _render_seeds_sentence(result: dict[str, Any]) -> str:
+    """How the simulation of a small capture measured each configuration's noise (or "")."""
+    seeds = result.get("render_seeds", 1)
+    if seeds <= 1:
+        return ""
+    return (
+        f" The capture is small: its simulation was rendered at {seeds} seeds per configuration, "
+        "and each configuration's pose noise is the larger of its own spread over them and the "
+        "per-axis noise."
+    )
+
+
 def which_markdown(result: dict[str, Any]) -> list[str]:
     """Markdown lines for the ranking, the selection and the before/after."""
     lines = [
@@ -174,7 +186,7 @@ def which_markdown(result: dict[str, Any]) -> list[str]:
         "(per axis the median of ((real - predicted error) / noise)^2, square-rooted; pure noise "
         "~0.7), detection (share of tags detected differently, over 5 %) and every image "
         "statistic (over its floor). Pose gap before/after: on the axes where it is "
-        "significant.",
+        "significant." + _render_seeds_sentence(result),
         "",
         "| rank | effect | parameters | fitted values | corners [px] | pose gap | image "
         "| detection | all evidence |",
