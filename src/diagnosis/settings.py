@@ -34,8 +34,8 @@ class DiagnoseSettings:
         noise of each configuration is then measured, and a far, oblique tag whose pose moves
         millimetres with its render noise no longer decides the choice between effects
         (measured on the 9-configuration public sample: docs/results/sample_focal_render_seeds.md).
-        Larger captures are simulated once; their medians over many items are robust to one
-        noisy configuration.
+        Larger captures are simulated with the experiment's own repeats (usually one); their
+        medians over many items are robust to one noisy configuration.
     max_render_seeds : int
         Most render seeds per configuration.
     """
