@@ -107,7 +107,8 @@ class RenderSettings:
         reach (a wide blur widens it). Measured on 59 baseline configurations: the detector finds
         the same corners (0 px change) from 4 px up, on the same render; 24 px keeps the
         diagnosis of the 9-configuration public samples as it was (at 8 px, sample-focal read
-        as camera_mount at two render seeds, where 24 px gave focal_length at both).
+        as camera_mount at two render seeds, where 24 px gave focal_length at both; since the
+        diagnosis measures each configuration's own noise, 8 px gives focal_length too).
     max_depth : int
         Maximum path length of the path tracer.
     reseed_repeats : bool
