@@ -53,25 +53,6 @@ def _roughness(field: np.ndarray) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
-def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
-    """Per-axis noise (m, rad) of one dataset's repeat-mean error at a single configuration."""
-    err = ds.error.sel(variant=variant) if variant else ds.error.isel(variant=0)
-    out = []
-    for axis in AXES:
-        e = err.sel(axis=axis).values  # (repeat, tag, p, theta)
-        if e.shape[0] > 1:
-            with warnings.catch_warnings():  # configurations detected in one repeat or none
-                warnings.simplefilter("ignore", RuntimeWarning)
-                sd = np.nanstd(e, axis=0, ddof=1)
-            s = float(np.nanmedian(sd) / np.sqrt(e.shape[0])) if np.isfinite(sd).any() else np.nan
-        else:
-            with warnings.catch_warnings():  # configurations never detected are all-NaN
-                warnings.simplefilter("ignore", RuntimeWarning)
-                s = _roughness(np.moveaxis(np.nanmean(e, axis=0), 1, -1))  # p last
-        out.append(s if np.isfinite(s) else DEFAULT_NOISE[axis_unit(axis)])
-    return xr.DataArray(out, coords={"axis": list(AXES)}, dims="axis", attrs={"units": "m or rad"})
-
-
 def frame_noise(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
     """Noise of one frame's error at each configuration (tag, p, theta, axis) (m, rad).
 
@@ -83,6 +64,29 @@ def frame_noise(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
     with warnings.catch_warnings():  # configurations detected once or never
         warnings.simplefilter("ignore", RuntimeWarning)
         return err.std("repeat", ddof=1, skipna=True).where(n >= 2)
+
+
+def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
+    """Per-axis noise (m, rad) of one dataset's repeat-mean error at a single configuration.
+
+    With repeats: the median over configurations of their frame noise (:func:`frame_noise`)
+    over the square root of the repeats; with one, the error field's roughness along p.
+    """
+    err = ds.error.sel(variant=variant) if variant else ds.error.isel(variant=0)
+    repeats = err.sizes["repeat"]
+    frame = frame_noise(ds, variant) if repeats > 1 else None
+    out = []
+    for axis in AXES:
+        if frame is not None:
+            sd = frame.sel(axis=axis).values
+            s = float(np.nanmedian(sd) / np.sqrt(repeats)) if np.isfinite(sd).any() else np.nan
+        else:
+            e = err.sel(axis=axis).values  # (repeat, tag, p, theta)
+            with warnings.catch_warnings():  # configurations never detected are all-NaN
+                warnings.simplefilter("ignore", RuntimeWarning)
+                s = _roughness(np.moveaxis(np.nanmean(e, axis=0), 1, -1))  # p last
+        out.append(s if np.isfinite(s) else DEFAULT_NOISE[axis_unit(axis)])
+    return xr.DataArray(out, coords={"axis": list(AXES)}, dims="axis", attrs={"units": "m or rad"})
 
 
 def configuration_noise(
