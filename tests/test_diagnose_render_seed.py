@@ -1,6 +1,9 @@
 """The public sample-focal diagnosed against a simulation at another render seed.
 
-Its own file, so that pytest-xdist runs it beside the other public-sample diagnoses.
+Marked slow (40 s): the default run diagnoses the sample at seed 0
+(``tests/test_diagnose_samples.py``, the same code); ``benchmarks/render_seed_stability.py``
+diagnoses both public samples at any render seeds and counts the seeds that read as expected.
+Run it with ``pytest -m slow tests/test_diagnose_render_seed.py``.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from simgap.pipeline.capture import ingest
 from simgap.pipeline.experiment import load_experiment
 
 
+@pytest.mark.slow
 def test_public_sample_reads_as_focal_length_at_another_render_seed(session_cache, sample):
     """sample-focal against a simulation rendered at seed 5 instead of 0.
 
