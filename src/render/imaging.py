@@ -85,15 +85,25 @@ def paste(crop: np.ndarray, offset: tuple[int, int], size: tuple[int, int]) -> n
     return frame
 
 
+#: PNG settings of every frame simgap writes: fastest zlib level and no row filter (lossless
+#: whatever the settings; on a 1920x1080 frame 40 ms instead of 93 ms with the adaptive filters
+#: when the stickers' surround is flat, 264 instead of 379 ms for a camera frame, 7 % larger).
+PNG_WRITE_PARAMS = (
+    cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE,
+)  # fmt: skip
+
+
+def encode_png(bgr: np.ndarray) -> bytes:
+    """An 8-bit BGR (or grey) image encoded as PNG with :data:`PNG_WRITE_PARAMS`."""
+    ok, buf = cv2.imencode(".png", bgr, list(PNG_WRITE_PARAMS))
+    if not ok:
+        raise ValueError(f"a {bgr.dtype} {bgr.shape} image cannot be encoded as PNG")
+    return buf.tobytes()
+
+
 def write_png(path: Path, rgb8: np.ndarray) -> None:
     """Write an 8-bit RGB frame as PNG, atomically."""
-    path = Path(path)
-    ok, buf = cv2.imencode(
-        ".png", cv2.cvtColor(rgb8, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
-    )
-    if not ok:
-        raise OSError(f"could not write {path}")
-    atomic_write(path, buf.tobytes())
+    atomic_write(Path(path), encode_png(cv2.cvtColor(rgb8, cv2.COLOR_RGB2BGR)))
 
 
 #: Signatures and end markers of the encoded frames simgap reads (PNG spec §5.2, §11.2.5;

@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 import xarray as xr
 import yaml
@@ -38,6 +37,7 @@ from simgap.pipeline.capture.folder import CALIBRATION_FILE, IMAGES_DIR, MANIFES
 from simgap.pipeline.capture.ingest import ingest
 from simgap.pipeline.capture.manifest import turntable_stop
 from simgap.pipeline.capture.writer import image_name
+from simgap.render import imaging
 
 
 @dataclass
@@ -177,10 +177,10 @@ def _image_bytes(msg: Any, msgtype: str, where: str) -> tuple[bytes, str]:
             f"{where}: encoding: expected an 8-bit encoding (mono8, bgr8, rgb8, ...), "
             f"got {msg.encoding!r}: {exc}"
         ) from None
-    ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    if not ok:
-        raise ConfigError(f"{where}: the image cannot be encoded as PNG")
-    return buf.tobytes(), "png"
+    try:
+        return imaging.encode_png(bgr), "png"
+    except ValueError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def bag_to_capture(

@@ -35,6 +35,7 @@ from simgap.pipeline.bag.formats import (
     BagFormat,
 )
 from simgap.pipeline.capture.folder import read_capture
+from simgap.render import imaging
 
 
 @dataclass(frozen=True)
@@ -98,8 +99,7 @@ class _Messages:
             raise ValueError(f"image: expected 8-bit RGB or grey, got {img.dtype} {img.shape}")
         bgr = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
         if compressed:
-            ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-            return self.image(ns, (buf.tobytes(), "png"), True)
+            return self.image(ns, (imaging.encode_png(bgr), "png"), True)
         h, w = bgr.shape[:2]
         enc, step = ("mono8", w) if bgr.ndim == 2 else ("bgr8", 3 * w)
         return self.types[IMAGE_TYPE](

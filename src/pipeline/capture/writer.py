@@ -17,9 +17,7 @@ from simgap.core.rig import CameraModel
 from simgap.pipeline.capture.calibration import calibration_format, calibration_to_yaml
 from simgap.pipeline.capture.folder import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
 from simgap.pipeline.capture.manifest import REQUIRED_COLUMNS
-
-#: PNG compression level of written frames (fast; PNG is lossless at any level).
-PNG_COMPRESSION = 1
+from simgap.render import imaging
 
 
 def image_name(p: int, theta: float, repeat: int = 0, ext: str = "png") -> str:
@@ -83,11 +81,6 @@ def write_capture(
     folder = Path(folder)
     (folder / IMAGES_DIR).mkdir(parents=True, exist_ok=True)
     atomic_write(folder / CALIBRATION_FILE, calibration_to_yaml(calibration, fmt).encode())
-    params = (
-        [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]
-        if image_format == "png"
-        else [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
-    )
     rows: list[tuple[str, int, float, int, str]] = []
     names: set[str] = set()
     for item in frames:
@@ -112,10 +105,14 @@ def write_capture(
             raise ValueError(f"{name}: two frames with the same p, theta and repeat")
         names.add(name)
         bgr = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
-        ok, buf = cv2.imencode(f".{image_format}", bgr, params)
-        if not ok:
-            raise OSError(f"{folder / name}: could not encode the image")
-        atomic_write(folder / name, buf.tobytes())
+        if image_format == "png":
+            data = imaging.encode_png(bgr)
+        else:
+            ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
+            if not ok:
+                raise OSError(f"{folder / name}: could not encode the image")
+            data = buf.tobytes()
+        atomic_write(folder / name, data)
         rows.append((name, p, theta % (2 * math.pi), repeat, note))
     header = list(REQUIRED_COLUMNS)
     with_repeat = any(r[3] for r in rows)
