@@ -30,6 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import colour
 import numpy as np
 
 from simgap.pipeline.experiment import Experiment, load_experiment
@@ -49,23 +50,29 @@ def grey_dn(linear: np.ndarray) -> np.ndarray:
     return imaging.to_gray(imaging.encode_srgb8(linear[None]))[0].astype(float)
 
 
+def srgb(linear: np.ndarray) -> np.ndarray:
+    """The sRGB encoding (0-1) of linear values, as the camera pipeline applies it."""
+    return colour.cctf_encoding(linear, function="sRGB")
+
+
 def independent_sample_error(
     one: FixtureScene, spp: int, pixels: np.ndarray, seed: int
 ) -> np.ndarray:
     """Per-pixel standard error (DN) of the mean if the pixel's samples were independent.
 
     ``one`` renders one sample a pixel (posed); ``spp`` of them are drawn for every pixel. The
-    samples' own variance over their count, through the sRGB slope at the pixel's mean: what
-    a stopping rule reading each pixel's sample spread would estimate.
+    samples' own variance over their count, through the sRGB slope at the pixel's mean and the
+    grey frame's channel weights: what a stopping rule reading each pixel's sample spread would
+    estimate.
     """
     repeated = np.repeat(pixels, spp, axis=0)
     samples = one.render_pixels(repeated, seed).reshape(len(pixels), spp, 3)
-    grey = samples @ np.array([0.2126, 0.7152, 0.0722])
-    mean = grey.mean(axis=1)
-    level = np.clip(mean, 1e-4, 1.0)
-    # d(sRGB)/d(linear) in DN per unit linear radiance
-    slope = 255.0 * np.where(level <= 0.0031308, 12.92, 1.055 / 2.4 * level ** (1.0 / 2.4 - 1.0))
-    return slope * grey.std(axis=1, ddof=1) / np.sqrt(spp)
+    # each channel's sRGB slope (DN per unit linear radiance) at the pixel's mean, then the grey
+    # frame's weights: the first-order change of the grey DN with each sample
+    level, step = np.clip(samples.mean(axis=1), 1e-4, 1.0), 1e-5
+    slope = 255.0 * (srgb(level + step) - srgb(level - step)) / (2 * step)
+    grey = np.einsum("nsc,nc,c->ns", samples, slope, np.asarray(imaging.GRAY_WEIGHTS))
+    return grey.std(axis=1, ddof=1) / np.sqrt(spp)
 
 
 def main() -> None:
