@@ -17,7 +17,6 @@ Usage: ``python benchmarks/render_accuracy.py [--spp 4,8] [--margins 8,12] [--ev
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -80,8 +79,7 @@ def main() -> None:
     configs = [(int(p), float(t)) for p in ps for t in thetas][:: args.every]
 
     def at(spp: int, seed: int, margin: int = args.reference_margin):
-        render = dataclasses.replace(base.render, spp=spp, seed=seed, margin_px=margin)
-        return dataclasses.replace(base, render=render)
+        return base.with_render(spp=spp, seed=seed, margin_px=margin)
 
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()

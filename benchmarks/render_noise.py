@@ -25,7 +25,6 @@ Usage: ``python benchmarks/render_noise.py [--experiment experiments/baseline.ya
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -33,16 +32,11 @@ from pathlib import Path
 import colour
 import numpy as np
 
-from simgap.pipeline.experiment import Experiment, load_experiment
+from simgap.pipeline.experiment import load_experiment
 from simgap.pipeline.region import OUTLINE_POINTS_PER_SIDE, sticker_region
 from simgap.pipeline.sweep import experiment_pipelines
 from simgap.render import imaging
 from simgap.render.scene import FixtureScene, projected_sticker_outlines
-
-
-def with_spp(exp: Experiment, spp: int) -> Experiment:
-    """The experiment rendered at ``spp`` samples per pixel."""
-    return dataclasses.replace(exp, render=dataclasses.replace(exp.render, spp=spp))
 
 
 def grey_dn(linear: np.ndarray) -> np.ndarray:
@@ -88,7 +82,7 @@ def main() -> None:
         pipe = experiment_pipelines(exp, Path(tmp))[0]
         scene = pipe.scene()
         more, one = (
-            experiment_pipelines(with_spp(exp, n), Path(tmp))[0].scene()
+            experiment_pipelines(exp.with_render(spp=n), Path(tmp))[0].scene()
             for n in (scene.spp * args.factor, 1)
         )
         s = pipe.state.scene

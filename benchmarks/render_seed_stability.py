@@ -17,7 +17,6 @@ experiments/baseline.yaml] [--captures ../shared/captures] [--cache DIR]``
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -46,7 +45,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         cache = args.cache or Path(tmp)
         for seed in seeds:
-            exp = dataclasses.replace(base, render=dataclasses.replace(base.render, seed=seed))
+            exp = base.with_render(seed=seed)
             for name, real in reals.items():
                 t0 = time.perf_counter()
                 result, _ = diagnose(real, exp, cache)

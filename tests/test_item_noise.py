@@ -69,7 +69,7 @@ def test_items_carry_the_noise_of_their_configuration():
     assert items.scale[at][0, :3] == pytest.approx(np.full(3, own), rel=1e-9)
     assert items.scale[~at] == pytest.approx(np.broadcast_to(level, (len(items) - 1, 6)))
     # the gap of the noisy item, 1 mm, is well inside its noise; elsewhere it is 2 floors
-    assert gapmod.gap_field(real, sim).gap.values[NOISY][1] == pytest.approx(1e-3)
+    assert field.gap.values[NOISY][1] == pytest.approx(1e-3)
     sub = items.subset(np.flatnonzero(at))
     assert sub.scale.shape == (1, 6) and sub.scale[0, 1] > 1e-3
 

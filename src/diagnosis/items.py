@@ -60,8 +60,8 @@ def with_render_seeds(exp: Experiment, seeds: int) -> Experiment:
     """
     if seeds <= 1:
         return exp
-    render = dataclasses.replace(exp.render, reseed_repeats=True)
-    return dataclasses.replace(exp, repeats=max(exp.repeats, seeds), render=render)
+    reseeded = exp.with_render(reseed_repeats=True)
+    return dataclasses.replace(reseeded, repeats=max(exp.repeats, seeds))
 
 
 def repeats_of_simulation(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:

@@ -196,11 +196,10 @@ def pseudo_real_experiment(
     """The experiment that renders a pseudo-real capture: another camera, hidden effects, seed."""
     effects = {**NUISANCE_EFFECTS, **hidden}
     return dataclasses.replace(
-        base,
+        base.with_render(seed=seed, spp=settings.spp),
         name="pseudo_real",
         scene=deep_merge(base.scene, NUISANCE_SCENE),
         configurations=Configurations(tuple(settings.p), tuple(settings.theta_deg), ()),
-        render=dataclasses.replace(base.render, seed=seed, spp=settings.spp),
         effects=effects,
         variants=(VariantSpec("baseline"),),
         grid={},

@@ -33,7 +33,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Literal
@@ -204,6 +204,10 @@ class Experiment:
                 f"configurations.{key}: expected distinct values, {again} is repeated",
             )
 
+    def with_render(self, **changes: Any) -> Experiment:
+        """The experiment with the :class:`RenderSettings` fields in ``changes`` replaced."""
+        return replace(self, render=replace(self.render, **changes))
+
     def memory_estimate(self) -> tuple[int, str, str]:
         """Planned memory of the run's result arrays, computed from counts (nothing allocated).
 
@@ -279,9 +283,7 @@ class Experiment:
                 render_seed=r.seed,
             ),
             image=ImageState(encoding=self.image.encoding, exposure=self.image.exposure),
-            estimation=Estimation(
-                calibration=rig.camera, detector=self.detector, pnp=self.pnp
-            ),
+            estimation=Estimation(calibration=rig.camera, detector=self.detector, pnp=self.pnp),
         )
 
     def variant_states(self) -> list[tuple[str, VariantState]]:
