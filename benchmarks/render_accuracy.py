@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from simgap.analysis.thresholds import FLIP_RAD
 from simgap.core.axes import AXES
-from simgap.diagnosis.items import FLIP_RAD
 from simgap.pipeline.cache import Cache
 from simgap.pipeline.experiment import load_experiment
 from simgap.pipeline.variant import VariantPipeline, assets_hash

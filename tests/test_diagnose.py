@@ -235,7 +235,8 @@ def test_gap_significance_noise_versus_trend():
 
 def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
     """Losing as many tags as the capture in the same group matches, whichever ones they are."""
-    from simgap.analysis.scoring import DETECTION_UNIT, detection_score
+    from simgap.analysis.scoring import detection_score
+    from simgap.analysis.thresholds import DETECTION_UNIT
 
     real = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 1.0])
     swapped = np.array([0.0, 1.0, 0.0, 1.0, 1.0, 1.0])  # the same losses, other tags

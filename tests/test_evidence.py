@@ -91,7 +91,8 @@ def test_fit_choose_and_report_splits_are_disjoint_and_complete(n):
 def test_a_pose_flip_on_either_side_is_left_out_of_the_pose_comparison():
     """An item on the other branch of the planar ambiguity keeps its corners, not its errors."""
     from simgap.analysis.gap import gap_field
-    from simgap.diagnosis.items import FLIP_RAD, build_items
+    from simgap.analysis.thresholds import FLIP_RAD
+    from simgap.diagnosis.items import build_items
 
     real, sim = _dataset(1), _dataset(2)
     err = real["error"].values.copy()

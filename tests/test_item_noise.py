@@ -14,6 +14,7 @@ import pytest
 
 from simgap.analysis import gap as gapmod
 from simgap.analysis.fitting import Items
+from simgap.analysis.thresholds import PRACTICAL_FLOOR
 from simgap.diagnosis.items import build_items, with_render_seeds
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.pipeline.experiment import load_experiment
@@ -61,7 +62,7 @@ def test_items_carry_the_noise_of_their_configuration():
     field = gapmod.gap_field(real, sim)
     items = build_items(real, sim, field)
     assert items.scale.shape == (len(items), 6)
-    floors = np.array([gapmod.PRACTICAL_FLOOR[u] for u in ("m",) * 3 + ("rad",) * 3])
+    floors = np.array([PRACTICAL_FLOOR[u] for u in ("m",) * 3 + ("rad",) * 3])
     level = np.maximum(field.sigma.values, floors)
     at = (items.p == PS[NOISY[1]]) & np.isclose(items.theta, THETAS[NOISY[2]])
     own = NOISY_M * np.sqrt(4 / 3 * 5 / 4)  # above the translation floors, below the rotation ones

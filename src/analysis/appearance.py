@@ -35,8 +35,14 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import least_squares, minimize_scalar
 
-from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
+from simgap.analysis.evidence import compare_stat
 from simgap.analysis.fitting import Fit, Items, SimulationCandidate
+from simgap.analysis.thresholds import (
+    IMAGE_FLOORS,
+    RESIDUAL_CAP,
+    SIGNATURE_MIN_GAIN,
+    SIGNATURE_MIN_MISFIT,
+)
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import EDGE_WIDTH_STATS, STAT_INDEX, linearise
 from simgap.render import imaging
@@ -53,8 +59,6 @@ FIT_STATS: dict[str, tuple[str, ...]] = {
 #: 10-90 % width of the edge-spread function of a uniform disk of radius R, in units of R
 #: (the area of a disk left of a chord at -u R is 10 % of the disk for u = 0.68705).
 DISK_10_90_PER_RADIUS = 2 * 0.68705
-#: Residuals beyond this many floors count as this many (a robust, Huber-like cap).
-RESIDUAL_CAP = 3.0
 #: Points of the coarse scan that brackets a 1-D fit before the bounded Brent search.
 SCAN_POINTS = 16
 #: Largest photo-response non-uniformity of a real camera the noise fit allows (relative sigma):
@@ -71,16 +75,6 @@ TEMPORAL_NOISE_PAIRS = (
 )
 #: Fixed-point steps that recover the level before clipping at black from a measured median.
 CLIP_STEPS = 12
-#: An appearance effect is ranked only when one of its own statistics differs significantly in
-#: the where step (:func:`signature_significant`), differs by at least
-#: :data:`SIGNATURE_MIN_MISFIT` floors (RMS over the training tags), and the fit lowers that by
-#: :data:`SIGNATURE_MIN_GAIN`; else the evidence does not call for it (a JPEG fitted where the
-#: blockiness matches within its floor would only be credited for side effects on noise; on
-#: sample-null a JPEG passed the RMS gate on a blockiness difference of +0.1 stop, p 0.06). The
-#: gain is the quarter unit of the channels' tolerance
-#: (:data:`simgap.analysis.scoring.EQUIVALENT_UNITS`).
-SIGNATURE_MIN_MISFIT = 1.0
-SIGNATURE_MIN_GAIN = 0.25
 
 
 def evidence_misfit(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) -> float:
@@ -89,7 +83,7 @@ def evidence_misfit(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) 
     Parameters
     ----------
     stats : tuple of str
-        Statistic names (see :data:`simgap.analysis.evidence.IMAGE_FLOORS`).
+        Statistic names (see :data:`simgap.analysis.thresholds.IMAGE_FLOORS`).
     real, pred : ndarray (N, S)
         Real and predicted image statistics of the same tags.
     """
@@ -110,9 +104,9 @@ def misfit_rms(stats: tuple[str, ...], real: np.ndarray, pred: np.ndarray) -> fl
 
 
 def _capped_mean_square(residual: np.ndarray) -> float:
-    """Mean of the squared finite residuals (floors), each capped at :data:`RESIDUAL_CAP`.
+    """Mean of the squared finite residuals (floors), each capped (NaN when none is finite).
 
-    NaN when none is finite.
+    The cap is :data:`~simgap.analysis.thresholds.RESIDUAL_CAP`.
     """
     r = residual[np.isfinite(residual)]
     return float(np.mean(np.minimum(r**2, RESIDUAL_CAP**2))) if r.size else float("nan")
@@ -139,7 +133,8 @@ def signature_supported(rms_before: float, rms_after: float) -> bool:
     """Whether an effect's own statistics call for it.
 
     ``rms_before`` and ``rms_after`` are their RMS misfits (floors) before and after the fit; see
-    :data:`SIGNATURE_MIN_MISFIT` and :data:`SIGNATURE_MIN_GAIN`.
+    :data:`~simgap.analysis.thresholds.SIGNATURE_MIN_MISFIT` and
+    :data:`~simgap.analysis.thresholds.SIGNATURE_MIN_GAIN`.
     """
     return rms_before >= SIGNATURE_MIN_MISFIT and rms_before - rms_after >= SIGNATURE_MIN_GAIN
 

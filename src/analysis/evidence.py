@@ -16,14 +16,15 @@ detection
     Detected / visible counts of the real data and of the simulation (over repeats), overall,
     per distance region and per view-angle band; Fisher's exact test
     (``scipy.stats.fisher_exact``). Significant when it rejects at :data:`ALPHA` (Bonferroni) and
-    the rates differ by :data:`DETECTION_MIN_DIFFERENCE` or more.
+    the rates differ by :data:`~simgap.analysis.thresholds.DETECTION_UNIT` or more.
 image
     Per statistic of :mod:`simgap.pose.image_stats`, the paired difference real - simulated over
     tags visible in both (levels and noise as log2 ratios, in stops); Wilcoxon's signed-rank test
     (``scipy.stats.wilcoxon``). Significant when it rejects at :data:`ALPHA` and the median
     difference reaches the statistic's practical floor (:data:`IMAGE_FLOORS`).
 
-Every threshold here was fixed before the blind validation runs that report on it.
+The thresholds (:data:`ALPHA` and the others) are those of :mod:`simgap.analysis.thresholds`, with
+their sources; every one was fixed before the blind validation runs that report on it.
 """
 
 from __future__ import annotations
@@ -35,40 +36,23 @@ import numpy as np
 import xarray as xr
 from scipy import stats as sps
 
-from simgap.analysis.gap import PRACTICAL_FLOOR, align
+from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import repeat_median_stats, tag_distance_and_view_angle
+from simgap.analysis.thresholds import (
+    ALPHA,
+    DETECTION_UNIT,
+    IMAGE_FLOORS,
+    PRACTICAL_FLOOR,
+    SCATTER_FLOOR_SHARE,
+    SCATTER_RATIO,
+)
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.robust import mad_sigma, signed_rank_pvalue
 
-#: Family-wise false-alarm rate of each family of tests.
-ALPHA = 0.01
-#: Smallest ratio of robust scatter (real / simulated, or its inverse) that matters.
-SCATTER_RATIO = 1.5
-#: The extra scatter must reach this share of the practical floor (0.5 mm / 8.7 mrad).
-SCATTER_FLOOR_SHARE = 0.5
-#: Smallest difference of detection rates that matters.
-DETECTION_MIN_DIFFERENCE = 0.05
 #: View-angle bands (deg) for the detection tests: oblique, intermediate, frontal.
 VIEW_BANDS_DEG = ((0.0, 35.0), (35.0, 60.0), (60.0, 90.1))
 #: Added to linear levels before taking log2 ratios (a tenth of an 8-bit step near black).
 LEVEL_EPSILON = 0.002
-
-#: ``stat -> (transform, floor)``: compared as a difference ("diff") or a log2 ratio ("log2",
-#: stops), and the smallest median difference that matters. ``None`` floors are reported only.
-IMAGE_FLOORS: dict[str, tuple[str, float | None]] = {
-    "ink_linear": ("log2", 0.5),
-    "paper_linear": ("log2", 0.3),
-    "contrast": ("diff", 0.05),
-    "edge_width_px": ("diff", None),
-    "edge_width_x_px": ("diff", 0.2),
-    "edge_width_y_px": ("diff", 0.2),
-    "noise_ink_linear": ("log2", 0.5),
-    "noise_paper_linear": ("log2", 0.5),
-    "clipped_fraction": ("diff", 0.02),
-    "highlight_fraction": ("diff", 0.02),
-    "rejected_candidates": ("diff", None),
-    "blockiness": ("log2", 0.25),
-}
 
 
 def robust_scale(values: np.ndarray) -> float:
@@ -213,7 +197,7 @@ def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
                 "difference": diff,
                 "p_value": pvalue,
                 "significant": bool(
-                    pvalue < ALPHA / n_tests and abs(diff) >= DETECTION_MIN_DIFFERENCE
+                    pvalue < ALPHA / n_tests and abs(diff) >= DETECTION_UNIT
                 ),
             }
         )

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from simgap.analysis.paper import THRESHOLD_BY_UNIT
+from simgap.analysis.thresholds import DEFAULT_NOISE, PRACTICAL_FLOOR, Z_SIGNIFICANT
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.robust import (
     MAD_TO_SIGMA,
@@ -24,17 +24,6 @@ from simgap.core.robust import (
     mad_sigma,
     median_standard_error,
 )
-
-#: Share of the paper's high-precision thresholds below which a gap does not matter.
-PRACTICAL_FLOOR_FRACTION = 0.1
-#: Smallest gap that matters, per axis unit (m, rad): :data:`PRACTICAL_FLOOR_FRACTION` of the
-#: high-precision thresholds (:data:`simgap.analysis.paper.THRESHOLD_BY_UNIT`, 0.005 m and
-#: 0.0873 rad). Smaller systematic differences (e.g. from another light or sensor noise changing
-#: the detector's edge bias) are reported but not called significant.
-PRACTICAL_FLOOR = {u: t * PRACTICAL_FLOOR_FRACTION for u, t in THRESHOLD_BY_UNIT.items()}
-#: Noise floor used when a field is too short to estimate its own roughness (m, rad).
-DEFAULT_NOISE = {"m": 2e-4, "rad": 4e-3}
-Z_SIGNIFICANT = 4.0
 
 
 def mean_error(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:

@@ -15,9 +15,19 @@ from typing import Any
 
 import numpy as np
 
-from simgap.analysis.appearance import RESIDUAL_CAP
-from simgap.analysis.evidence import IMAGE_FLOORS, compare_stat
+from simgap.analysis.evidence import compare_stat
 from simgap.analysis.fitting import Fit, Items, corner_score, gap_score
+from simgap.analysis.thresholds import (
+    CORNER_UNIT_PX,
+    DETECTION_UNIT,
+    EQUIVALENT_PX,
+    EQUIVALENT_REL,
+    EQUIVALENT_UNITS,
+    IMAGE_FLOORS,
+    PAIRED_ALPHA,
+    PAIRED_MIN_SHARE,
+    RESIDUAL_CAP,
+)
 from simgap.core.axes import AXES
 from simgap.core.robust import signed_rank_pvalue
 from simgap.pose.image_stats import STAT_INDEX
@@ -58,7 +68,7 @@ class Scored:
     #: the scored items and the model's predictions for them: corners (N, 4, 2) px, image
     #: statistics (N, S), detection rate (N,)
     items: Items | None = None
-    corner_unit_px: float = 0.2
+    corner_unit_px: float = CORNER_UNIT_PX
     corners_pred: np.ndarray | None = None
     stats_pred: np.ndarray | None = None
     detected_pred: np.ndarray | None = None
@@ -139,26 +149,6 @@ class Scored:
             "fit_seconds": fit.seconds,
             "stage": cand.kind,
         }
-
-
-#: Held-out corner residuals closer than this are indistinguishable (px): a quarter of the
-#: ArUco detector's own corner bias (~0.2 px, measured on ideal renders, issue 2), ...
-EQUIVALENT_PX = 0.05
-#: ... or than this share of the smaller residual.
-EQUIVALENT_REL = 0.1
-
-
-#: Unit of the corner channel (px): the ArUco detector's own corner bias on ideal renders, so
-#: that :data:`EQUIVALENT_PX` is a quarter unit, like the other channels' tolerance.
-CORNER_UNIT_PX = 0.2
-#: Unit of the detection channel: this mismatch of detection rates (:func:`detection_score`).
-DETECTION_UNIT = 0.05
-#: Paired test of per-item corner residuals (:func:`corners_clearly_lower`): false-alarm rate
-#: and the smallest median improvement, as a share of the other model's median residual.
-PAIRED_ALPHA = 0.01
-PAIRED_MIN_SHARE = 0.05
-#: Channel misfits (in channel units) closer than this are indistinguishable.
-EQUIVALENT_UNITS = EQUIVALENT_PX / CORNER_UNIT_PX
 
 
 def corner_unit(reproj_px: np.ndarray) -> float:
@@ -290,7 +280,7 @@ def improves_on_nothing(scored: Scored) -> bool:
 def image_misfits(real: np.ndarray | None, pred: np.ndarray | None) -> np.ndarray:
     """Held-out image-evidence misfit per statistic (floors), capped at RESIDUAL_CAP.
 
-    Per statistic of :data:`simgap.analysis.evidence.IMAGE_FLOORS` that has a floor, the
+    Per statistic of :data:`simgap.analysis.thresholds.IMAGE_FLOORS` that has a floor, the
     absolute median over tags of ``compare_stat(real, pred) / floor`` (a bias, robust to
     per-tag noise). Misfits beyond the cap mean "not modelled" and count as the cap, so that an
     effect is not credited or blamed for a difference nothing in the catalogue explains (a print

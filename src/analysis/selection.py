@@ -38,14 +38,10 @@ from simgap.analysis.scoring import (
     parsimonious,
     worsens_pose,
 )
+from simgap.analysis.thresholds import CORNER_UNIT_PX, MIN_POSE_REDUCTION, MINOR_CONTRIBUTION
 from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState
-
-#: Share by which a geometric effect must bring the held-out pose gap (all axes) closer to the
-#: real one to enter a model (see :meth:`ModelSearch.select`): between the look-alikes (at most
-#: 6 % closer) and the true effects (at least 19 %) of seeds 22, 23 and 25.
-MIN_POSE_REDUCTION = 0.10
 
 
 @dataclass
@@ -79,7 +75,7 @@ class ModelSearch:
     sim_train: np.ndarray
     axes: np.ndarray
     runner: Any = None
-    corner_unit_px: float = 0.2
+    corner_unit_px: float = CORNER_UNIT_PX
     _evaluated: dict[tuple[str, ...], Scored] = field(default_factory=dict, repr=False)
 
     def _key(self, model: tuple) -> tuple[str, ...]:
@@ -270,7 +266,8 @@ class ModelSearch:
         """Greedy forward search with joint refits, simplified after every step.
 
         A geometric effect enters a model (starts the search, or is added to it) only when it
-        brings the held-out pose at least :data:`MIN_POSE_REDUCTION` closer to the real one than
+        brings the held-out pose at least
+        :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one than
         the model without it (:func:`worsens_pose`): one that follows the corners without
         moving the poses closer is a look-alike of an image effect (measured: a tag print scale
         following the corners of a motion blur, pose gap 1-5 % larger on seed 23 and 6 % smaller
@@ -339,18 +336,18 @@ class ModelSearch:
     def prune(self, scored: Scored) -> Scored:
         """Drop effects that move no pose by a relevant amount and are not clearly seen.
 
-        An effect whose :meth:`contributions` is below 1 is dropped only when the model without
-        it still explains the held-out evidence as well (:func:`as_good`); otherwise it stays
-        as a *minor* effect (seen in the corners or images, no pose impact beyond the floor).
-        Comparing the evidence, never letting the pose criterion alone swap the explanation, is
-        what
-        keeps a refitted look-alike (a tag print scale soaking up a focal-length change) from
-        replacing the effect that the corners single out.
+        An effect whose :meth:`contributions` is below
+        :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` is dropped only when the model
+        without it still explains the held-out evidence as well (:func:`as_good`); otherwise it
+        stays as a *minor* effect (seen in the corners or images, no pose impact beyond the
+        floor). Comparing the evidence, never letting the pose criterion alone swap the
+        explanation, is what keeps a refitted look-alike (a tag print scale soaking up a
+        focal-length change) from replacing the effect that the corners single out.
         """
         while len(scored.fits) > 1:
             weight = self.contributions(scored)
             options = []
-            for effect in (e for e, w in weight.items() if w < 1.0):
+            for effect in (e for e, w in weight.items() if w < MINOR_CONTRIBUTION):
                 reduced = self.evaluate(tuple(c for c, _ in scored.fits if c.effect != effect))
                 if as_good(reduced, scored):
                     options.append(reduced)
@@ -366,7 +363,7 @@ class ModelSearch:
 
     def minor(self, scored: Scored) -> list[str]:
         """Effects of a model seen in the evidence that move no pose beyond the floor."""
-        return [e for e, w in self.contributions(scored).items() if w < 1.0]
+        return [e for e, w in self.contributions(scored).items() if w < MINOR_CONTRIBUTION]
 
     def member_deltas(self, scored: Scored) -> dict[str, np.ndarray]:
         """Held-out change of error (N, 6) due to each effect of a model, the others held fixed.
@@ -403,8 +400,9 @@ class ModelSearch:
         with the others held at their fitted values (:meth:`member_deltas`, no refit: a refit
         would let a look-alike take over its share and make both look irrelevant); per axis the
         median over items of the absolute change over the item's noise (or the practical floor,
-        the larger), the largest over the axes with a significant gap. Below 1 the effect
-        changes no pose by a relevant amount.
+        the larger), the largest over the axes with a significant gap. Below
+        :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` the effect changes no pose by a
+        relevant amount.
         """
         held = self.items.subset(self.held)
         axes = self.axes if np.any(self.axes) else np.ones(6, bool)

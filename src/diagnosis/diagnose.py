@@ -36,6 +36,7 @@ from simgap.analysis.scoring import (
     equivalent_models,
 )
 from simgap.analysis.selection import ModelSearch
+from simgap.analysis.thresholds import MINOR_CONTRIBUTION
 from simgap.core.axes import AXES
 from simgap.diagnosis.items import (
     build_items,
@@ -139,7 +140,7 @@ class Diagnosis:
                     "effect": fit.effect,
                     "params": jsonable(fit.params),
                     "pose_contribution": weight[fit.effect],
-                    "minor": weight[fit.effect] < 1.0,
+                    "minor": weight[fit.effect] < MINOR_CONTRIBUTION,
                 }
                 for _, fit in chosen.fits
             ],

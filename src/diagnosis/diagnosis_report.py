@@ -21,7 +21,7 @@ from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report.figures import plot_change_by_distance, plot_change_heatmap
 from simgap.analysis.report.output import save_figure, save_text
 from simgap.analysis.report.tables import markdown_table
-from simgap.analysis.scoring import EQUIVALENT_PX, EQUIVALENT_REL
+from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.diagnose import Diagnosis
 from simgap.diagnosis.result_json import write_json

@@ -17,15 +17,12 @@ import yaml
 from simgap.analysis import gap as gapmod
 from simgap.analysis.fitting import Items
 from simgap.analysis.image_evidence import repeat_median_stats
+from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.config import to_mapping
 from simgap.core.rig import CameraModel
 from simgap.pipeline.experiment import Configurations, Experiment
 from simgap.pose.image_stats import STAT_NAMES
-
-#: A rotation error beyond this (rad, 8.6 deg) is the other branch of a square marker's planar
-#: pose ambiguity, not a gap an effect explains (catalogue effects move rotations by mrad).
-FLIP_RAD = 0.15
 
 
 def calibration_from_attrs(real: xr.Dataset) -> CameraModel | None:
@@ -92,10 +89,10 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
 
     Errors (m, rad) and corners (px) are NaN where a side did not detect the tag, and errors
     where either side's pose is a flip of the planar ambiguity (a rotation error beyond
-    :data:`FLIP_RAD`); such items still carry corners, image statistics and detection
-    outcomes. Each item's scale (N, 6) is the per-axis gap noise, at least
-    :data:`simgap.analysis.gap.PRACTICAL_FLOOR`, or the item's own noise measured by the repeats
-    when larger (:func:`simgap.analysis.gap.configuration_noise`).
+    :data:`~simgap.analysis.thresholds.FLIP_RAD`); such items still carry corners, image
+    statistics and detection outcomes. Each item's scale (N, 6) is the per-axis gap noise, at
+    least :data:`simgap.analysis.thresholds.PRACTICAL_FLOOR`, or the item's own noise measured by
+    the repeats when larger (:func:`simgap.analysis.gap.configuration_noise`).
     """
     real, sim = gapmod.align(real, sim)
     visible = field.real_detection.notnull()
@@ -114,7 +111,7 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
         warnings.simplefilter("ignore", RuntimeWarning)
         r_c = real.corners.isel(variant=0).mean("repeat", skipna=True).values
         s_c = sim.corners.isel(variant=0).mean("repeat", skipna=True).values
-    floors = np.array([gapmod.PRACTICAL_FLOOR[axis_unit(a)] for a in AXES])
+    floors = np.array([PRACTICAL_FLOOR[axis_unit(a)] for a in AXES])
     scale = np.maximum(field.sigma.values, floors)
     # a configuration whose repeats show more noise than the per-axis level gets its own
     noise = gapmod.configuration_noise(real, sim).transpose("tag", "p", "theta", "axis").values

@@ -10,6 +10,7 @@ import xarray as xr
 from simgap.analysis import evidence
 from simgap.analysis import gap as gapmod
 from simgap.analysis.scoring import SCORED_STATS, Scored
+from simgap.analysis.thresholds import UNEXPLAINED_MISFIT
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.effects import EFFECTS
 
@@ -79,10 +80,10 @@ def unexplained_evidence(
     out += [
         r["stat"]
         for r in where["image_tests"]
-        if r["significant"] and misfit.get(r["stat"], np.inf) >= 1.0
+        if r["significant"] and misfit.get(r["stat"], np.inf) >= UNEXPLAINED_MISFIT
     ]
     if any(r["significant"] for r in where["detection_tests"]) and (
-        chosen is None or chosen.detection_after >= 1.0
+        chosen is None or chosen.detection_after >= UNEXPLAINED_MISFIT
     ):
         out.append("detection")
     noisy = chosen is not None and any(EFFECTS[e].stochastic for e in chosen.effects)

@@ -404,7 +404,8 @@ def tag_stats(
     values = patch[sticker_mask]
     out[s["clipped_fraction"]] = float(np.mean((values <= 0) | (values >= 255)))
     sigma = out[s["noise_paper_dn"]]
-    limit = paper_dn + max(HIGHLIGHT_SIGMAS * (sigma if np.isfinite(sigma) else 0.0), 12.0)
+    spread = HIGHLIGHT_SIGMAS * (sigma if np.isfinite(sigma) else 0.0)
+    limit = paper_dn + max(spread, HIGHLIGHT_MIN_DN)
     out[s["highlight_fraction"]] = float(np.mean(values > limit))
     # flat pixels: on the sticker and away from every cell edge of the marker and its border
     px_per_unit = float(np.mean(np.linalg.norm(np.diff(local, axis=0, append=local[:1]), axis=1)))
