@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from simgap.analysis.fitting import geometric_effects
+from simgap.analysis.candidates import geometric_effects
 from simgap.diagnosis.diagnose import diagnose
 from simgap.pipeline.capture import ingest
 from simgap.pipeline.experiment import load_experiment

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.analysis.appearance import SensorNoiseCandidate
 from simgap.analysis.fitting import Items
+from simgap.analysis.sensor_noise import SensorNoiseCandidate
 from simgap.effects.image import ImageContext, SensorNoise
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX, STATS, linearise, tag_stats
@@ -138,7 +138,7 @@ SHARP_EDGE_PX = 0.81
 
 
 def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path):
-    from simgap.analysis.appearance import DISK_10_90_PER_RADIUS, DefocusCandidate
+    from simgap.analysis.defocus import DISK_10_90_PER_RADIUS, DefocusCandidate
     from simgap.diagnosis.sim_runner import SimRunner
     from simgap.pipeline.experiment import load_experiment
     from simgap.pipeline.simulator import Simulator
@@ -146,7 +146,7 @@ def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path
     exp = load_experiment("experiments/baseline.yaml")
     runner = SimRunner(exp, Simulator(tmp_path))
     focal = exp.rig_model.camera.fx
-    lens = DefocusCandidate(focal)
+    lens = DefocusCandidate()
 
     def thin_lens(z):  # a 0.9 mm aperture focused at 2 m, as seed-23 trial 7 hid
         radius = focal * 0.9e-3 * np.abs(1.0 / z - 1.0 / 2.0)
@@ -173,6 +173,7 @@ def _blockiness_test(real_stops: np.ndarray) -> list[dict]:
 
 def test_an_appearance_effect_needs_a_significant_difference_of_its_own_statistic():
     from simgap.analysis.appearance import evidence_misfit, signature_significant
+    from simgap.analysis.candidates import CANDIDATES
 
     rng = np.random.default_rng(3)
     # sample-null: blockiness +0.1 stop over 9 tags with a spread of a third of a stop (p 0.06);
@@ -182,12 +183,13 @@ def test_an_appearance_effect_needs_a_significant_difference_of_its_own_statisti
     real[:, STAT_INDEX["blockiness"]] = 2.0**stops
     sim = np.where(np.isnan(real), np.nan, 1.0)
     assert evidence_misfit(("blockiness",), real, sim) >= 1.0
-    assert not signature_significant("jpeg", _blockiness_test(stops))
+    assert not signature_significant(CANDIDATES["jpeg"], _blockiness_test(stops))
     # JPEG at quality 70 raises the blockiness by half a stop to a stop (tests/test_image_stats)
-    assert signature_significant("jpeg", _blockiness_test(0.6 + rng.normal(0.0, 0.33, 20)))
+    jpeg, blur = CANDIDATES["jpeg"], CANDIDATES["blur"]
+    assert signature_significant(jpeg, _blockiness_test(0.6 + rng.normal(0.0, 0.33, 20)))
     # the blockiness is no blur's statistic, and geometric effects have none
-    assert not signature_significant("blur", _blockiness_test(0.6 + rng.normal(0.0, 0.33, 20)))
-    assert signature_significant("focal_length", [])
+    assert not signature_significant(blur, _blockiness_test(0.6 + rng.normal(0.0, 0.33, 20)))
+    assert signature_significant(CANDIDATES["focal_length"], [])
 
 
 def test_sensor_noise_is_ranked_only_where_the_noise_differs():

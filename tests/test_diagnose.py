@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from simgap.analysis import gap as gapmod
+from simgap.analysis.candidates import CANDIDATES
 from simgap.analysis.fitting import (
     Fit,
     Items,
     ProjectionCandidate,
     ProjectionSet,
-    default_candidates,
     project_items,
 )
 from simgap.analysis.scoring import Scored, parsimonious
@@ -92,7 +92,7 @@ def _items(
 def test_projection_fit_recovers_exact_parameters(effect, params, key):
     rig = load_rig()
     items, base = _items(rig, {effect: params})
-    cand = next(c for c in default_candidates() if c.effect == effect)
+    cand = CANDIDATES[effect]
     assert isinstance(cand, ProjectionCandidate)
     fit = cand.fit(rig, base, items)
     # noise-free corners: the least-squares optimum is the truth; measured |error| < 1e-6
@@ -105,7 +105,7 @@ def test_joint_fit_separates_principal_point_and_focal_length():
     rig = load_rig()
     hidden = {"focal_length": {"scale": 0.02}, "principal_point": {"dx_px": 8.0, "dy_px": -6.0}}
     items, base = _items(rig, hidden)
-    cands = {c.effect: c for c in default_candidates()}
+    cands = CANDIDATES
     joint = ProjectionSet([cands["focal_length"], cands["principal_point"]])
     fits = joint.member_fits(joint.fit(rig, base, items))
     assert [f.effect for f in fits] == ["focal_length", "principal_point"]
@@ -140,7 +140,7 @@ def test_selection_finds_a_pair_a_richer_effect_would_mimic():
     idx = np.arange(len(items))
     train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
     search = ModelSearch(rig, base, items, train, held, train, np.ones(6, bool))
-    cands = [c for c in default_candidates() if isinstance(c, ProjectionCandidate)]
+    cands = [c for c in CANDIDATES.values() if isinstance(c, ProjectionCandidate)]
     ranking = search.rank(cands, significant=True)
     chosen = search.select(ranking)
     assert chosen.effects == ["principal_point", "focal_length"]
@@ -161,7 +161,7 @@ def test_a_geometric_effect_that_moves_the_pose_away_never_starts_the_selection(
     idx = np.arange(len(items))
     train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
     search = ModelSearch(rig, base, items, train, held, train, np.ones(6, bool))
-    cand = next(c for c in default_candidates() if c.effect == "tag_scale")
+    cand = CANDIDATES["tag_scale"]
     scored = search.rank([cand], significant=True)[0]
     assert scored.after_all < scored.before_all  # a true print scale brings the pose closer
     assert search.select([scored]).effects == ["tag_scale"]
@@ -192,7 +192,7 @@ def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():
     train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
     axes = np.array([False, True, False, False, False, False])
     search = ModelSearch(rig, base, items, train, held, train, axes)
-    cands = [c for c in default_candidates() if isinstance(c, ProjectionCandidate)]
+    cands = [c for c in CANDIDATES.values() if isinstance(c, ProjectionCandidate)]
     chosen = search.select(search.rank(cands, significant=True))
     assert chosen.effects[0] == "focal_length"
     assert chosen.corner_after < 0.3  # measured 0.19 px; tag_scale alone gives 4.26 px

@@ -12,7 +12,7 @@ import json
 import pytest
 from typer.testing import CliRunner
 
-from simgap.analysis.fitting import geometric_effects
+from simgap.analysis.candidates import geometric_effects
 from simgap.cli import app
 
 

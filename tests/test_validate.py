@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from simgap.analysis.fitting import geometric_effects
+from simgap.analysis.candidates import geometric_effects
 from simgap.cli import app
 
 

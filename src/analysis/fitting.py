@@ -15,6 +15,9 @@ Two kinds of candidate:
     are reused; only the stages the effect touches are recomputed): the appearance effects of
     :mod:`simgap.analysis.appearance`, fitted continuously on the image evidence.
 
+The candidates of the diagnosis, keyed by effect name, are
+:data:`simgap.analysis.candidates.CANDIDATES`.
+
 Every candidate predicts the simulated error *with* the effect as the baseline simulated error
 plus the effect's change; model choice is ``simgap.analysis.selection``.
 """
@@ -25,7 +28,7 @@ import dataclasses
 import time
 import warnings
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -36,6 +39,9 @@ from simgap.core.rig import Rig
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
 from simgap.pose.estimate import estimate_pose, marker_object_points, pose_error
+
+if TYPE_CHECKING:
+    from simgap.analysis.runner import Runner
 
 
 @dataclass
@@ -207,6 +213,8 @@ class ProjectionCandidate:
     """
 
     kind = "projection"
+    #: no image statistic of its own: fitted on the corners, always a candidate
+    fit_stats: tuple[str, ...] = ()
 
     def __init__(self, effect: str, params: list[tuple[str, float, float]]) -> None:
         self.effect = effect
@@ -357,32 +365,6 @@ class SimulationCandidate:
         """The simulation's state with the effect at ``params``."""
         return make_effect(self.effect, params).apply(base)
 
-    def delta(self, runner, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
+    def delta(self, runner: Runner, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
         """Change of the simulated error (N, 6) with the fitted effect (m, rad)."""
-        return runner(self.apply(base, fit.params), items) - runner(base, items)
-
-
-def default_candidates() -> list:
-    """The geometric and calibration part of the diagnosis catalogue, with fitted parameters.
-
-    The appearance part is :func:`simgap.analysis.appearance.appearance_candidates`.
-    """
-    return [
-        ProjectionCandidate("focal_length", [("scale", 0.01, 0.25)]),
-        ProjectionCandidate("principal_point", [("dx_px", 5.0, 150.0), ("dy_px", 5.0, 150.0)]),
-        ProjectionCandidate("lens_distortion", [("k1", 0.05, 1.5), ("k2", 0.1, 1.5)]),
-        ProjectionCandidate(
-            "camera_mount",
-            [(f"translation_m[{i}]", 0.002, 0.04) for i in range(3)]
-            + [(f"rotation_rad[{i}]", 0.01, 0.25) for i in range(3)],
-        ),
-        ProjectionCandidate("turntable_offset", [("angle_rad", 0.01, 0.4)]),
-        ProjectionCandidate("carriage_pitch", [("scale", 0.01, 0.15)]),
-        ProjectionCandidate("tag_scale", [("scale", 0.01, 0.25)]),
-        ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.001, 0.015) for i in range(3)]),
-    ]
-
-
-def geometric_effects() -> set[str]:
-    """Names of the geometric and calibration effects of the catalogue (projection effects)."""
-    return {c.effect for c in default_candidates()}
+        return runner.errors(self.apply(base, fit.params), items) - runner.errors(base, items)

@@ -26,6 +26,7 @@ from simgap.analysis.fitting import (
     gap_score,
     median_abs_gap,
 )
+from simgap.analysis.runner import Runner
 from simgap.analysis.scoring import (
     NOISE_STATS,
     Scored,
@@ -60,8 +61,8 @@ class ModelSearch:
         Item indices: training, held-out, and the training subsample used for simulation fits.
     axes : ndarray of bool (6,)
         Axes on which the pose gap is scored (those with a significant gap).
-    runner : callable or None
-        Runs a state through the cached pipeline (``SimRunner``); needed by simulation effects.
+    runner : Runner or None
+        Runs a state through the cached pipeline; needed by simulation effects.
     corner_unit_px : float
         Unit of the corner channel (px): :data:`CORNER_UNIT_PX` or the capture's own corner
         noise when larger (:func:`corner_unit`).
@@ -74,7 +75,7 @@ class ModelSearch:
     held: np.ndarray
     sim_train: np.ndarray
     axes: np.ndarray
-    runner: Any = None
+    runner: Runner | None = None
     corner_unit_px: float = CORNER_UNIT_PX
     _evaluated: dict[tuple[str, ...], Scored] = field(default_factory=dict, repr=False)
 
@@ -101,7 +102,7 @@ class ModelSearch:
         fits: list[tuple[Any, Fit]] = []
         for cand in model:
             if not isinstance(cand, ProjectionCandidate):
-                fits.append((cand, cand.fit(runner, base, st, st.real_err, self.axes)))
+                fits.append((cand, cand.fit(runner, base, st)))
         proj = sorted(
             (c for c in model if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
         )

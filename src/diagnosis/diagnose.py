@@ -27,8 +27,9 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.appearance import appearance_candidates, signature_significant
-from simgap.analysis.fitting import default_candidates, gap_score, median_abs_gap
+from simgap.analysis.appearance import signature_significant
+from simgap.analysis.candidates import CANDIDATES
+from simgap.analysis.fitting import gap_score, median_abs_gap
 from simgap.analysis.scoring import (
     Scored,
     bootstrap_reductions,
@@ -120,7 +121,7 @@ class Diagnosis:
             state = cand.apply(state, fit.params)
         h = self.items.subset(self.report)
         t0 = time.perf_counter()
-        pred = self.runner(state, h)
+        pred = self.runner.errors(state, h)
         return {
             "heldout_gap_after": gap_score(h.real_err, pred, h.scale, self.axes),
             "heldout_gap_after_per_axis": _per_axis(median_abs_gap(h.real_err, pred)),
@@ -189,7 +190,8 @@ def diagnose(
     settings : DiagnoseSettings, optional
         Splits, subsample sizes and thresholds (default: :class:`DiagnoseSettings`).
     candidates : list, optional
-        Candidate effects, projection, simulation or appearance (default: the whole catalogue).
+        Candidate effects, projection or appearance (default: the whole catalogue,
+        :data:`simgap.analysis.candidates.CANDIDATES`).
         An appearance effect is kept only where one of its own image statistics differs
         significantly (:func:`simgap.analysis.appearance.signature_significant`).
 
@@ -210,11 +212,11 @@ def diagnose(
     where = where_summary(d.real, d.sim, d.field, d.where)
     significant = where["significant"]
     if candidates is None:
-        candidates = default_candidates() + appearance_candidates(d.rig.camera.fx)
+        candidates = list(CANDIDATES.values())
     # an appearance effect is a candidate only where one of its own image statistics differs
     # significantly (the where step, over every comparable tag; the report split's pose gap,
     # on which the reduction is measured, plays no part in it)
-    candidates = [c for c in candidates if signature_significant(c.effect, where["image_tests"])]
+    candidates = [c for c in candidates if signature_significant(c, where["image_tests"])]
     ranking = d.search.rank(candidates, significant) if len(d.items) >= 2 else []
     chosen = d.search.select(ranking) if significant else None
     left = unexplained_evidence(chosen, where, settings) if significant else []

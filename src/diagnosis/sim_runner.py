@@ -19,9 +19,9 @@ _FIELD_SHAPES = {"error": (6,), "corners": (4, 2), "image_stats": (len(STAT_NAME
 class SimRunner:
     """Runs variant states through the simulator for a set of items (in process, memoised).
 
-    This is the ``runner`` of :class:`simgap.analysis.selection.ModelSearch` and of the
-    simulation-fitted candidates: ``runner(state, items)`` gives simulated errors, and
-    :meth:`corners`, :meth:`stats`, :meth:`detected`, :meth:`depths` the other evidence.
+    The :class:`simgap.analysis.runner.Runner` of :class:`simgap.analysis.selection.ModelSearch`
+    and of the simulation-fitted candidates: :meth:`errors`, :meth:`corners`, :meth:`stats`,
+    :meth:`detected` and :meth:`depths` give the simulated evidence.
 
     Parameters
     ----------
@@ -34,6 +34,8 @@ class SimRunner:
     def __init__(self, exp: Experiment, simulator: Simulator) -> None:
         self.exp, self.simulator = exp, simulator
         self.rig = exp.rig_model
+        #: focal length of the simulated camera (px): the capture's calibration
+        self.focal_px = float(self.rig.camera.fx)
         self.tags = simulator.tags(exp)
         self._memo: dict[tuple, dict[str, np.ndarray]] = {}
 
@@ -60,7 +62,7 @@ class SimRunner:
             out[i] = self._memo[key][field][self.tags.index(int(items.tag[i]))]
         return out
 
-    def __call__(self, state: VariantState, items: Items) -> np.ndarray:
+    def errors(self, state: VariantState, items: Items) -> np.ndarray:
         """Repeat-mean simulated errors (N, 6) of ``items`` under ``state`` (m, rad)."""
         return self._results(state, items, "error")
 

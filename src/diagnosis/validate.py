@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from simgap.analysis.fitting import geometric_effects
+from simgap.analysis.candidates import geometric_effects
 from simgap.core.atomic import atomic_write
 from simgap.core.config import deep_merge
 from simgap.diagnosis.diagnose import diagnose

@@ -1,0 +1,247 @@
+"""Sensor noise fitted by the photon transfer of the excess noise (EMVA 1288).
+
+The appearance candidate ``sensor_noise`` (:class:`SensorNoiseCandidate`): shot and read noise
+of the real camera from the noise of flat ink and paper cells against their level, beyond what
+the simulation already has, modelled the way the image statistics measure it (the grey frame of
+8-bit sRGB channels clipped at black: :func:`grey_noise`).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+
+import numpy as np
+from scipy.interpolate import RectBivariateSpline
+from scipy.optimize import least_squares
+
+from simgap.analysis.appearance import AppearanceCandidate, misfit_rms, signature_supported
+from simgap.analysis.fitting import Fit, Items
+from simgap.analysis.runner import Runner
+from simgap.effects.state import VariantState
+from simgap.pose.image_stats import STAT_INDEX, linearise
+from simgap.render import imaging
+from simgap.render.imaging import GRAY_NOISE_VARIANCE_RATIO
+
+#: Largest photo-response non-uniformity of a real camera the noise fit allows (relative sigma):
+#: EMVA 1288 datasheets give below 1 % for machine-vision CMOS sensors; 2 % allows for the
+#: print's texture. Without a bound, shot noise and a multiplicative term cannot be told apart
+#: over the narrow range of paper levels of a training split (a blind capture's fit ran off to
+#: a 10^6 e full well when its renderer's noise was twice the simulation's).
+PRNU_MAX = 0.02
+#: Range of full wells fitted (electrons per linear 1.0): from a very noisy sensor to none
+#: (10^6 e is the photon noise of a 20-bit sensor, far below the 8-bit frame's steps).
+FULL_WELL_BOUNDS_E = (10.0, 1e6)
+#: (level, spatial noise) and (level, temporal noise) statistics of the ink and paper cells.
+NOISE_PAIRS = (("ink_linear", "noise_ink_linear"), ("paper_linear", "noise_paper_linear"))
+TEMPORAL_NOISE_PAIRS = (
+    ("ink_linear", "temporal_noise_ink_linear"),
+    ("paper_linear", "temporal_noise_paper_linear"),
+)
+#: Fixed-point steps that recover the level before clipping at black from a measured median.
+CLIP_STEPS = 12
+
+
+class SensorNoiseCandidate(AppearanceCandidate):
+    """Shot + read noise from the photon transfer of the excess noise (EMVA 1288).
+
+    The effect adds, in each of R, G and B at linear level ``mu``, the variance
+    ``mu / full_well + (read / full_well)^2`` (linear 1.0 = ``full_well`` electrons). What the
+    image statistics see of it on the grey frame, and what the fit models:
+
+    - the grey frame averages the channels: :data:`~simgap.render.imaging.GRAY_NOISE_VARIANCE_RATIO`
+      (0.447) of the per-channel variance;
+    - the 8-bit frame clips each channel at black and averages them in sRGB-encoded values: the
+      median and variance of the linearised grey value (:func:`grey_noise`) at the ink's level;
+    - a multiplicative term ``c mu^2`` beside it: the real camera's spatial variance of flat
+      cells that grows with the level squared (photo-response non-uniformity in EMVA 1288,
+      print texture) less the simulation's own render noise, which the real camera does not
+      have: between minus the simulation's and :data:`PRNU_MAX` squared. It is not part of the
+      effect.
+
+    The excess variance (real minus simulated) of ink and paper regions of every training tag is
+    fitted by bounded robust least squares on ``(1 / full_well, (read / full_well)^2, c)``.
+    Where the capture has two frames of a pose, shot and read noise are fitted on the temporal
+    noise instead (the frames' difference: no fixed pattern, so no ``c``; the simulation's own
+    sensor noise, if it models one, subtracted), and ``c`` alone on the spatial excess: over the
+    narrow range of paper levels of one capture the spatial noise cannot tell shot noise from
+    ``c`` (seed 25: full wells 1.4-2.2x too large from one frame).
+    """
+
+    n_params = 2
+
+    def __init__(self) -> None:
+        stats = ("noise_paper_linear", "noise_ink_linear")
+        super().__init__("sensor_noise", stats, "full_well_e", FULL_WELL_BOUNDS_E, 0.0)
+
+    @staticmethod
+    def excess_variance(x: np.ndarray, level: np.ndarray) -> np.ndarray:
+        """Predicted excess variance of the linearised grey frame at measured ``level``.
+
+        ``x`` = (1 / full well, (read / full well)^2, multiplicative c); linear units (squared).
+        ``level`` is the median of the linearised grey values; the level before clipping at
+        black is recovered from it by fixed-point steps (:func:`grey_noise`).
+        """
+        slope, intercept, c = x
+        mu = level.copy()
+        for _ in range(CLIP_STEPS):
+            sigma = np.sqrt(slope * np.clip(mu, 0.0, None) + intercept) + 1e-12
+            median, variance = grey_noise(mu, sigma)
+            mu = mu + (level - median)
+        return variance + c * level**2
+
+    @staticmethod
+    def _samples(
+        items: Items, pairs: tuple[tuple[str, str], ...]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Levels, excess variances (real - simulated) and real variances of ``pairs``' cells.
+
+        The simulated noise of a temporal statistic is NaN (a render is one frame) and counts
+        as 0; cells without a measured real noise are left out.
+        """
+        levels, excess, total = [], [], []
+        for level, noise in pairs:
+            mu = items.real_stats[:, STAT_INDEX[level]]
+            real_var = items.real_stats[:, STAT_INDEX[noise]] ** 2
+            var = real_var - np.nan_to_num(items.sim_stats[:, STAT_INDEX[noise]] ** 2)
+            ok = np.isfinite(mu) & np.isfinite(var) & (real_var > 0)
+            levels.append(mu[ok])
+            excess.append(var[ok])
+            total.append(real_var[ok])
+        return tuple(np.concatenate(a) for a in (levels, excess, total))
+
+    @classmethod
+    def _simulated_temporal_variance(cls, base: VariantState, level: np.ndarray) -> np.ndarray:
+        """Temporal variance the simulation's own sensor noise (if any) has at ``level``."""
+        for name, params in base.image.ops:
+            if name == "sensor_noise":
+                fw, read = params.full_well_e, params.read_noise_e
+                return cls.excess_variance((1.0 / fw, (read / fw) ** 2, 0.0), level)
+        return np.zeros_like(level)
+
+    def fit(self, runner: Runner | None, base: VariantState, items: Items) -> Fit:
+        """Photon transfer fit of the excess noise variance (temporal where the capture has it)."""
+        t0 = time.perf_counter()
+        mu, var, real_var = self._samples(items, NOISE_PAIRS)
+        if mu.size < 4:
+            none = {"full_well_e": FULL_WELL_BOUNDS_E[1], "read_noise_e": 0.0}
+            return Fit(self.effect, none, 0.0, {})
+        # c is the real multiplicative variance (>= 0) less the simulation's own render noise
+        # per level squared; it is at most PRNU_MAX^2: no real camera is noisier than the
+        # simulation by more than its non-uniformity (it has no render noise)
+        i_level, i_noise = STAT_INDEX["paper_linear"], STAT_INDEX["noise_paper_linear"]
+        sim_c = float(
+            np.nanmedian(items.sim_stats[:, i_noise] ** 2 / items.sim_stats[:, i_level] ** 2)
+        )
+        sim_c = sim_c if np.isfinite(sim_c) else 0.0
+        c_bounds = (-sim_c - 1e-12, PRNU_MAX**2)
+        mu_t, var_t, real_t = self._samples(items, TEMPORAL_NOISE_PAIRS)
+        var_t = var_t - self._simulated_temporal_variance(base, mu_t)
+        temporal = mu_t.size >= 4 and bool(np.any(var_t > 0))
+        # the slope 1 / full well, bounded by the full wells fitted
+        slope_lo, slope_hi = 1.0 / FULL_WELL_BOUNDS_E[1], 1.0 / FULL_WELL_BOUNDS_E[0]
+        # a variance estimated from n pixel pairs has a standard error proportional to it:
+        # residuals relative to the measured variance weigh every tag alike
+        if temporal:
+            # EMVA 1288: the temporal variance has no fixed-pattern part, so shot and read noise
+            # are fitted alone; the spatial excess then gives the multiplicative term only
+            shot_read = least_squares(
+                lambda x: (self.excess_variance((x[0], x[1], 0.0), mu_t) - var_t) / real_t,
+                x0=[1e-3, 1e-5],
+                x_scale=[1e-3, 1e-4],
+                bounds=([slope_lo, 0.0], [slope_hi, 1e-2]),
+                loss="soft_l1",
+            ).x
+            c = least_squares(
+                lambda x: (self.excess_variance((*shot_read, x[0]), mu) - var) / real_var,
+                x0=[0.5 * sum(c_bounds)],
+                x_scale=[1e-3],
+                bounds=c_bounds,
+                loss="soft_l1",
+            ).x
+            x = np.concatenate([shot_read, c])
+        else:
+            x = least_squares(
+                lambda x: (self.excess_variance(x, mu) - var) / real_var,
+                x0=[1e-3, 1e-5, 0.5 * sum(c_bounds)],
+                x_scale=[1e-3, 1e-4, 1e-3],
+                bounds=([slope_lo, 0.0, c_bounds[0]], [slope_hi, 1e-2, c_bounds[1]]),
+                loss="soft_l1",
+            ).x
+        full_well = float(np.clip(1.0 / x[0], *FULL_WELL_BOUNDS_E))
+        read = float(min(np.sqrt(x[1]) * full_well, 1e3))
+        # the noise statistics the fitted excess predicts, for the signature gate
+        stats = self.fit_stats
+        pred = items.sim_stats.copy()
+        for level, noise in NOISE_PAIRS:
+            i, j = STAT_INDEX[level], STAT_INDEX[noise]
+            variance = items.sim_stats[:, j] ** 2 + self.excess_variance(x, items.real_stats[:, i])
+            pred[:, j] = np.sqrt(np.clip(variance, 0.0, None))
+        rms_before = misfit_rms(stats, items.real_stats, items.sim_stats)
+        rms_after = misfit_rms(stats, items.real_stats, pred)
+        return Fit(
+            self.effect,
+            {"full_well_e": full_well, "read_noise_e": read},
+            time.perf_counter() - t0,
+            {
+                "slope_per_level": float(x[0]),
+                "intercept": float(x[1]),
+                "multiplicative_variance": float(x[2]),
+                "temporal": temporal,
+                "supported": signature_supported(rms_before, rms_after),
+            },
+        )
+
+
+@functools.cache
+def grey_noise_table() -> tuple[np.ndarray, np.ndarray, RectBivariateSpline, RectBivariateSpline]:
+    """Median and variance of the linearised grey value of noisy R, G, B (see :func:`grey_noise`).
+
+    Each channel is ``max(mu + sigma n, 0)`` with ``n ~ N(0, 1)`` independent, encoded to 8-bit
+    sRGB, converted to grey and linearised: the camera pipeline and the image statistics'
+    own functions. Tabulated against ``z = mu / sigma`` (-3 to 6) and ``log sigma``; Monte
+    Carlo with a fixed seed (the same table in every run; ~1.6 s, once per process). Returns
+    the two grids and bilinear interpolators of the median and the variance on them (degree-1
+    splines through the grid values: the same interpolation as
+    ``scipy.interpolate.RegularGridInterpolator``, about ten times cheaper to call, which the
+    photon-transfer fit does thousands of times).
+    """
+    z = np.linspace(-3.0, 6.0, 61)
+    log_sigma = np.linspace(np.log(1e-3), np.log(0.3), 25)
+    n = np.random.default_rng(0).standard_normal((4000, 3)).astype(np.float32)
+    median = np.empty((z.size, log_sigma.size))
+    variance = np.empty_like(median)
+    for j, sigma in enumerate(np.exp(log_sigma)):
+        rgb = sigma * (z[:, None, None] + n[None])
+        grey = linearise(imaging.to_gray(imaging.encode_srgb8(rgb)))
+        median[:, j], variance[:, j] = np.median(grey, axis=1), np.var(grey, axis=1)
+    return (
+        z,
+        log_sigma,
+        RectBivariateSpline(z, log_sigma, median, kx=1, ky=1),
+        RectBivariateSpline(z, log_sigma, variance, kx=1, ky=1),
+    )
+
+
+def grey_noise(mu: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Median and variance of the linearised grey value at channel level ``mu``, noise ``sigma``.
+
+    What the image statistics measure of independent noise ``sigma`` in R, G and B at linear
+    level ``mu``: the grey frame averages the channels (variance
+    :data:`~simgap.render.imaging.GRAY_NOISE_VARIANCE_RATIO` of one channel's), the 8-bit frame
+    clips each at black first and averages them in sRGB-encoded values. Far above black
+    (``mu / sigma`` > 6) the median is ``mu`` and the variance the ratio times ``sigma^2``.
+    """
+    z_grid, s_grid, median, variance = grey_noise_table()
+    z = mu / sigma
+    far = z > z_grid[-1]
+    z_in = np.clip(z, z_grid[0], z_grid[-1])
+    log_sigma = np.clip(np.log(sigma), s_grid[0], s_grid[-1])
+    scale = sigma / np.exp(log_sigma)  # beyond the sigma grid, scale the nearest column
+    return (
+        np.where(far, mu, median.ev(z_in, log_sigma) * scale),
+        np.where(
+            far, GRAY_NOISE_VARIANCE_RATIO * sigma**2, variance.ev(z_in, log_sigma) * scale**2
+        ),
+    )
+
