@@ -16,7 +16,8 @@ from simgap.analysis.fitting import (
     ProjectionSet,
     project_items,
 )
-from simgap.analysis.scoring import Scored, parsimonious
+from simgap.analysis.scored import Scored
+from simgap.analysis.scoring import parsimonious
 from simgap.analysis.selection import ModelSearch
 from simgap.core.rig import load_rig
 from simgap.effects import make_effect
@@ -118,7 +119,17 @@ def test_joint_fit_separates_principal_point_and_focal_length():
 def _scored(effect: str, n_params: int, corner_after: float) -> Scored:
     cand = ProjectionCandidate(effect, [(f"x{i}", 1.0, 1.0) for i in range(n_params)])
     nan6 = np.full(6, np.nan)
-    return Scored([(cand, Fit(effect, {}))], 5.0, 0.2, nan6, nan6, 5.0, 0.2, 12.9, corner_after)
+    return Scored(
+        fits=[(cand, Fit(effect, {}))],
+        pose_gap_before=5.0,
+        pose_gap_after=0.2,
+        median_abs_gap_before=nan6,
+        median_abs_gap_after=nan6,
+        pose_gap_all_axes_before=5.0,
+        pose_gap_all_axes_after=0.2,
+        corner_gap_before_px=12.9,
+        corner_gap_after_px=corner_after,
+    )
 
 
 def test_parsimony_prefers_the_simpler_of_equivalent_explanations():
@@ -138,8 +149,8 @@ def test_selection_finds_a_pair_a_richer_effect_would_mimic():
     hidden = {"principal_point": {"dx_px": 9.0, "dy_px": -7.0}, "focal_length": {"scale": 0.02}}
     items, base = _items(rig, hidden, noise_px=0.2, seed=1)
     idx = np.arange(len(items))
-    train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
-    search = ModelSearch(rig, base, items, train, held, train, np.ones(6, bool))
+    fit, choose = idx[idx % 3 != 0], idx[idx % 3 == 0]
+    search = ModelSearch(rig, base, items, fit, choose, fit, np.ones(6, bool))
     cands = [c for c in CANDIDATES.values() if isinstance(c, ProjectionCandidate)]
     ranking = search.rank(cands, significant=True)
     chosen = search.select(ranking)
@@ -148,7 +159,7 @@ def test_selection_finds_a_pair_a_richer_effect_would_mimic():
     # 0.2 px noise on ~100 corners: measured errors 0.3 % (scale) and < 0.1 px
     assert fitted["focal_length"]["scale"] == pytest.approx(0.02, rel=0.05)
     assert fitted["principal_point"]["dx_px"] == pytest.approx(9.0, abs=0.3)
-    assert chosen.reduction > 0.9
+    assert chosen.pose_gap_reduction > 0.9
     assert min(search.contributions(chosen).values()) >= 1.0
 
 
@@ -159,22 +170,24 @@ def test_a_geometric_effect_that_moves_the_pose_away_never_starts_the_selection(
     rig = load_rig()
     items, base = _items(rig, {"tag_scale": {"scale": 0.01}}, noise_px=0.1, seed=2)
     idx = np.arange(len(items))
-    train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
-    search = ModelSearch(rig, base, items, train, held, train, np.ones(6, bool))
+    fit, choose = idx[idx % 3 != 0], idx[idx % 3 == 0]
+    search = ModelSearch(rig, base, items, fit, choose, fit, np.ones(6, bool))
     cand = CANDIDATES["tag_scale"]
     scored = search.rank([cand], significant=True)[0]
-    assert scored.after_all < scored.before_all  # a true print scale brings the pose closer
+    # a true print scale brings the pose closer
+    assert scored.pose_gap_all_axes_after < scored.pose_gap_all_axes_before
     assert search.select([scored]).effects == ["tag_scale"]
     # the same corners, but the pose 5 % further away than without the effect: no explanation
-    away = dataclasses.replace(scored, after_all=1.05 * scored.before_all)
+    before = scored.pose_gap_all_axes_before
+    away = dataclasses.replace(scored, pose_gap_all_axes_after=1.05 * before)
     assert search.select([away]) is None
     # blind seed 25, trial 15: the print scale following a motion blur's corners brought the
     # choice split's poses 6 % closer (0.554 -> 0.521; the report split's moved 42 % away). A
     # geometric effect must bring them MIN_POSE_REDUCTION (10 %) closer; every true one that
     # started a model on seeds 22, 23 and 25 did by 19 % or more
-    slightly = dataclasses.replace(scored, after_all=0.94 * scored.before_all)
+    slightly = dataclasses.replace(scored, pose_gap_all_axes_after=0.94 * before)
     assert search.select([slightly]) is None
-    clearly = dataclasses.replace(scored, after_all=0.81 * scored.before_all)
+    clearly = dataclasses.replace(scored, pose_gap_all_axes_after=0.81 * before)
     assert search.select([clearly]).effects == ["tag_scale"]
 
 
@@ -189,13 +202,13 @@ def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():
         rig, {"focal_length": {"scale": -0.03}}, noise_px=0.1, seed=1, shrink_px=0.6
     )
     idx = np.arange(len(items))
-    train, held = idx[idx % 3 != 0], idx[idx % 3 == 0]
+    fit, choose = idx[idx % 3 != 0], idx[idx % 3 == 0]
     axes = np.array([False, True, False, False, False, False])
-    search = ModelSearch(rig, base, items, train, held, train, axes)
+    search = ModelSearch(rig, base, items, fit, choose, fit, axes)
     cands = [c for c in CANDIDATES.values() if isinstance(c, ProjectionCandidate)]
     chosen = search.select(search.rank(cands, significant=True))
     assert chosen.effects[0] == "focal_length"
-    assert chosen.corner_after < 0.3  # measured 0.19 px; tag_scale alone gives 4.26 px
+    assert chosen.corner_gap_after_px < 0.3  # measured 0.19 px; tag_scale alone gives 4.26 px
     # without refit, the focal length moves the held-out depth by ~28 noise units
     assert search.contributions(chosen)["focal_length"] > 10
 
@@ -235,7 +248,7 @@ def test_gap_significance_noise_versus_trend():
 
 def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
     """Losing as many tags as the capture in the same group matches, whichever ones they are."""
-    from simgap.analysis.scoring import detection_score
+    from simgap.analysis.channels import detection_score
     from simgap.analysis.thresholds import DETECTION_UNIT
 
     real = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 1.0])

@@ -20,11 +20,8 @@ from types import MappingProxyType
 
 from simgap.analysis.appearance import AppearanceCandidate, JpegCandidate
 from simgap.analysis.defocus import DefocusCandidate
-from simgap.analysis.fitting import ProjectionCandidate, SimulationCandidate
+from simgap.analysis.fitting import Candidate, ProjectionCandidate
 from simgap.analysis.sensor_noise import SensorNoiseCandidate
-
-#: A candidate effect of the diagnosis: fitted on the corners or on the image evidence.
-Candidate = ProjectionCandidate | SimulationCandidate
 
 #: Edge widths along x and y (the all-sides width is reported only).
 EDGE_WIDTHS = ("edge_width_x_px", "edge_width_y_px")

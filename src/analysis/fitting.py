@@ -368,3 +368,7 @@ class SimulationCandidate:
     def delta(self, runner: Runner, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
         """Change of the simulated error (N, 6) with the fitted effect (m, rad)."""
         return runner.errors(self.apply(base, fit.params), items) - runner.errors(base, items)
+
+
+#: A candidate effect of the diagnosis: fitted on the corners or by running the pipeline.
+Candidate = ProjectionCandidate | SimulationCandidate

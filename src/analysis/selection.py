@@ -1,39 +1,28 @@
-"""Which effects explain a gap: fit models of one or more effects, score them held out, choose.
+"""Which effects explain a gap: fit models of one or more effects, score them, choose one.
 
-A *model* is a set of catalogue effects. Projection effects in a model are fitted jointly on the
-training corners; simulation effects one by one on top. Every model is scored on held-out
-configurations by the residual of the detected corners (px) and by the pose gap. The search
-ranks single effects, then adds effects greedily while the held-out corner residual falls, and
-after every step simplifies the model: effects are dropped or swapped for ones with fewer
-parameters while the residual stays *equivalent* (the data cannot tell the models apart, so the
-simpler explanation is reported and the others are listed).
+A *model* is a set of catalogue effects. Simulation (appearance) effects are fitted one by one on
+the image evidence of the fit split, projection effects jointly on its corners on top. Every
+model is scored on the choose split on all evidence channels (:mod:`simgap.analysis.channels`).
+The search ranks single effects, then adds effects greedily while the combined misfit falls and
+some channel improves distinguishably (:mod:`simgap.analysis.scoring`), and after every step
+simplifies the model: effects are dropped or swapped for ones with fewer parameters while the
+model stays *as good* (the data cannot tell the models apart, so the simpler explanation is
+reported and the others are listed). The report split is scored only for the chosen model.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
-from simgap.analysis.fitting import (
-    Fit,
-    Items,
-    ProjectionCandidate,
-    ProjectionSet,
-    corner_score,
-    gap_score,
-    median_abs_gap,
-)
+from simgap.analysis.channels import NOISE_STATS, Prediction
+from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
 from simgap.analysis.runner import Runner
+from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
-    NOISE_STATS,
-    Scored,
     as_good,
-    detection_groups,
-    detection_score,
-    image_misfits,
     improves,
     improves_on_nothing,
     parsimonious,
@@ -47,7 +36,7 @@ from simgap.effects.state import VariantState
 
 @dataclass
 class ModelSearch:
-    """Fits, scores and chooses models of effects on a train / held-out split of items.
+    """Fits, scores and chooses models of effects on a fit / choose split of items.
 
     Attributes
     ----------
@@ -57,38 +46,41 @@ class ModelSearch:
         The simulation's state, to which effects are added.
     items : Items
         Comparable configurations with their real and simulated errors and corners.
-    train, held, sim_train : ndarray of int
-        Item indices: training, held-out, and the training subsample used for simulation fits.
-    axes : ndarray of bool (6,)
+    fit_index, choose_index, sim_fit_index : ndarray of int
+        Item indices: the fit split, the choose split (models are scored and chosen on it) and
+        the subsample of the fit split used for simulation fits.
+    significant_axes : ndarray of bool (6,)
         Axes on which the pose gap is scored (those with a significant gap).
     runner : Runner or None
         Runs a state through the cached pipeline; needed by simulation effects.
     corner_unit_px : float
-        Unit of the corner channel (px): :data:`CORNER_UNIT_PX` or the capture's own corner
-        noise when larger (:func:`corner_unit`).
+        Unit of the corner channel (px): :data:`~simgap.analysis.thresholds.CORNER_UNIT_PX` or
+        the capture's own corner noise when larger
+        (:func:`simgap.analysis.channels.corner_unit`).
     """
 
     rig: Rig
     base: VariantState
     items: Items
-    train: np.ndarray
-    held: np.ndarray
-    sim_train: np.ndarray
-    axes: np.ndarray
+    fit_index: np.ndarray
+    choose_index: np.ndarray
+    sim_fit_index: np.ndarray
+    significant_axes: np.ndarray
     runner: Runner | None = None
     corner_unit_px: float = CORNER_UNIT_PX
     _evaluated: dict[tuple[str, ...], Scored] = field(default_factory=dict, repr=False)
 
-    def _key(self, model: tuple) -> tuple[str, ...]:
+    def _key(self, model: tuple[Candidate, ...]) -> tuple[str, ...]:
         proj = sorted(c.effect for c in model if isinstance(c, ProjectionCandidate))
         return tuple(proj) + tuple(c.effect for c in model if c.effect not in proj)
 
-    def evaluate(self, model: tuple) -> Scored:
-        """Fit a model on the training items and score it on the held-out ones (memoised).
+    def evaluate(self, model: tuple[Candidate, ...]) -> Scored:
+        """Fit a model on the fit split and score it on the choose split (memoised).
 
         Simulation (appearance) effects are fitted first, each on the image evidence of the
-        training subsample; their change of the detected corners is then added to the simulated
-        corners, and the projection effects are fitted jointly on the training corners on top
+        fit split's subsample; their change of the detected corners is then added to the
+        simulated corners, and the projection effects are fitted jointly on the fit split's
+        corners on top
         (geometry is what the corners show once the image formation is modelled; fitting it
         first would let, say, a print scale soak up a blur's edge bias and then count it twice).
         Predictions add each effect's change of error (m, rad), corners (px), image statistics
@@ -98,8 +90,8 @@ class ModelSearch:
         if key in self._evaluated:
             return self._evaluated[key]
         rig, base, runner = self.rig, self.base, self.runner
-        tr, st = self.items.subset(self.train), self.items.subset(self.sim_train)
-        fits: list[tuple[Any, Fit]] = []
+        tr, st = self.items.subset(self.fit_index), self.items.subset(self.sim_fit_index)
+        fits: list[tuple[Candidate, Fit]] = []
         for cand in model:
             if not isinstance(cand, ProjectionCandidate):
                 fits.append((cand, cand.fit(runner, base, st)))
@@ -116,12 +108,12 @@ class ModelSearch:
             projection = (joint, fit)
             members = joint.member_fits(fit) if len(proj) > 1 else [fit]
             fits = list(zip(proj, members, strict=True)) + fits
-        scored = self.score(fits, projection, self.held)
+        scored = self.score(fits, projection, self.choose_index)
         self._evaluated[key] = scored
         return scored
 
     def _simulation_changes(
-        self, fits: list[tuple[Any, Fit]], items: Items
+        self, fits: list[tuple[Candidate, Fit]], items: Items
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """Changes the simulation effects of ``fits`` make on ``items``, summed over effects.
 
@@ -155,7 +147,10 @@ class ModelSearch:
         return corners, stats, detected
 
     def score(
-        self, fits: list[tuple[Any, Fit]], projection: tuple[Any, Fit] | None, index: np.ndarray
+        self,
+        fits: list[tuple[Candidate, Fit]],
+        projection: tuple[Candidate, Fit] | None,
+        index: np.ndarray,
     ) -> Scored:
         """Score fitted effects (no refit) on the items at ``index``."""
         rig, base, runner = self.rig, self.base, self.runner
@@ -178,45 +173,34 @@ class ModelSearch:
             proj_record = (joint, fit, h_shifted)
             off_h += np.nan_to_num(joint.delta(rig, base, fit, h_shifted))
             corner_h = corner_h + np.nan_to_num(joint.corner_shift(rig, base, fit.extra["x"], h))
-        pred = h.sim_err + off_h
         has_evidence = h.real_stats is not None and stats_h is not None
-        groups = detection_groups(h)
-        return Scored(
+        prediction = Prediction(
+            error=h.sim_err + off_h,
+            corners=h.sim_corners + corner_h,
+            stats=h.sim_stats + stats_h if has_evidence else None,
+            detected=np.clip(h.sim_detected + det_h, 0.0, 1.0) if has_evidence else None,
+        )
+        return Scored.measured(
             fits,
-            gap_score(h.real_err, h.sim_err, h.scale, self.axes),
-            gap_score(h.real_err, pred, h.scale, self.axes),
-            median_abs_gap(h.real_err, h.sim_err),
-            median_abs_gap(h.real_err, pred),
-            gap_score(h.real_err, h.sim_err, h.scale),
-            gap_score(h.real_err, pred, h.scale),
-            corner_score(h.real_corners, h.sim_corners),
-            corner_score(h.real_corners, h.sim_corners + corner_h),
-            pred,
-            proj_record,
-            simulation_deltas,
-            image_misfits(h.real_stats, h.sim_stats),
-            image_misfits(h.real_stats, h.sim_stats + stats_h if has_evidence else None),
-            detection_score(h.real_detected, h.sim_detected, groups) if has_evidence else 0.0,
-            detection_score(h.real_detected, np.clip(h.sim_detected + det_h, 0.0, 1.0), groups)
-            if has_evidence
-            else 0.0,
             h,
+            prediction,
+            self.significant_axes,
             self.corner_unit_px,
-            h.sim_corners + corner_h,
-            h.sim_stats + stats_h if has_evidence else None,
-            np.clip(h.sim_detected + det_h, 0.0, 1.0) if has_evidence else None,
+            projection=proj_record,
+            simulation_deltas=simulation_deltas,
         )
 
-    def rank(self, candidates, significant: bool) -> list[Scored]:
-        """Fit and score every candidate alone; projection ones only when no gap is significant.
+    def rank(self, candidates: list[Candidate], significant: bool) -> list[Scored]:
+        """Fit and score every candidate alone; appearance ones only when some evidence is.
 
-        Appearance effects whose fit does not explain their own statistics on the training
-        tags (``supported`` false, :data:`simgap.analysis.appearance.SIGNATURE_MIN_GAIN`) are
-        left out, and so are effects a supported one ``excludes`` (a depth-dependent widening
-        of the edges is a lens, not a blur). Ranked on the combined held-out misfit of all evidence
-        (:attr:`Scored.evidence_after`: detected corners, image statistics, detections, each in
-        units of its smallest relevant difference); among indistinguishable ones
-        (:func:`equivalent_models`) the simpler first.
+        ``significant``: some evidence differs significantly (the where step). Appearance
+        effects whose fit does not explain their own statistics on the fit split
+        (``supported`` false, :data:`simgap.analysis.thresholds.SIGNATURE_MIN_GAIN`) are left
+        out, and so are effects a supported one ``excludes`` (a depth-dependent widening of the
+        edges is a lens, not a blur). Ranked on the combined misfit of all evidence on the
+        choose split (:attr:`Scored.evidence_after`: detected corners, pose, detections, image
+        statistics, each in units of its smallest relevant difference); among indistinguishable
+        ones (:func:`simgap.analysis.scoring.equivalent_models`) the simpler first.
         """
         rest = [
             scored
@@ -236,7 +220,7 @@ class ModelSearch:
         return out
 
     def simplify(self, scored: Scored, pool: list) -> Scored:
-        """Simplify a model while it explains the held-out evidence as well.
+        """Simplify a model while it explains the evidence as well.
 
         Effects are dropped, or projection effects swapped for ones with fewer parameters, while
         the model stays :func:`as_good` as ``scored`` on every evidence channel.
@@ -267,7 +251,7 @@ class ModelSearch:
         """Greedy forward search with joint refits, simplified after every step.
 
         A geometric effect enters a model (starts the search, or is added to it) only when it
-        brings the held-out pose at least
+        brings the pose at least
         :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one than
         the model without it (:func:`worsens_pose`): one that follows the corners without
         moving the poses closer is a look-alike of an image effect (measured: a tag print scale
@@ -275,10 +259,10 @@ class ModelSearch:
         on seed 25, 42 % larger on that trial's report split; every true geometric effect that
         started a model on seeds 22, 23 and 25 lowered it by 19 % or more).
 
-        An effect is added while the combined held-out misfit falls and some evidence channel
+        An effect is added while the combined misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`). Effects are returned most important
-        first: by how much their removal worsens the combined held-out evidence (an effect may
+        first: by how much their removal worsens the combined evidence (an effect may
         matter most for the image evidence and move no pose: it is then also :meth:`minor`),
         stochastic effects (sensor noise) after the others: they explain noise and scatter, not
         the systematic gap, and every real camera has some, so they lead only when alone.
@@ -339,7 +323,7 @@ class ModelSearch:
 
         An effect whose :meth:`contributions` is below
         :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` is dropped only when the model
-        without it still explains the held-out evidence as well (:func:`as_good`); otherwise it
+        without it still explains the evidence as well (:func:`as_good`); otherwise it
         stays as a *minor* effect (seen in the corners or images, no pose impact beyond the
         floor). Comparing the evidence, never letting the pose criterion alone swap the
         explanation, is what keeps a refitted look-alike (a tag print scale soaking up a
@@ -367,7 +351,7 @@ class ModelSearch:
         return [e for e, w in self.contributions(scored).items() if w < MINOR_CONTRIBUTION]
 
     def member_deltas(self, scored: Scored) -> dict[str, np.ndarray]:
-        """Held-out change of error (N, 6) due to each effect of a model, the others held fixed.
+        """Change of error (N, 6) of the scored items due to each effect, the others held fixed.
 
         For a projection effect: the model's projection prediction minus the same prediction
         with that effect's parameters set to zero (no refit). For a simulation effect: its own
@@ -375,8 +359,8 @@ class ModelSearch:
         """
         out = dict(scored.simulation_deltas)
         if scored.projection is not None:
-            joint, fit, held = scored.projection
-            full = np.nan_to_num(joint.delta(self.rig, self.base, fit, held))
+            joint, fit, shifted = scored.projection
+            full = np.nan_to_num(joint.delta(self.rig, self.base, fit, shifted))
             members = joint.members if isinstance(joint, ProjectionSet) else [joint]
             if len(members) == 1:
                 out[members[0].effect] = full
@@ -390,24 +374,25 @@ class ModelSearch:
                     x[start : start + len(xm)] = 0.0
                     without = Fit(fit.effect, fit.params, fit.seconds, {"x": x})
                     out[m.effect] = full - np.nan_to_num(
-                        joint.delta(self.rig, self.base, without, held)
+                        joint.delta(self.rig, self.base, without, shifted)
                     )
         return out
 
     def contributions(self, scored: Scored) -> dict[str, float]:
-        """How much each effect of a model moves its held-out pose predictions (dimensionless).
+        """How much each effect of a model moves its pose predictions (dimensionless).
 
-        Per effect: the change of the model's held-out pose predictions that this effect makes
-        with the others held at their fitted values (:meth:`member_deltas`, no refit: a refit
-        would let a look-alike take over its share and make both look irrelevant); per axis the
-        median over items of the absolute change over the item's noise (or the practical floor,
-        the larger), the largest over the axes with a significant gap. Below
+        Per effect: the change of the model's pose predictions on the choose split that this
+        effect makes with the others held at their fitted values (:meth:`member_deltas`, no
+        refit: a refit would let a look-alike take over its share and make both look
+        irrelevant); per axis the median over items of the absolute change over the item's noise
+        (or the practical floor, the larger), the largest over the axes with a significant gap.
+        Below
         :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` the effect changes no pose by a
         relevant amount.
         """
-        held = self.items.subset(self.held)
-        axes = self.axes if np.any(self.axes) else np.ones(6, bool)
+        choose = self.items.subset(self.choose_index)
+        axes = self.significant_axes if np.any(self.significant_axes) else np.ones(6, bool)
         return {
-            effect: float(np.max(np.nanmedian(np.abs(d) / held.scale, axis=0)[axes]))
+            effect: float(np.max(np.nanmedian(np.abs(d) / choose.scale, axis=0)[axes]))
             for effect, d in self.member_deltas(scored).items()
         }

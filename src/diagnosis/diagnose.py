@@ -29,13 +29,10 @@ import xarray as xr
 from simgap.analysis import gap as gapmod
 from simgap.analysis.appearance import signature_significant
 from simgap.analysis.candidates import CANDIDATES
+from simgap.analysis.channels import corner_unit, root_sum_square
 from simgap.analysis.fitting import gap_score, median_abs_gap
-from simgap.analysis.scoring import (
-    Scored,
-    bootstrap_reductions,
-    corner_unit,
-    equivalent_models,
-)
+from simgap.analysis.scored import Scored, bootstrap_reductions
+from simgap.analysis.scoring import equivalent_models
 from simgap.analysis.selection import ModelSearch
 from simgap.analysis.thresholds import MINOR_CONTRIBUTION
 from simgap.core.axes import AXES
@@ -93,25 +90,25 @@ class Diagnosis:
         self.runner = SimRunner(exp, simulator)
         self.base = exp.variant_states()[0][1]
         self.rig = exp.rig_model
-        train, choose, report = split_items(
-            len(self.items), settings.train_fraction, settings.choose_fraction, settings.seed
+        fit, choose, report = split_items(
+            len(self.items), settings.fit_fraction, settings.choose_fraction, settings.seed
         )
-        self.train, self.report = train, report
-        self.held = subsample(choose, settings.max_heldout_items, settings.seed)
-        self.sim_train = subsample(train, settings.max_sim_items, settings.seed)
-        self.where = gapmod.axis_summary(self.field)
-        #: axes where the gap is significant: the held-out gap is scored on them
-        self.axes = np.array([self.where[a]["significant"] for a in AXES])
+        #: item indices of the fit, choose and report splits
+        self.fit_index, self.report_index = fit, report
+        self.choose_index = subsample(choose, settings.max_choose_items, settings.seed)
+        self.axis_gaps = gapmod.axis_summary(self.field)
+        #: axes where the gap is significant: the pose gap is scored on them
+        self.significant_axes = np.array([self.axis_gaps[a]["significant"] for a in AXES])
         self.search = ModelSearch(
             self.rig,
             self.base,
             self.items,
-            self.train,
-            self.held,
-            self.sim_train,
-            self.axes,
-            self.runner,
-            corner_unit(real.reproj_px.isel(variant=0).values),
+            fit_index=self.fit_index,
+            choose_index=self.choose_index,
+            sim_fit_index=subsample(fit, settings.max_sim_fit_items, settings.seed),
+            significant_axes=self.significant_axes,
+            runner=self.runner,
+            corner_unit_px=corner_unit(real.reproj_px.isel(variant=0).values),
         )
 
     def confirm(self, chosen: Scored) -> dict[str, Any]:
@@ -119,11 +116,11 @@ class Diagnosis:
         state = self.base
         for cand, fit in chosen.fits:
             state = cand.apply(state, fit.params)
-        h = self.items.subset(self.report)
+        h = self.items.subset(self.report_index)
         t0 = time.perf_counter()
         pred = self.runner.errors(state, h)
         return {
-            "heldout_gap_after": gap_score(h.real_err, pred, h.scale, self.axes),
+            "heldout_gap_after": gap_score(h.real_err, pred, h.scale, self.significant_axes),
             "heldout_gap_after_per_axis": _per_axis(median_abs_gap(h.real_err, pred)),
             "seconds": time.perf_counter() - t0,
             "configurations": len(h),
@@ -133,8 +130,8 @@ class Diagnosis:
         """The ``combined`` record of ``result.json``: the chosen model on the report split."""
         weight = self.search.contributions(chosen)
         projection = chosen.projection[:2] if chosen.projection else None
-        reported = self.search.score(chosen.fits, projection, self.report)
-        interval = bootstrap_reductions(reported, self.axes, seed=self.settings.seed)
+        reported = self.search.score(chosen.fits, projection, self.report_index)
+        interval = bootstrap_reductions(reported, self.significant_axes, seed=self.settings.seed)
         return {
             "effects": [
                 {
@@ -147,24 +144,24 @@ class Diagnosis:
             ],
             "n_params": chosen.n_params,
             "measured_on": "report split: configurations that neither fitted nor chose the model",
-            "configurations": len(self.report),
-            "heldout_gap_before": reported.before,
-            "heldout_gap_after": reported.after,
-            "reduction": reported.reduction,
-            "reduction_interval_90": interval["pose_reduction"],
-            "heldout_corner_gap_before_px": reported.corner_before,
-            "heldout_corner_gap_after_px": reported.corner_after,
+            "configurations": len(self.report_index),
+            "heldout_gap_before": reported.pose_gap_before,
+            "heldout_gap_after": reported.pose_gap_after,
+            "reduction": reported.pose_gap_reduction,
+            "reduction_interval_90": list(interval.pose_gap),
+            "heldout_corner_gap_before_px": reported.corner_gap_before_px,
+            "heldout_corner_gap_after_px": reported.corner_gap_after_px,
             "heldout_evidence_before": reported.evidence_before,
             "heldout_evidence_after": reported.evidence_after,
             "evidence_reduction": reported.evidence_reduction,
-            "evidence_reduction_interval_90": interval["evidence_reduction"],
-            "heldout_gap_before_per_axis": _per_axis(reported.before_axes),
-            "heldout_gap_after_per_axis": _per_axis(reported.after_axes),
+            "evidence_reduction_interval_90": list(interval.evidence),
+            "heldout_gap_before_per_axis": _per_axis(reported.median_abs_gap_before),
+            "heldout_gap_after_per_axis": _per_axis(reported.median_abs_gap_after),
             "choice": {
-                "configurations": len(self.held),
+                "configurations": len(self.choose_index),
                 "heldout_evidence_before": chosen.evidence_before,
                 "heldout_evidence_after": chosen.evidence_after,
-                "heldout_gap_after": chosen.after,
+                "heldout_gap_after": chosen.pose_gap_after,
             },
             "equivalent_models": equivalent_alternatives(chosen, self.search.tried),
         }
@@ -209,7 +206,7 @@ def diagnose(
     seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"])
     sim = simulator.dataset(with_render_seeds(sim_exp, seeds))
     d = Diagnosis(real, sim, sim_exp, simulator, settings)
-    where = where_summary(d.real, d.sim, d.field, d.where)
+    where = where_summary(d.real, d.sim, d.field, d.axis_gaps)
     significant = where["significant"]
     if candidates is None:
         candidates = list(CANDIDATES.values())
@@ -221,16 +218,16 @@ def diagnose(
     chosen = d.search.select(ranking) if significant else None
     left = unexplained_evidence(chosen, where, settings) if significant else []
     result: dict[str, Any] = {
-        "ranking": [s.record() for s in ranking],
+        "ranking": [ranking_record(s) for s in ranking],
         "selected": chosen.effects if chosen else [],
         "minor": d.search.minor(chosen) if chosen else [],
         "unexplained": bool(significant and left),
         "unexplained_evidence": left,
         "where": jsonable(where),
         "split": {
-            "train": int(len(d.train)),
-            "heldout": int(len(d.held)),
-            "report": int(len(d.report)),
+            "train": int(len(d.fit_index)),
+            "heldout": int(len(d.choose_index)),
+            "report": int(len(d.report_index)),
             "seed": settings.seed,
         },
         "render_seeds": seeds,
@@ -265,9 +262,36 @@ def equivalent_alternatives(
         {
             "effects": s.effects,
             "n_params": s.n_params,
-            "heldout_corner_gap_after_px": s.corner_after,
+            "heldout_corner_gap_after_px": s.corner_gap_after_px,
             "heldout_evidence_after": s.evidence_after,
-            "heldout_gap_after": s.after,
+            "heldout_gap_after": s.pose_gap_after,
         }
         for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
     ]
+
+
+def ranking_record(s: Scored) -> dict[str, Any]:
+    """JSON record of a single-effect model (ranking entry)."""
+    cand, fit = s.fits[0]
+    return {
+        "effect": fit.effect,
+        "params": fit.params,
+        "heldout_gap_before": s.pose_gap_before,
+        "heldout_gap_after": s.pose_gap_after,
+        "reduction": s.pose_gap_reduction,
+        "heldout_gap_all_axes_before": s.pose_gap_all_axes_before,
+        "heldout_gap_all_axes_after": s.pose_gap_all_axes_after,
+        "heldout_corner_gap_before_px": s.corner_gap_before_px,
+        "heldout_corner_gap_after_px": s.corner_gap_after_px,
+        "heldout_gap_before_per_axis": _per_axis(s.median_abs_gap_before),
+        "heldout_gap_after_per_axis": _per_axis(s.median_abs_gap_after),
+        "heldout_image_misfit_before": root_sum_square(s.image_misfit_before),
+        "heldout_image_misfit_after": root_sum_square(s.image_misfit_after),
+        "heldout_detection_mismatch_before": s.detection_mismatch_before,
+        "heldout_detection_mismatch_after": s.detection_mismatch_after,
+        "heldout_evidence_before": s.evidence_before,
+        "heldout_evidence_after": s.evidence_after,
+        "n_params": cand.n_params,
+        "fit_seconds": fit.seconds,
+        "stage": cand.kind,
+    }

@@ -139,7 +139,7 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
 
 
 def split_items(
-    n: int, train_fraction: float, choose_fraction: float, seed: int
+    n: int, fit_fraction: float, choose_fraction: float, seed: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Disjoint random fit / choose / report index sets of ``n`` items (each non-empty if n >= 3).
 
@@ -147,7 +147,7 @@ def split_items(
     ----------
     n : int
         Number of items.
-    train_fraction, choose_fraction : float
+    fit_fraction, choose_fraction : float
         Shares of the fit and choice splits; the report split takes the rest.
     seed : int
         Seed of the permutation.
@@ -155,7 +155,7 @@ def split_items(
     order = np.random.default_rng(seed).permutation(n)
     if n < 3:
         return np.sort(order), np.sort(order), np.sort(order)
-    k_fit = min(max(int(round(train_fraction * n)), 1), n - 2)
+    k_fit = min(max(int(round(fit_fraction * n)), 1), n - 2)
     k_choose = min(max(int(round(choose_fraction * n)), 1), n - k_fit - 1)
     cut = k_fit + k_choose
     return np.sort(order[:k_fit]), np.sort(order[k_fit:cut]), np.sort(order[cut:])

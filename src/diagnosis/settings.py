@@ -11,20 +11,21 @@ class DiagnoseSettings:
 
     Attributes
     ----------
-    train_fraction : float
-        Share of the visible configurations used to fit effects.
+    fit_fraction : float
+        Share of the visible configurations used to fit effects (the fit split).
     choose_fraction : float
-        Share used to rank, add, simplify and prune effects (the model choice). The rest is the
+        Share used to rank, add, simplify and prune effects (the choose split). The rest is the
         report split: the reduction is measured there only, never on configurations that
         fitted or chose the model.
     seed : int
         Seed of the split and the subsamples.
-    max_sim_items : int
-        Configurations used when fitting a candidate by simulation (training subsample).
-    max_heldout_items : int
-        Most configurations of the choice split (all candidates are scored on them).
+    max_sim_fit_items : int
+        Configurations used when fitting a candidate by simulation (a subsample of the fit
+        split).
+    max_choose_items : int
+        Most configurations of the choose split (all candidates are scored on them).
     explained_reduction : float
-        Held-out pose-gap reduction below which a significant pose gap is reported as
+        Pose-gap reduction (choose split) below which a significant pose gap is reported as
         unexplained.
     confirm : bool
         Re-run the full pipeline with the selected effects to confirm the reduction.
@@ -40,11 +41,11 @@ class DiagnoseSettings:
         Most render seeds per configuration.
     """
 
-    train_fraction: float = 0.5
+    fit_fraction: float = 0.5
     choose_fraction: float = 0.25
     seed: int = 0
-    max_sim_items: int = 40
-    max_heldout_items: int = 80
+    max_sim_fit_items: int = 40
+    max_choose_items: int = 80
     explained_reduction: float = 0.3
     confirm: bool = True
     min_simulated_frames: int = 36

@@ -9,7 +9,8 @@ import xarray as xr
 
 from simgap.analysis import evidence
 from simgap.analysis import gap as gapmod
-from simgap.analysis.scoring import SCORED_STATS, Scored
+from simgap.analysis.channels import SCORED_STATS
+from simgap.analysis.scored import Scored
 from simgap.analysis.thresholds import UNEXPLAINED_MISFIT
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.effects import EFFECTS
@@ -74,16 +75,16 @@ def unexplained_evidence(
     """
     out = []
     pose = any(a["significant"] for a in where["axes"].values())
-    if pose and (chosen is None or chosen.reduction < settings.explained_reduction):
+    if pose and (chosen is None or chosen.pose_gap_reduction < settings.explained_reduction):
         out.append("pose")
-    misfit = dict(zip(SCORED_STATS, chosen.image_after, strict=True)) if chosen else {}
+    misfit = dict(zip(SCORED_STATS, chosen.image_misfit_after, strict=True)) if chosen else {}
     out += [
         r["stat"]
         for r in where["image_tests"]
         if r["significant"] and misfit.get(r["stat"], np.inf) >= UNEXPLAINED_MISFIT
     ]
     if any(r["significant"] for r in where["detection_tests"]) and (
-        chosen is None or chosen.detection_after >= UNEXPLAINED_MISFIT
+        chosen is None or chosen.detection_mismatch_after >= UNEXPLAINED_MISFIT
     ):
         out.append("detection")
     noisy = chosen is not None and any(EFFECTS[e].stochastic for e in chosen.effects)
