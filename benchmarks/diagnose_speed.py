@@ -65,14 +65,15 @@ def main() -> None:
     print(f"ingest                  {t_ingest:7.1f} s")
     minutes = f"{t_diag / 60:.1f} min; target <= {target} min"
     print(f"diagnose                {t_diag:7.1f} s  ({minutes})")
-    print(f"ranking #1              {result['ranking'][0]['effect']}")
-    print(f"selected                {result['selected']}")
-    if "combined" in result:
-        c = result["combined"]
-        lo, hi = c["reduction_interval_90"]
-        print(f"report-split reduction  {c['reduction']:.0%} (90 % interval {lo:.0%} to {hi:.0%})")
-    if "confirmed" in result:
-        print(f"confirmed reduction     {result['confirmed']['reduction']:.0%} (re-rendered)")
+    print(f"ranking #1              {result.ranking[0].effect}")
+    print(f"selected                {result.selected}")
+    if result.combined:
+        c = result.combined
+        lo, hi = c.pose_gap_reduction_interval_90
+        interval = f"90 % interval {lo:.0%} to {hi:.0%}"
+        print(f"report-split reduction  {c.pose_gap_reduction:.0%} ({interval})")
+    if result.confirmed:
+        print(f"confirmed reduction     {result.confirmed.pose_gap_reduction:.0%} (re-rendered)")
 
 
 if __name__ == "__main__":

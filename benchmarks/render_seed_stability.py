@@ -49,13 +49,13 @@ def main() -> None:
             for name, real in reals.items():
                 t0 = time.perf_counter()
                 result, _ = diagnose(real, exp, cache)
-                geometric = [e for e in result["selected"] if e in geometric_effects()]
+                geometric = [e for e in result.selected if e in geometric_effects()]
                 as_expected[name] += geometric == EXPECTED[name]
-                top = result["ranking"][0]
-                scale = top["params"].get("scale") if top["effect"] == "focal_length" else None
+                top = result.ranking[0]
+                scale = top.params.get("scale") if top.effect == "focal_length" else None
                 print(
                     f"seed {seed} {name}: geometric {geometric or 'none'}, selected "
-                    f"{result['selected']}, render seeds {result['render_seeds']}"
+                    f"{result.selected}, render seeds {result.render_seeds}"
                     + (f", focal scale {scale:+.4f}" if scale is not None else "")
                     + f" ({time.perf_counter() - t0:.0f} s)",
                     flush=True,

@@ -163,12 +163,11 @@ def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path
     assert flat.extra["excludes"] == ()
 
 
-def _blockiness_test(real_stops: np.ndarray) -> list[dict]:
+def _blockiness_test(real_stops: np.ndarray) -> list:
     """The where step's test of a real blockiness ``real_stops`` above the simulation's."""
     from simgap.analysis.evidence import paired_test
 
-    row = paired_test("blockiness", 2.0**real_stops, np.ones_like(real_stops))
-    return [dict(row, stat="blockiness")]
+    return [paired_test("blockiness", 2.0**real_stops, np.ones_like(real_stops))]
 
 
 def test_an_appearance_effect_needs_a_significant_difference_of_its_own_statistic():

@@ -234,16 +234,16 @@ def test_gap_significance_noise_versus_trend():
     noise = rng.normal(0, 2e-4, (1, 15, 6, 6))
     noise[..., 3:] = rng.normal(0, 4e-3, (1, 15, 6, 3))
     quiet = gapmod.axis_summary(_field(noise))
-    assert not any(a["significant"] for a in quiet.values())
+    assert not any(a.significant for a in quiet.values())
     trend = noise.copy()
     trend[..., 1] += -0.0007 * np.arange(15)[None, :, None]  # ty: -0.7 mm per pin hole
     loud = gapmod.axis_summary(_field(trend))
-    assert loud["ty"]["significant"] and not loud["tx"]["significant"]
+    assert loud["ty"].significant and not loud["tx"].significant
     # Theil-Sen on 90 points with 0.2 mm noise: slope within 5 %
-    assert loud["ty"]["slope_per_pin"] == pytest.approx(-0.0007, rel=0.05)
+    assert loud["ty"].slope_per_pin == pytest.approx(-0.0007, rel=0.05)
     small = noise.copy()
     small[..., 1] += 2e-4  # statistically clear but below the practical floor (0.5 mm)
-    assert not gapmod.axis_summary(_field(small))["ty"]["significant"]
+    assert not gapmod.axis_summary(_field(small))["ty"].significant
 
 
 def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():

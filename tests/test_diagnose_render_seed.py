@@ -29,7 +29,7 @@ def test_public_sample_reads_as_focal_length_at_another_render_seed(session_cach
     exp = load_experiment("experiments/baseline.yaml")
     exp = dataclasses.replace(exp, render=dataclasses.replace(exp.render, seed=5))
     result, _ = diagnose(ingest(sample), exp, session_cache)
-    assert result["render_seeds"] == 4
-    assert [e for e in result["selected"] if e in geometric_effects()] == ["focal_length"]
+    assert result.render_seeds == 4
+    assert [e for e in result.selected if e in geometric_effects()] == ["focal_length"]
     # measured at this seed: 0.0193 (0.0194 at seed 0)
-    assert result["ranking"][0]["params"]["scale"] == pytest.approx(0.02, abs=0.003)
+    assert result.ranking[0].params["scale"] == pytest.approx(0.02, abs=0.003)

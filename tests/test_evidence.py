@@ -47,28 +47,28 @@ def _dataset(seed: int, noise_mm: float = 0.3, lost: float = 0.0, repeats: int =
 
 def test_no_difference_is_not_significant():
     real, sim = _dataset(1), _dataset(2)
-    assert not any(r["significant"] for r in evidence.scatter_tests(real, sim))
-    assert not any(r["significant"] for r in evidence.detection_tests(real, sim))
+    assert not any(t.significant for t in evidence.scatter_tests(real, sim))
+    assert not any(t.significant for t in evidence.detection_tests(real, sim))
 
 
 def test_a_capture_that_loses_a_fifth_of_its_detections_is_significant():
     real, sim = _dataset(1, lost=0.2), _dataset(2)
-    rows = {r["region"]: r for r in evidence.detection_tests(real, sim)}
-    assert rows["all"]["significant"]
-    assert rows["all"]["difference"] == pytest.approx(-0.2, abs=0.01)
+    rows = {t.region: t for t in evidence.detection_tests(real, sim)}
+    assert rows["all"].significant
+    assert rows["all"].difference == pytest.approx(-0.2, abs=0.01)
     # the lost ones are the frontal views: that band carries the loss
-    assert rows["view 60-90 deg"]["significant"]
-    assert not any(r["significant"] for r in evidence.scatter_tests(real, sim))
+    assert rows["view 60-90 deg"].significant
+    assert not any(t.significant for t in evidence.scatter_tests(real, sim))
 
 
 @pytest.mark.parametrize("repeats", [1, 3])
 def test_doubled_scatter_is_significant_with_or_without_repeats(repeats):
     real, sim = _dataset(1, noise_mm=0.6, repeats=repeats), _dataset(2, repeats=repeats)
-    pooled = [r for r in evidence.scatter_tests(real, sim) if r["region"] == "all"]
+    pooled = [t for t in evidence.scatter_tests(real, sim) if t.region == "all"]
     # ~90 (single repeat) or ~350 samples per axis: measured 5-6 of 6 axes significant over
     # seeds 1, 5, 9 (ratios 1.3-2.9 for a true 2; the robust scale of 90 samples varies ~15 %)
-    assert sum(r["significant"] for r in pooled) >= 5
-    assert 1.6 < np.median([r["ratio"] for r in pooled]) < 2.6
+    assert sum(t.significant for t in pooled) >= 5
+    assert 1.6 < np.median([t.ratio for t in pooled]) < 2.6
 
 
 def test_line_residuals_remove_any_linear_trend_on_uneven_spacing():

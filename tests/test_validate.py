@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 
 from simgap.analysis.candidates import geometric_effects
 from simgap.cli import app
+from simgap.diagnosis.result import DiagnosisResult, Finding, Selection
 
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
@@ -57,9 +58,9 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         else:  # another camera's image formation may be reported; no geometric cause may
             expected = not geometric
         assert t["correct"] == expected
-        combined = t["result"].get("combined")
-        if combined:  # the reduction is measured on configurations that did not choose
-            assert combined["configurations"] == t["result"]["split"]["report"]
+        result = DiagnosisResult.from_json(t["result"])
+        if result.combined:  # the reduction is measured on configurations that did not choose
+            assert result.combined.configurations == result.split.report
 
 
 def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
@@ -90,6 +91,16 @@ def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
     }
 
 
+def _selecting(*effects: str) -> DiagnosisResult:
+    """A diagnosis that selected ``effects`` (no parameters, all of them major)."""
+    findings = [Finding(effect=e, params={}, pose_contribution=1.0, minor=False) for e in effects]
+    selection = Selection(
+        findings=findings, n_params=0, configurations=0, evidence_before=1.0,
+        evidence_after=0.0, pose_gap_after=0.0,
+    )  # fmt: skip
+    return DiagnosisResult(selection=selection)
+
+
 def test_hidden_effects_are_valid_and_lighting_is_scored_as_exposure():
     """Every hidden sampler makes a valid effect; a dimmer key light reported as exposure hits."""
     from simgap.diagnosis.validate import HIDDEN, REPORTED_AS, Trial
@@ -103,9 +114,9 @@ def test_hidden_effects_are_valid_and_lighting_is_scored_as_exposure():
             assert key is None or key in params
     assert REPORTED_AS["lighting"] in HIDDEN
     light = HIDDEN["lighting"][0](rng)
-    hit = Trial(0, {"lighting": light}, {"selected": ["exposure", "sensor_noise"]}).score()
+    hit = Trial(0, {"lighting": light}, _selecting("exposure", "sensor_noise")).score()
     assert hit["correct"] and hit["recall"] == 1.0
-    miss = Trial(0, {"lighting": light}, {"selected": ["tag_scale", "exposure"]}).score()
+    miss = Trial(0, {"lighting": light}, _selecting("tag_scale", "exposure")).score()
     assert not miss["correct"] and miss["recall"] == 1.0
 
 

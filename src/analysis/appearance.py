@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from simgap.analysis.evidence import compare_stat
+from simgap.analysis.evidence import ImageTest, compare_stat
 from simgap.analysis.fitting import Fit, Items, SimulationCandidate
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import (
@@ -116,7 +116,7 @@ def signature_supported(rms_before: float, rms_after: float) -> bool:
     return rms_before >= SIGNATURE_MIN_MISFIT and rms_before - rms_after >= SIGNATURE_MIN_GAIN
 
 
-def signature_significant(candidate: Any, image_tests: list[dict[str, Any]]) -> bool:
+def signature_significant(candidate: Any, image_tests: list[ImageTest]) -> bool:
     """Whether one of the candidate's own statistics (``fit_stats``) differs significantly.
 
     ``image_tests`` are the where-step's paired tests over every comparable tag
@@ -124,7 +124,7 @@ def signature_significant(candidate: Any, image_tests: list[dict[str, Any]]) -> 
     geometric and calibration ones) always pass.
     """
     own = candidate.fit_stats
-    return not own or any(row["significant"] for row in image_tests if row["stat"] in own)
+    return not own or any(test.significant for test in image_tests if test.stat in own)
 
 
 

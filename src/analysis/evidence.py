@@ -30,7 +30,7 @@ their sources; every one was fixed before the blind validation runs that report 
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
@@ -53,6 +53,107 @@ from simgap.core.robust import mad_sigma, signed_rank_pvalue
 VIEW_BANDS_DEG = ((0.0, 35.0), (35.0, 60.0), (60.0, 90.1))
 #: Added to linear levels before taking log2 ratios (a tenth of an 8-bit step near black).
 LEVEL_EPSILON = 0.002
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScatterTest:
+    """Brown-Forsythe test of real vs simulated pose scatter on one axis and region.
+
+    Attributes
+    ----------
+    axis, region, unit : str
+        Pose axis, distance region (``"all"`` or a third) and the axis unit (m or rad).
+    n_real, n_sim : int
+        Noise samples of each side.
+    real_scatter, sim_scatter : float
+        Robust scales of the samples (m or rad).
+    ratio : float
+        ``real_scatter / sim_scatter``.
+    extra_scatter : float
+        ``sqrt(|real^2 - sim^2|)`` (m or rad).
+    p_value : float
+        The test's p-value.
+    significant : bool
+        See the module docstring.
+    """
+
+    axis: str
+    region: str
+    unit: str
+    n_real: int
+    n_sim: int
+    real_scatter: float
+    sim_scatter: float
+    ratio: float
+    extra_scatter: float
+    p_value: float
+    significant: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class DetectionTest:
+    """Fisher's exact test of real vs simulated detection rate in one region.
+
+    Attributes
+    ----------
+    region : str
+        ``"all"``, a distance third or a view-angle band.
+    real_detected, real_attempts, sim_detected, sim_attempts : int
+        Detections and attempts (visible configurations times repeats) of each side.
+    real_rate, sim_rate, difference : float
+        Detection rates (0-1) and real minus simulated.
+    p_value : float
+        The test's p-value.
+    significant : bool
+        See the module docstring.
+    """
+
+    region: str
+    real_detected: int
+    real_attempts: int
+    sim_detected: int
+    sim_attempts: int
+    real_rate: float
+    sim_rate: float
+    difference: float
+    p_value: float
+    significant: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class ImageTest:
+    """Wilcoxon signed-rank test of the paired real - simulated difference of one statistic.
+
+    Attributes
+    ----------
+    stat : str
+        Statistic name (:data:`~simgap.analysis.thresholds.IMAGE_FLOORS`).
+    compared_as : str
+        ``"difference"`` or ``"log2 ratio (stops)"``.
+    n : int
+        Tags paired.
+    median_difference : float
+        Median difference real - simulated, in the comparison units.
+    real_median, sim_median : float
+        Median of the statistic on each side (its own units).
+    floor : float or None
+        Smallest median difference that matters (None: reported only).
+    p_value : float
+        The test's p-value.
+    significant : bool
+        Rejects at :data:`~simgap.analysis.thresholds.ALPHA` and the median difference reaches
+        the floor (never for a statistic without a floor).
+    """
+
+    stat: str
+    compared_as: str
+    n: int
+    median_difference: float
+    real_median: float
+    sim_median: float
+    floor: float | None
+    p_value: float
+    significant: bool
 
 
 def robust_scale(values: np.ndarray) -> float:
@@ -117,7 +218,7 @@ def distance_regions(ps: np.ndarray) -> list[tuple[str, np.ndarray]]:
     ]
 
 
-def scatter_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
+def scatter_tests(real: xr.Dataset, sim: xr.Dataset) -> list[ScatterTest]:
     """Brown-Forsythe tests of real vs simulated pose scatter per axis, overall and per region."""
     real, sim = align(real, sim)
     res_r, res_s = noise_residuals(real), noise_residuals(sim)
@@ -143,24 +244,24 @@ def scatter_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
                 and extra >= SCATTER_FLOOR_SHARE * PRACTICAL_FLOOR[unit]
             )
             rows.append(
-                {
-                    "axis": axis,
-                    "region": name,
-                    "unit": unit,
-                    "n_real": int(a.size),
-                    "n_sim": int(b.size),
-                    "real_scatter": sa,
-                    "sim_scatter": sb,
-                    "ratio": float(ratio),
-                    "extra_scatter": extra,
-                    "p_value": pvalue,
-                    "significant": bool(significant),
-                }
+                ScatterTest(
+                    axis=axis,
+                    region=name,
+                    unit=unit,
+                    n_real=int(a.size),
+                    n_sim=int(b.size),
+                    real_scatter=sa,
+                    sim_scatter=sb,
+                    ratio=float(ratio),
+                    extra_scatter=extra,
+                    p_value=pvalue,
+                    significant=bool(significant),
+                )
             )
     return rows
 
 
-def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
+def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[DetectionTest]:
     """Fisher exact tests of real vs simulated detection rates, overall and per region."""
     real, sim = align(real, sim)
     visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
@@ -186,20 +287,18 @@ def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
         pvalue = float(sps.fisher_exact([[kr, nr - kr], [ks, ns - ks]]).pvalue)
         diff = kr / nr - ks / ns
         rows.append(
-            {
-                "region": name,
-                "real_detected": kr,
-                "real_attempts": nr,
-                "sim_detected": ks,
-                "sim_attempts": ns,
-                "real_rate": kr / nr,
-                "sim_rate": ks / ns,
-                "difference": diff,
-                "p_value": pvalue,
-                "significant": bool(
-                    pvalue < ALPHA / n_tests and abs(diff) >= DETECTION_UNIT
-                ),
-            }
+            DetectionTest(
+                region=name,
+                real_detected=kr,
+                real_attempts=nr,
+                sim_detected=ks,
+                sim_attempts=ns,
+                real_rate=kr / nr,
+                sim_rate=ks / ns,
+                difference=diff,
+                p_value=pvalue,
+                significant=bool(pvalue < ALPHA / n_tests and abs(diff) >= DETECTION_UNIT),
+            )
         )
     return rows
 
@@ -212,64 +311,54 @@ def compare_stat(stat: str, real: np.ndarray, sim: np.ndarray) -> np.ndarray:
     return real - sim
 
 
-def paired_test(stat: str, real: np.ndarray, sim: np.ndarray) -> dict[str, Any] | None:
+def paired_test(stat: str, real: np.ndarray, sim: np.ndarray) -> ImageTest | None:
     """Wilcoxon signed-rank test of the paired difference real - simulated of one statistic.
 
     Parameters
     ----------
     stat : str
-        Statistic name (:data:`IMAGE_FLOORS`), which sets the comparison units.
+        Statistic name (:data:`~simgap.analysis.thresholds.IMAGE_FLOORS`), which sets the
+        comparison units and the floor.
     real, sim : ndarray
-        The statistic on the same tags, real and simulated; pairs with a NaN are left out.
+        The statistic on the same tags, real and simulated; pairs with a NaN are left out of
+        the test (the medians of each side take every finite value).
 
     Returns
     -------
-    dict or None
-        ``n``, ``median_difference`` (comparison units), ``p_value`` and ``significant`` (rejects
-        at :data:`ALPHA` and the median reaches the statistic's floor; never for a statistic
-        without a floor); None for fewer than 3 pairs.
+    ImageTest or None
+        None for fewer than 3 pairs.
     """
-    d = compare_stat(stat, np.asarray(real, float), np.asarray(sim, float)).ravel()
+    real, sim = np.asarray(real, float), np.asarray(sim, float)
+    d = compare_stat(stat, real, sim).ravel()
     d = d[np.isfinite(d)]
     if d.size < 3:
         return None
     median = float(np.median(d))
     pvalue = signed_rank_pvalue(d)
-    floor = IMAGE_FLOORS.get(stat, ("diff", None))[1]
-    return {
-        "n": int(d.size),
-        "median_difference": median,
-        "p_value": pvalue,
-        "significant": bool(floor is not None and pvalue < ALPHA and abs(median) >= floor),
-    }
+    transform, floor = IMAGE_FLOORS.get(stat, ("diff", None))
+    return ImageTest(
+        stat=stat,
+        compared_as="log2 ratio (stops)" if transform == "log2" else "difference",
+        n=int(d.size),
+        median_difference=median,
+        real_median=float(np.nanmedian(real)),
+        sim_median=float(np.nanmedian(sim)),
+        floor=floor,
+        p_value=pvalue,
+        significant=bool(floor is not None and pvalue < ALPHA and abs(median) >= floor),
+    )
 
 
-def image_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
+def image_tests(real: xr.Dataset, sim: xr.Dataset) -> list[ImageTest]:
     """Paired real - simulated tests of every image statistic (:func:`paired_test`)."""
     if "image_stats" not in real or "image_stats" not in sim:
         return []
     real, sim = align(real, sim)
     visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
     r, s = repeat_median_stats(real).where(visible), repeat_median_stats(sim).where(visible)
-    rows = []
-    for stat, (transform, floor) in IMAGE_FLOORS.items():
-        if stat not in r.stat.values:
-            continue
-        test = paired_test(stat, r.sel(stat=stat).values, s.sel(stat=stat).values)
-        if test is None:
-            continue
-        rows.append(
-            {
-                "stat": stat,
-                "compared_as": "log2 ratio (stops)" if transform == "log2" else "difference",
-                "n": test["n"],
-                "median_difference": test["median_difference"],
-                "real_median": float(np.nanmedian(r.sel(stat=stat).values)),
-                "sim_median": float(np.nanmedian(s.sel(stat=stat).values)),
-                "floor": floor,
-                "p_value": test["p_value"],
-                "significant": test["significant"],
-            }
-        )
-    return rows
-
+    tests = (
+        paired_test(stat, r.sel(stat=stat).values, s.sel(stat=stat).values)
+        for stat in IMAGE_FLOORS
+        if stat in r.stat.values
+    )
+    return [test for test in tests if test is not None]

@@ -1,10 +1,11 @@
 """Where the sim-to-real gap lies: the gap field, its noise, and its significant regions.
 
-The gap field is ``real error - simulated error`` per tag, configuration and axis (DESIGN §5), on
-configurations where the tag is visible and both the real and the simulated estimator returned a
-pose. Its noise is taken from repeats when there are any (the spread of the repeat means) and
-otherwise from the roughness of each error field along the carriage axis (a robust scale of its
-second differences), which is what a single-repeat capture offers.
+The gap field is ``real error - simulated error`` per tag, configuration and axis
+(docs/conventions.md §5), on configurations where the tag is visible and both the real and the
+simulated estimator returned a pose. Its noise is taken from repeats when there are any (the
+spread of the repeat means) and otherwise from the roughness of each error field along the
+carriage axis (a robust scale of its second differences), which is what a single-repeat capture
+offers.
 """
 
 from __future__ import annotations
@@ -152,17 +153,88 @@ def gap_field(real: xr.Dataset, sim: xr.Dataset, sim_variant: str | None = None)
     return GapField(gap, sigma, comparable, det_r, det_s)
 
 
-def axis_summary(field: GapField) -> dict[str, dict]:
+@dataclass(frozen=True, kw_only=True)
+class AxisGap:
+    """The gap on one pose axis (m for tx, ty, tz; rad for rx, ry, rz): :func:`axis_summary`.
+
+    Attributes
+    ----------
+    n : int
+        Comparable items; the other values are None without any.
+    unit : str
+        ``"m"`` or ``"rad"``.
+    significant : bool
+        The gap on this axis is significant (:func:`axis_summary`).
+    mean, median, rms : float
+        Plain mean, median (the location tested) and RMS of the gap.
+    slope_per_pin : float
+        Theil-Sen trend of the gap per pin hole.
+    z_median, z_slope : float
+        z-scores of the median and of the trend.
+    noise : float
+        Noise of one gap value.
+    systematic : float
+        The larger of the median and the trend over half the distance range.
+    """
+
+    n: int
+    unit: str
+    significant: bool
+    mean: float | None = None
+    median: float | None = None
+    rms: float | None = None
+    slope_per_pin: float | None = None
+    z_median: float | None = None
+    z_slope: float | None = None
+    noise: float | None = None
+    systematic: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class RegionGap:
+    """The median gap of one axis in one distance region (:func:`region_summary`).
+
+    Attributes
+    ----------
+    axis, region : str
+        Pose axis and region (``"near (p 0-4)"`` and so on).
+    n : int
+        Comparable items in the region.
+    median : float
+        Median gap (m or rad).
+    z : float
+        Its z-score.
+    significant : bool
+        Beyond :data:`~simgap.analysis.thresholds.Z_SIGNIFICANT` and the practical floor.
+    """
+
+    axis: str
+    region: str
+    n: int
+    median: float
+    z: float
+    significant: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class DetectionRates:
+    """Detection rate of the real data and of the simulation over the visible configurations."""
+
+    real: float
+    sim: float
+    visible_configurations: int
+
+
+def axis_summary(field: GapField) -> dict[str, AxisGap]:
     """Per axis: robust location and trend of the gap with distance, z-scores, significance.
 
     Rotation estimates of a square marker are heavy-tailed (planar pose ambiguity), so the
     location is the median (standard error :func:`simgap.core.robust.median_standard_error`) and
     the trend with the pin hole is the Theil-Sen slope (its 95 % interval gives the z-score). The
-    z-score of the location is stored as ``z_mean`` (a ``result.json`` key kept for readers) but
-    is the median's; ``mean`` is the plain mean, ``median`` the location tested. The gap on an
-    axis is significant when its median or its trend is more than :data:`Z_SIGNIFICANT` standard
-    errors from zero *and* its systematic part (median and trend over the distance range)
-    exceeds :data:`PRACTICAL_FLOOR`.
+    gap on an axis is significant when its median or its trend is more than
+    :data:`~simgap.analysis.thresholds.Z_SIGNIFICANT` standard errors from zero *and* its
+    systematic part (median and trend over the distance range) exceeds
+    :data:`~simgap.analysis.thresholds.PRACTICAL_FLOOR`.
     """
     from scipy.stats import theilslopes
 
@@ -176,7 +248,7 @@ def axis_summary(field: GapField) -> dict[str, dict]:
         sigma = float(field.sigma.sel(axis=axis))
         unit = axis_unit(axis)
         if n == 0:
-            out[axis] = {"n": 0, "significant": False, "unit": unit}
+            out[axis] = AxisGap(n=0, unit=unit, significant=False)
             continue
         x, y = dist[ok], g[ok]
         median = float(np.median(y))
@@ -195,19 +267,19 @@ def axis_summary(field: GapField) -> dict[str, dict]:
         significant = (abs(z_median) > Z_SIGNIFICANT or abs(z_slope) > Z_SIGNIFICANT) and (
             systematic > PRACTICAL_FLOOR[unit]
         )
-        out[axis] = {
-            "n": n,
-            "unit": unit,
-            "mean": float(np.mean(y)),
-            "median": median,
-            "rms": float(np.sqrt(np.mean(y**2))),
-            "slope_per_pin": float(slope),
-            "z_mean": float(z_median),  # the median's z-score (key kept)
-            "z_slope": float(z_slope),
-            "noise": sigma,
-            "systematic": systematic,
-            "significant": bool(significant),
-        }
+        out[axis] = AxisGap(
+            n=n,
+            unit=unit,
+            significant=bool(significant),
+            mean=float(np.mean(y)),
+            median=median,
+            rms=float(np.sqrt(np.mean(y**2))),
+            slope_per_pin=float(slope),
+            z_median=float(z_median),
+            z_slope=float(z_slope),
+            noise=sigma,
+            systematic=systematic,
+        )
     return out
 
 
@@ -233,12 +305,8 @@ def distance_thirds(pins: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
-def region_summary(field: GapField) -> list[dict]:
-    """Median gap per axis in near / mid / far thirds of the pin holes, with z-scores.
-
-    Each row's ``"mean"`` key holds the region's **median** gap (m or rad): the key is part of
-    ``result.json`` (``where.regions``) and is kept; the value and its z-score are the median's.
-    """
+def region_summary(field: GapField) -> list[RegionGap]:
+    """Median gap per axis in near / mid / far thirds of the pin holes, with z-scores."""
     dist_bins = distance_thirds(field.gap.p.values)
     rows = []
     for axis in AXES:
@@ -253,26 +321,27 @@ def region_summary(field: GapField) -> list[dict]:
             scatter = max(mad_sigma(vals), sigma)
             z = med / median_standard_error(scatter, vals.size)
             rows.append(
-                {
-                    "axis": axis,
-                    "region": name,
-                    "n": int(vals.size),
-                    "mean": med,  # the median (result.json key kept)
-                    "z": float(z),
-                    "significant": abs(z) > Z_SIGNIFICANT
-                    and abs(med) > PRACTICAL_FLOOR[axis_unit(axis)],
-                }
+                RegionGap(
+                    axis=axis,
+                    region=name,
+                    n=int(vals.size),
+                    median=med,
+                    z=float(z),
+                    significant=bool(
+                        abs(z) > Z_SIGNIFICANT and abs(med) > PRACTICAL_FLOOR[axis_unit(axis)]
+                    ),
+                )
             )
     return rows
 
 
-def detection_summary(field: GapField) -> dict[str, float]:
+def detection_summary(field: GapField) -> DetectionRates:
     """Detection rate of the real data and of the simulation over visible configurations."""
     r = field.real_detection.values
     s = field.sim_detection.values
     ok = np.isfinite(r) & np.isfinite(s)
-    return {
-        "real": float(np.mean(r[ok])) if ok.any() else float("nan"),
-        "sim": float(np.mean(s[ok])) if ok.any() else float("nan"),
-        "visible_configurations": int(ok.sum()),
-    }
+    return DetectionRates(
+        real=float(np.mean(r[ok])) if ok.any() else float("nan"),
+        sim=float(np.mean(s[ok])) if ok.any() else float("nan"),
+        visible_configurations=int(ok.sum()),
+    )

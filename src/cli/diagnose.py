@@ -54,13 +54,13 @@ def diagnose(
     output: Annotated[Path, output_option("Report folder to write.")],
     json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
     cache: CacheOption = None,
-    seed: int = typer.Option(0, "--seed", help="Seed of the train/held-out split."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the fit / choose / report split."),
     scheduler: SchedulerOption = None,
 ) -> None:
     """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.diagnose import diagnose as run_diagnosis
-    from simgap.diagnosis.diagnosis_report import write_diagnosis_report
+    from simgap.diagnosis.diagnosis_report import selected_names, write_diagnosis_report
     from simgap.diagnosis.result_json import write_json
     from simgap.diagnosis.settings import DiagnoseSettings
     from simgap.pipeline.simulator import Simulator
@@ -75,14 +75,12 @@ def diagnose(
         typer.echo(str(p))
     if json_path:
         typer.echo(str(write_json(result, json_path)))
-    minor = result.get("minor", [])
-    if not result["where"]["significant"]:
+    if not result.where.significant:
         verdict = "no significant gap"
     else:
-        named = [f"{e} (minor)" if e in minor else e for e in result["selected"]]
-        verdict = "selected: " + (", ".join(named) or "-")
-        if result["unexplained"]:
-            verdict += f"; unexplained: {', '.join(result['unexplained_evidence'])}"
+        verdict = "selected: " + selected_names(result)
+        if result.unexplained:
+            verdict += f"; unexplained: {', '.join(result.unexplained_evidence)}"
     typer.echo(f"diagnosis: {verdict}")
 
 

@@ -24,6 +24,7 @@ from simgap.analysis.report.tables import markdown_table
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.diagnose import Diagnosis
+from simgap.diagnosis.result import DiagnosisResult, Where
 from simgap.diagnosis.result_json import write_json
 
 #: Title of ``gap_by_distance.png``: what it plots is a difference of absolute errors.
@@ -47,47 +48,44 @@ def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
     return both
 
 
-def where_markdown(where: dict[str, Any]) -> list[str]:
+def where_markdown(where: Where) -> list[str]:
     """Markdown lines for the 'where' part."""
     lines = [
         "## Where",
         "",
         f"Comparable configurations (visible, detected in both): "
-        f"{where['comparable_configurations']}. "
-        f"Significant gap: **{'yes' if where['significant'] else 'no'}**.",
+        f"{where.comparable_configurations}. "
+        f"Significant gap: **{'yes' if where.significant else 'no'}**.",
         "",
         "| axis | n | median gap | RMS gap | trend per pin hole | noise | z (median) | z (trend) "
         "| significant |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for axis in AXES:
-        a = where["axes"][axis]
-        if not a.get("n"):
+        a = where.axis_gaps[axis]
+        if not a.n:
             lines.append(f"| {axis} | 0 | | | | | | | no |")
             continue
         unit, k = display_unit(axis)
         lines.append(
-            f"| {axis} | {a['n']} | {a['median'] * k:+.3f} {unit} | {a['rms'] * k:.3f} {unit} | "
-            f"{a['slope_per_pin'] * k:+.4f} {unit} | {a['noise'] * k:.3f} {unit} | "
-            f"{a['z_mean']:+.1f} | {a['z_slope']:+.1f} | "
-            f"{'**yes**' if a['significant'] else 'no'} |"
+            f"| {axis} | {a.n} | {a.median * k:+.3f} {unit} | {a.rms * k:.3f} {unit} | "
+            f"{a.slope_per_pin * k:+.4f} {unit} | {a.noise * k:.3f} {unit} | "
+            f"{a.z_median:+.1f} | {a.z_slope:+.1f} | {_yes(a.significant)} |"
         )
-    det = where["detection"]
+    det = where.detection
     lines += [
         "",
-        f"Detection rate over visible configurations: real {det['real']:.1%}, "
-        f"simulation {det['sim']:.1%} ({det['visible_configurations']} configurations).",
+        f"Detection rate over visible configurations: real {det.real:.1%}, "
+        f"simulation {det.sim:.1%} ({det.visible_configurations} configurations).",
         "",
     ]
     lines += evidence_markdown(where)
-    if where["regions"]:
+    if where.regions:
         lines += ["Significant regions (median gap, z-score):", ""]
-        for r in where["regions"]:
-            unit, k = display_unit(r["axis"])
-            # a region's result.json key "mean" holds its median gap (the key is kept)
+        for r in where.regions:
+            unit, k = display_unit(r.axis)
             lines.append(
-                f"- {r['axis']}, {r['region']}: {r['mean'] * k:+.3f} {unit} "
-                f"(z = {r['z']:+.1f}, n = {r['n']})"
+                f"- {r.axis}, {r.region}: {r.median * k:+.3f} {unit} (z = {r.z:+.1f}, n = {r.n})"
             )
         lines.append("")
     return lines
@@ -97,73 +95,71 @@ def _yes(flag: bool) -> str:
     return "**yes**" if flag else "no"
 
 
-def evidence_markdown(where: dict[str, Any]) -> list[str]:
+def evidence_markdown(where: Where) -> list[str]:
     """Markdown lines for the scatter, detection and image-evidence tests."""
-    found = where.get("significant_evidence", [])
+    found = where.significant_evidence
     lines = [
         "Evidence with a significant gap: "
         + (", ".join(f"**{name}**" for name in found) if found else "none")
         + " (pose means, pose scatter, detection rate, image statistics).",
         "",
     ]
-    scatter = [r for r in where.get("scatter_tests", []) if r["significant"]]
+    scatter = [t for t in where.scatter_tests if t.significant]
     if scatter:
         rows = []
-        for r in scatter:
-            unit, k = display_unit(r["axis"])
+        for t in scatter:
+            unit, k = display_unit(t.axis)
             rows.append(
                 [
-                    r["axis"],
-                    r["region"],
-                    f"{r['real_scatter'] * k:.3f} {unit}",
-                    f"{r['sim_scatter'] * k:.3f} {unit}",
-                    f"{r['ratio']:.2f}",
-                    f"{r['p_value']:.2g}",
+                    t.axis,
+                    t.region,
+                    f"{t.real_scatter * k:.3f} {unit}",
+                    f"{t.sim_scatter * k:.3f} {unit}",
+                    f"{t.ratio:.2f}",
+                    f"{t.p_value:.2g}",
                 ]
             )
         header = ["axis", "region", "real", "simulation", "ratio", "p"]
         lines += ["Pose scatter (Brown-Forsythe, robust scales):", ""]
         lines += markdown_table(header, rows) + [""]
-    detection = where.get("detection_tests", [])
-    if detection:
+    if where.detection_tests:
         header = ["region", "real", "simulation", "difference", "p", "significant"]
         rows = [
             [
-                r["region"],
-                f"{r['real_detected']}/{r['real_attempts']}",
-                f"{r['sim_detected']}/{r['sim_attempts']}",
-                f"{r['difference']:+.1%}",
-                f"{r['p_value']:.2g}",
-                _yes(r["significant"]),
+                t.region,
+                f"{t.real_detected}/{t.real_attempts}",
+                f"{t.sim_detected}/{t.sim_attempts}",
+                f"{t.difference:+.1%}",
+                f"{t.p_value:.2g}",
+                _yes(t.significant),
             ]
-            for r in detection
+            for t in where.detection_tests
         ]
         lines += ["Detection (Fisher's exact test):", ""]
         lines += markdown_table(header, rows) + [""]
-    image = where.get("image_tests", [])
-    if image:
+    if where.image_tests:
         header = ["statistic", "real median", "simulation median", "median difference"]
         header += ["floor", "p", "significant"]
         rows = [
             [
-                r["stat"],
-                f"{r['real_median']:.4g}",
-                f"{r['sim_median']:.4g}",
-                f"{r['median_difference']:+.3g} ({r['compared_as']})",
-                "-" if r["floor"] is None else str(r["floor"]),
-                f"{r['p_value']:.2g}",
-                _yes(r["significant"]),
+                t.stat,
+                f"{t.real_median:.4g}",
+                f"{t.sim_median:.4g}",
+                f"{t.median_difference:+.3g} ({t.compared_as})",
+                "-" if t.floor is None else str(t.floor),
+                f"{t.p_value:.2g}",
+                _yes(t.significant),
             ]
-            for r in image
+            for t in where.image_tests
         ]
         lines += ["Image evidence (median real - simulated per tag, Wilcoxon signed-rank):", ""]
         lines += markdown_table(header, rows) + [""]
     return lines
 
 
-def _render_seeds_sentence(result: dict[str, Any]) -> str:
+def _render_seeds_sentence(result: DiagnosisResult) -> str:
     """How the simulation of a small capture measured each configuration's noise (or "")."""
-    seeds = result.get("render_seeds", 1)
+    seeds = result.render_seeds
     if seeds <= 1:
         return ""
     return (
@@ -173,119 +169,133 @@ def _render_seeds_sentence(result: dict[str, Any]) -> str:
     )
 
 
-def which_markdown(result: dict[str, Any]) -> list[str]:
+def which_markdown(result: DiagnosisResult) -> list[str]:
     """Markdown lines for the ranking, the selection and the before/after."""
+    split = result.split
     lines = [
         "## Which",
         "",
-        "Each effect fitted on the fit split and scored on the choice split "
-        f"({result['split']['train']} / {result['split']['heldout']} configurations; the "
-        f"{result['split'].get('report', 0)} of the report split are kept for 'how far'). Ranked "
-        "by the combined misfit of all held-out evidence, each channel in units of the smallest "
-        "difference that matters: detected corners (px over the capture's corner noise), pose "
-        "(per axis the median of ((real - predicted error) / noise)^2, square-rooted; pure noise "
-        "~0.7), detection (share of tags detected differently, over 5 %) and every image "
-        "statistic (over its floor). Pose gap before/after: on the axes where it is "
-        "significant." + _render_seeds_sentence(result),
+        "Each effect fitted on the fit split and scored on the choose split "
+        f"({split.fit} / {split.choose} configurations; the {split.report} of the report split "
+        "are kept for 'how far'). Ranked by the combined misfit of all evidence on the choose "
+        "split, each channel in units of the smallest difference that matters: detected corners "
+        "(px over the capture's corner noise), pose (per axis the median of ((real - predicted "
+        "error) / noise)^2, square-rooted; pure noise ~0.7), detection (share of tags detected "
+        "differently, over 5 %) and every image statistic (over its floor). Pose gap "
+        "before/after: on the axes where it is significant." + _render_seeds_sentence(result),
         "",
         "| rank | effect | parameters | fitted values | corners [px] | pose gap | image "
         "| detection | all evidence |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for i, r in enumerate(result["ranking"], 1):
-        params = ", ".join(f"{k}={_fmt(v)}" for k, v in r["params"].items())
+    for i, r in enumerate(result.ranking, 1):
+        params = ", ".join(f"{k}={_fmt(v)}" for k, v in r.params.items())
         cells = [
-            ("heldout_corner_gap_before_px", "heldout_corner_gap_after_px"),
-            ("heldout_gap_before", "heldout_gap_after"),
-            ("heldout_image_misfit_before", "heldout_image_misfit_after"),
-            ("heldout_detection_mismatch_before", "heldout_detection_mismatch_after"),
-            ("heldout_evidence_before", "heldout_evidence_after"),
+            (r.corner_gap_before_px, r.corner_gap_after_px),
+            (r.pose_gap_before, r.pose_gap_after),
+            (r.image_misfit_before, r.image_misfit_after),
+            (r.detection_mismatch_before, r.detection_mismatch_after),
+            (r.evidence_before, r.evidence_after),
         ]
-        values = " | ".join(f"{r[a]:.2f} -> {r[b]:.2f}" for a, b in cells)
-        lines.append(f"| {i} | {r['effect']} | {r['n_params']} | {params} | {values} |")
+        values = " | ".join(f"{a:.2f} -> {b:.2f}" for a, b in cells)
+        lines.append(f"| {i} | {r.effect} | {r.n_params} | {params} | {values} |")
     lines.append("")
-    if not result["where"]["significant"]:
+    if not result.where.significant:
         lines.append("**No significant gap**: nothing is selected.")
-    elif not result["selected"]:
-        lines.append("**Unexplained**: no effect of the catalogue explains the held-out evidence.")
+    elif not result.selection:
+        lines.append("**Unexplained**: no effect of the catalogue explains the evidence.")
     else:
-        minor = result.get("minor", [])
-        named = [f"{e} (minor)" if e in minor else e for e in result["selected"]]
-        lines.append(f"**Selected** (most important first): {', '.join(named) or '-'}.")
-        if minor:
-            lines.append(
-                "Minor: seen in the corners or images, no pose change beyond the practical floor."
-            )
-        if result["unexplained"]:
-            lines.append(
-                "**Unexplained** (significant, and still off on held-out configurations with the "
-                f"selected effects): {', '.join(result['unexplained_evidence'])}."
-            )
-        alternatives = result.get("combined", {}).get("equivalent_models", [])
-        if alternatives:
-            lines += [
-                "",
-                "Other models tried explain the held-out corners about as well (residuals "
-                f"within {EQUIVALENT_PX} px or {EQUIVALENT_REL:.0%}); this data cannot tell them "
-                "apart (where one is simpler, the simpler is selected):",
-                "",
-            ]
-            lines += [
-                f"- {' + '.join(a['effects'])} ({a['n_params']} parameters, "
-                f"{a['heldout_corner_gap_after_px']:.2f} px)"
-                for a in alternatives
-            ]
+        lines += selection_markdown(result)
     lines.append("")
-    if "combined" in result:
-        c = result["combined"]
-        lines += [
-            "## How far it shrinks",
-            "",
-            f"Measured on the report split ({c['configurations']} configurations that neither "
-            "fitted nor chose the model): pose gap "
-            f"{c['heldout_gap_before']:.2f} -> {c['heldout_gap_after']:.2f} "
-            f"({c['reduction']:.0%} reduction, 90 % bootstrap interval "
-            f"{c['reduction_interval_90'][0]:.0%} to {c['reduction_interval_90'][1]:.0%}); all "
-            f"evidence {c['heldout_evidence_before']:.2f} -> {c['heldout_evidence_after']:.2f} "
-            f"({c['evidence_reduction']:.0%}, interval "
-            f"{c['evidence_reduction_interval_90'][0]:.0%} to "
-            f"{c['evidence_reduction_interval_90'][1]:.0%}), with the fitted effects (fast model).",
-        ]
-        if "confirmed" in result:
-            f = result["confirmed"]
-            lines.append(
-                f"Confirmed by a full re-run of the pipeline with the fitted effects: "
-                f"{f['heldout_gap_after']:.2f} ({f['reduction']:.0%} reduction, "
-                f"{f['configurations']} held-out configurations, {f['seconds']:.0f} s)."
-            )
-        lines += [
-            "",
-            "| selected effect | fitted values | pose contribution |",
-            "|---|---|---|",
-        ]
-        lines += [
-            f"| {e['effect']} | {', '.join(f'{k}={_fmt(v)}' for k, v in e['params'].items())} "
-            f"| {e['pose_contribution']:.1f} |"
-            for e in c["effects"]
-        ]
+    if result.combined:
+        lines += how_far_markdown(result)
+    return lines
+
+
+def selected_names(result: DiagnosisResult) -> str:
+    """The selected effects, most important first, minor ones marked (``-`` for none)."""
+    minor = set(result.minor)
+    return ", ".join(f"{e} (minor)" if e in minor else e for e in result.selected) or "-"
+
+
+def selection_markdown(result: DiagnosisResult) -> list[str]:
+    """Markdown lines for the selected effects, what stays unexplained and the look-alikes."""
+    lines = [f"**Selected** (most important first): {selected_names(result)}."]
+    if result.minor:
+        lines.append(
+            "Minor: seen in the corners or images, no pose change beyond the practical floor."
+        )
+    if result.unexplained:
+        lines.append(
+            "**Unexplained** (significant, and still off on the choose split with the selected "
+            f"effects): {', '.join(result.unexplained_evidence)}."
+        )
+    alternatives = result.selection.equivalent_models
+    if alternatives:
         lines += [
             "",
-            "Pose contribution: how far the effect moves the held-out pose predictions with the "
-            "other effects held at their fitted values (median |change| over the noise or "
-            "practical floor, largest significant axis); below 1 the effect is minor.",
+            "Other models tried explain the choose split's evidence about as well (corner "
+            f"residuals within {EQUIVALENT_PX} px or {EQUIVALENT_REL:.0%}); this data cannot tell "
+            "them apart (where one is simpler, the simpler is selected):",
             "",
-            "| axis | median abs gap before | after (fast) | after (confirmed) |",
-            "|---|---|---|---|",
         ]
-        for axis in AXES:
-            unit, k = display_unit(axis)
-            conf = result.get("confirmed", {}).get("heldout_gap_after_per_axis", {}).get(axis)
-            lines.append(
-                f"| {axis} | {c['heldout_gap_before_per_axis'][axis] * k:.3f} {unit} | "
-                f"{c['heldout_gap_after_per_axis'][axis] * k:.3f} {unit} | "
-                + (f"{conf * k:.3f} {unit} |" if conf is not None else "|")
-            )
-        lines.append("")
+        lines += [
+            f"- {' + '.join(a.effects)} ({a.n_params} parameters, "
+            f"{a.corner_gap_after_px:.2f} px)"
+            for a in alternatives
+        ]
+    return lines
+
+
+def how_far_markdown(result: DiagnosisResult) -> list[str]:
+    """Markdown lines for the chosen model on the report split (fast and confirmed)."""
+    c, f = result.combined, result.confirmed
+    lines = [
+        "## How far it shrinks",
+        "",
+        f"Measured on the report split ({c.configurations} configurations that neither "
+        "fitted nor chose the model): pose gap "
+        f"{c.pose_gap_before:.2f} -> {c.pose_gap_after:.2f} "
+        f"({c.pose_gap_reduction:.0%} reduction, 90 % bootstrap interval "
+        f"{c.pose_gap_reduction_interval_90[0]:.0%} to "
+        f"{c.pose_gap_reduction_interval_90[1]:.0%}); all evidence "
+        f"{c.evidence_before:.2f} -> {c.evidence_after:.2f} ({c.evidence_reduction:.0%}, "
+        f"interval {c.evidence_reduction_interval_90[0]:.0%} to "
+        f"{c.evidence_reduction_interval_90[1]:.0%}), with the fitted effects (fast model).",
+    ]
+    if f:
+        lines.append(
+            f"Confirmed by a full re-run of the pipeline with the fitted effects: "
+            f"{f.pose_gap_after:.2f} ({f.pose_gap_reduction:.0%} reduction, "
+            f"{f.configurations} report-split configurations, {f.seconds:.0f} s)."
+        )
+    lines += [
+        "",
+        "| selected effect | fitted values | pose contribution |",
+        "|---|---|---|",
+    ]
+    lines += [
+        f"| {e.effect} | {', '.join(f'{k}={_fmt(v)}' for k, v in e.params.items())} "
+        f"| {e.pose_contribution:.1f} |"
+        for e in result.selection.findings
+    ]
+    lines += [
+        "",
+        "Pose contribution: how far the effect moves the choose split's pose predictions with "
+        "the other effects held at their fitted values (median |change| over the noise or "
+        "practical floor, largest significant axis); below 1 the effect is minor.",
+        "",
+        "| axis | median abs gap before | after (fast) | after (confirmed) |",
+        "|---|---|---|---|",
+    ]
+    for axis in AXES:
+        unit, k = display_unit(axis)
+        confirmed = f"{f.median_abs_gap_after[axis] * k:.3f} {unit} |" if f else "|"
+        lines.append(
+            f"| {axis} | {c.median_abs_gap_before[axis] * k:.3f} {unit} | "
+            f"{c.median_abs_gap_after[axis] * k:.3f} {unit} | " + confirmed
+        )
+    lines.append("")
     return lines
 
 
@@ -297,40 +307,38 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def plot_ranking(result: dict[str, Any]) -> Figure:
-    """Held-out misfit of all evidence (the ranking key) and corner residual per candidate."""
+def plot_ranking(result: DiagnosisResult) -> Figure:
+    """Misfit of all evidence (the ranking key) and corner residual per candidate (choose split)."""
     fig = Figure(figsize=(11, 4.5), layout="constrained")
     FigureCanvasAgg(fig)
-    ranking = result["ranking"]
-    names = [r["effect"] for r in ranking][::-1]
+    ranking = result.ranking
+    names = [r.effect for r in ranking][::-1]
     panels = [
         (
-            "heldout_evidence_before",
-            "heldout_evidence_after",
-            "held-out misfit of all evidence (the ranking key)",
+            [r.evidence_after for r in ranking],
+            ranking[0].evidence_before if ranking else None,
+            "misfit of all evidence on the choose split (the ranking key)",
         ),
         (
-            "heldout_corner_gap_before_px",
-            "heldout_corner_gap_after_px",
-            "held-out corner residual [px]",
+            [r.corner_gap_after_px for r in ranking],
+            ranking[0].corner_gap_before_px if ranking else None,
+            "corner residual on the choose split [px]",
         ),
     ]
-    for i, (before, after, label) in enumerate(panels):
+    for i, (after, before, label) in enumerate(panels):
         ax = fig.add_subplot(1, 2, i + 1)
-        ax.barh(names, [r[after] for r in ranking][::-1], color="tab:blue")
-        if ranking:
-            ax.axvline(ranking[0][before], color="k", ls="--", label="before (no effect)")
+        ax.barh(names, after[::-1], color="tab:blue")
+        if before is not None:
+            ax.axvline(before, color="k", ls="--", label="before (no effect)")
         if i == 1:
             ax.set_yticklabels([])
         ax.set_xlabel(label)
         ax.legend(loc="lower right")
-    fig.suptitle(
-        "Which effect explains the gap (ranked by all held-out evidence, best on top)"
-    )
+    fig.suptitle("Which effect explains the gap (ranked by all evidence, best on top)")
     return fig
 
 
-def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) -> list[Path]:
+def write_diagnosis_report(result: DiagnosisResult, d: Diagnosis, out_dir: Path) -> list[Path]:
     """Write ``diagnosis.md``, figures (gap heatmap, by distance, ranking) and ``result.json``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -354,10 +362,10 @@ def write_diagnosis_report(result: dict[str, Any], d: Diagnosis, out_dir: Path) 
             fig = plot_image_stats(images, against, title="Image evidence: real vs simulation")
             paths.append(save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
     lines = ["# Sim-to-real gap diagnosis", ""]
-    lines += where_markdown(result["where"])
+    lines += where_markdown(result.where)
     lines += which_markdown(result)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]
-    lines.append(f"Diagnosis time: {result['seconds']:.0f} s.")
+    lines.append(f"Diagnosis time: {result.seconds:.0f} s.")
     paths.append(save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))
     paths.append(write_json(result, out_dir / "result.json"))
     return paths

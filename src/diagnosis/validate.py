@@ -42,6 +42,7 @@ from simgap.diagnosis.hidden_effects import (
     Sampler,
     found,
 )
+from simgap.diagnosis.result import DiagnosisResult
 from simgap.diagnosis.result_json import jsonable, write_json
 from simgap.diagnosis.validation_report import confusion, summarize_scores, validation_markdown
 from simgap.pipeline.capture import ingest, write_capture
@@ -125,7 +126,7 @@ class Trial:
 
     index: int
     hidden: dict[str, dict[str, Any]]
-    result: dict[str, Any] = field(default_factory=dict)
+    result: DiagnosisResult = field(default_factory=DiagnosisResult)
     seconds: float = 0.0
 
     def record(self) -> dict[str, Any]:
@@ -142,13 +143,13 @@ class Trial:
 
     def score(self) -> dict[str, Any]:
         """Top-1, recall, magnitude errors and gap reduction of this trial."""
-        sel = self.result.get("selected", [])
+        sel = self.result.selected
         hidden = list(self.hidden)
         out: dict[str, Any] = {
             "hidden": hidden,
             "selected": sel,
             "top1": sel[0] if sel else "none",
-            "unexplained": self.result.get("unexplained"),
+            "unexplained": self.result.unexplained,
         }
         geometric = [e for e in sel if e in geometric_effects()]
         out["geometric_selected"] = geometric
@@ -156,14 +157,13 @@ class Trial:
             out["correct"] = not geometric
             return out
         if set(hidden) <= set(OUTSIDE):
-            out["correct"] = bool(self.result.get("unexplained")) and not geometric
+            out["correct"] = self.result.unexplained and not geometric
             return out
         accepted = set(hidden) | {REPORTED_AS[h] for h in hidden if h in REPORTED_AS}
         out["correct"] = bool(sel) and sel[0] in accepted
         out["recall"] = sum(found(h, sel) for h in hidden) / len(hidden)
-        fitted = {
-            e["effect"]: e["params"] for e in self.result.get("combined", {}).get("effects", [])
-        }
+        selection = self.result.selection
+        fitted = {f.effect: f.params for f in selection.findings} if selection else {}
         mags = {}
         for name, params in self.hidden.items():
             key = HIDDEN[name][1] if name in HIDDEN else None
@@ -172,9 +172,10 @@ class Trial:
             true, got = np.atleast_1d(params[key]), np.atleast_1d(fitted[name].get(key, 0.0))
             mags[name] = float(np.linalg.norm(got - true) / np.linalg.norm(true))
         out["magnitude_error"] = mags
-        combined = self.result.get("combined", {})
-        out["reduction"] = self.result.get("confirmed", combined).get("reduction")
-        out["reduction_interval_90"] = combined.get("reduction_interval_90")
+        combined = self.result.combined
+        measured = self.result.confirmed or combined
+        out["reduction"] = measured.pose_gap_reduction if measured else None
+        out["reduction_interval_90"] = combined.pose_gap_reduction_interval_90 if combined else None
         return out
 
 

@@ -20,6 +20,7 @@ from simgap.diagnosis.hidden_effects import (
     OUTSIDE,
     found,
 )
+from simgap.diagnosis.result import DiagnosisResult
 
 
 def _share(flags: list[bool]) -> float | None:
@@ -162,7 +163,8 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
     ]
     for r in records:
         mags = ", ".join(f"{k} {v:.1%}" for k, v in r.get("magnitude_error", {}).items())
-        left = ", ".join(r["result"].get("unexplained_evidence", [])) or "-"
+        answer = DiagnosisResult.from_json(r["result"], f"trial {r['index']}'s result")
+        left = ", ".join(answer.unexplained_evidence) or "-"
         lines.append(
             f"| {r['index']} | {', '.join(r['hidden']) or 'none'} | "
             f"{', '.join(r['selected']) or '-'} | {left} | {'yes' if r['correct'] else 'no'} | "

@@ -1,0 +1,74 @@
+"""result.json as typed records: schema 2 written and read back, schema 1 still read."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from simgap.diagnosis.result import SCHEMA_VERSION, DiagnosisResult
+
+#: sample-focal's result.json as simgap wrote it before schema 2 (commit 23f6bf2)
+V1 = Path(__file__).parent / "data" / "result_v1_sample_focal.json"
+
+
+def test_schema_1_is_read_under_the_new_names():
+    raw = json.loads(V1.read_text())
+    result = DiagnosisResult.from_json(raw)
+    assert result.schema_version == SCHEMA_VERSION == 2
+    # what the old file said, read through the new names (values copied from the file)
+    assert result.selected == raw["selected"] == ["focal_length", "blur", "exposure"]
+    assert result.minor == raw["minor"] == ["exposure"]
+    assert result.unexplained is raw["unexplained"] is True
+    assert (result.split.fit, result.split.choose, result.split.report) == (4, 2, 3)
+    assert result.where.axis_gaps["ty"].z_median == raw["where"]["axes"]["ty"]["z_mean"]
+    assert result.where.regions[0].median == raw["where"]["regions"][0]["mean"]
+    top = raw["ranking"][0]
+    assert result.ranking[0].pose_gap_after == top["heldout_gap_after"]
+    assert result.ranking[0].kind == top["stage"] == "projection"
+    combined = raw["combined"]
+    assert result.selection.findings[0].params == combined["effects"][0]["params"]
+    assert result.selection.configurations == combined["choice"]["configurations"] == 2
+    assert result.combined.pose_gap_reduction == combined["reduction"]
+    assert list(result.combined.pose_gap_reduction_interval_90) == combined[
+        "reduction_interval_90"
+    ]
+    assert result.combined.median_abs_gap_after == combined["heldout_gap_after_per_axis"]
+    assert result.confirmed.pose_gap_reduction == raw["confirmed"]["reduction"]
+
+
+def test_schema_2_round_trips_and_writes_the_derived_keys():
+    result = DiagnosisResult.from_json(json.loads(V1.read_text()))
+    data = json.loads(json.dumps(result.to_json()))
+    assert data["schema_version"] == 2
+    assert data["selected"] == result.selected and data["unexplained"] is True
+    assert DiagnosisResult.from_json(data).to_json() == data
+    # nothing is lost between the schemas: the old file's numbers are the new one's
+    new = {k: v for k, v in data.items() if k != "schema_version"}
+    assert _numbers(json.loads(V1.read_text())) == _numbers(new)
+
+
+def _numbers(tree) -> list[float]:
+    """Every number of a JSON tree, sorted (the key names aside)."""
+    if isinstance(tree, dict):
+        return sorted(v for item in tree.values() for v in _numbers(item))
+    if isinstance(tree, list):
+        return sorted(v for item in tree for v in _numbers(item))
+    return [float(tree)] if isinstance(tree, (int, float)) and not isinstance(tree, bool) else []
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda d: d["where"]["axis_gaps"]["ty"].update(n="nine"), r"where\.axis_gaps\.ty\.n"),
+        (lambda d: d["split"].pop("choose"), r"split: missing key 'choose'"),
+        (lambda d: d["combined"].update(reduction=0.5), r"combined: unexpected key\(s\) reduction"),
+        (lambda d: d.update(schema_version=3), r"schema_version: expected 1 or 2, got 3"),
+    ],
+)
+def test_a_result_that_does_not_fit_the_schema_names_the_key(change, message):
+    data = DiagnosisResult.from_json(json.loads(V1.read_text())).to_json()
+    change(data)
+    with pytest.raises(ValueError, match=message):
+        DiagnosisResult.from_json(data, "diag/result.json")
