@@ -58,7 +58,7 @@ def _handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
                 raise
             bound = inspect.signature(func).bind_partial(*args, **kwargs).arguments
             paths = [v for v in bound.values() if isinstance(v, Path)]
-            _fail(_error_line(exc, paths))
+            fail(_error_line(exc, paths))
 
     return wrapper
 
@@ -112,31 +112,32 @@ def output_option(help_text: str) -> Any:
     return typer.Option("-o", "--output", help=help_text)
 
 
-def _read_result(path: Path):
+def read_result_dataset(path: Path):
     """A result dataset (netCDF), checked against the contract (errors name the file)."""
     from simgap.results.dataset import check_dataset, read_netcdf
 
     return check_dataset(read_netcdf(path), path)
 
 
-def _fail(message: str) -> None:
+def fail(message: str) -> None:
+    """Print ``error: message`` to stderr and exit with code 2 (the command line's one error)."""
     typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
     raise typer.Exit(code=2)
 
 
-def _experiment(path: Path):
+def read_experiment(path: Path):
     """Load an experiment file (errors name the file and key)."""
     from simgap.pipeline.experiment import load_experiment
 
     return load_experiment(path)
 
 
-def _load_sim(sim: Path):
+def read_simulation(sim: Path):
     """An experiment from YAML, or the experiment a result dataset was made with."""
     from simgap.pipeline.experiment import experiment_from_yaml
 
     if sim.suffix in (".yaml", ".yml"):
-        return _experiment(sim)
+        return read_experiment(sim)
     from simgap.results.dataset import read_netcdf
 
     ds = read_netcdf(sim)

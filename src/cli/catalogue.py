@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from simgap.cli.app import CacheOption, SchedulerOption, _experiment, app
+from simgap.cli.app import CacheOption, SchedulerOption, app, read_experiment
 from simgap.cli.simulate import report, run
 
 
@@ -44,7 +44,7 @@ def study(
     scheduler: SchedulerOption = None,
 ) -> None:
     """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
-    name = _experiment(experiment).name
+    name = read_experiment(experiment).name
     nc = output / f"{name}.nc"
     run(experiment, nc, cache, True, scheduler)
     report(nc, output / f"{name}-report", None)

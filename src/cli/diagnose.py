@@ -12,11 +12,11 @@ from simgap.cli.app import (
     CacheOption,
     SchedulerOption,
     VariantOption,
-    _experiment,
-    _load_sim,
-    _read_result,
     app,
     output_option,
+    read_experiment,
+    read_result_dataset,
+    read_simulation,
 )
 
 
@@ -32,7 +32,7 @@ def errormodel(
     """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
     from simgap.analysis.errormodel import check_error_model, fit_error_model
 
-    ds = _read_result(result)
+    ds = read_result_dataset(result)
     model = fit_error_model(ds, variant=variant, source=str(result))
     summary = check_error_model(ds, variant=variant) if check else None
     for path in model.save(output):
@@ -67,7 +67,7 @@ def diagnose(
     from simgap.results.dataset import read_netcdf
 
     data = read_netcdf(real)
-    exp = _load_sim(sim)
+    exp = read_simulation(sim)
     settings = DiagnoseSettings(seed=seed)
     simulator = Simulator(cache or default_cache_dir(), scheduler=scheduler)
     result, state = run_diagnosis(data, exp, simulator, settings)
@@ -113,7 +113,7 @@ def validate(
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.validate import ValidateSettings, run_validation
 
-    exp = _experiment(experiment)
+    exp = read_experiment(experiment)
     k, _, n = shard.partition("/")
     if not (k.isdigit() and n.isdigit()):
         raise ValueError(f"--shard: expected K/N (two whole numbers, e.g. 0/4), got {shard!r}")

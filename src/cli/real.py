@@ -11,12 +11,12 @@ from simgap.cli.app import (
     CacheOption,
     ProgressOption,
     VariantOption,
-    _experiment,
-    _fail,
-    _load_sim,
-    _read_result,
     app,
+    fail,
     output_option,
+    read_experiment,
+    read_result_dataset,
+    read_simulation,
 )
 
 
@@ -55,7 +55,7 @@ def ingest(
 
     kwargs = {}
     if experiment is not None:
-        exp = _experiment(experiment)
+        exp = read_experiment(experiment)
         kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
     from simgap.pipeline.bag import ingest_bag, is_bag
 
@@ -101,14 +101,14 @@ def export_bag(
 
     fmt = fmt or ("ros1" if output.suffix == ".bag" else "ros2")
     if fmt not in BAG_FORMATS:
-        _fail(f"--format: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
+        fail(f"--format: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
     if source.is_dir():
         path = capture_to_bag(source, output, fmt, compressed=compressed)
     else:
         dataset = None
         if source.suffix == ".nc":
-            dataset = _read_result(source)
-        exp = _load_sim(source)
+            dataset = read_result_dataset(source)
+        exp = read_simulation(source)
         cache_dir = cache or default_cache_dir()
         path = experiment_to_bag(exp, cache_dir, output, fmt, dataset, variant, compressed)
     typer.echo(f"wrote {path} ({fmt})")

@@ -11,10 +11,10 @@ from simgap.cli.app import (
     CacheOption,
     ProgressOption,
     SchedulerOption,
-    _experiment,
-    _read_result,
     app,
     output_option,
+    read_experiment,
+    read_result_dataset,
 )
 
 
@@ -33,7 +33,7 @@ def run(
     from simgap.pipeline.sweep import run_experiment
     from simgap.results.dataset import write_netcdf
 
-    exp = _experiment(experiment)
+    exp = read_experiment(experiment)
     ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
     write_netcdf(ds, output)
     vis = ds.visible.values
@@ -56,7 +56,7 @@ def report(
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
     from simgap.analysis.report import write_report
 
-    ds = _read_result(result)
+    ds = read_result_dataset(result)
     paths = write_report(ds, output)
     if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
         from simgap.analysis.compare import write_comparison
@@ -81,5 +81,5 @@ def compare(
     """Compare each variant of a result dataset with the reference variant."""
     from simgap.analysis.compare import write_comparison
 
-    for p in write_comparison(_read_result(result), output, baseline):
+    for p in write_comparison(read_result_dataset(result), output, baseline):
         typer.echo(str(p))
