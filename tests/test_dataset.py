@@ -1,4 +1,4 @@
-"""Tests of the result dataset contract (DESIGN §3) and its atomic netCDF round trip."""
+"""The result dataset contract (docs/conventions.md §3) and its atomic netCDF round trip."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Tests of simgap.pose.estimate on exact synthetic corners (no rendering): every usable PnP method
-recovers the pose, and pose_error follows DESIGN §1's sign conventions.
+recovers the pose, and pose_error follows docs/conventions.md §1's sign conventions.
 
 Two facts about OpenCV 5.0.0's solvers, measured on these exact corners, shape these tests:
 
@@ -181,14 +181,15 @@ def test_estimate_pose_global_frame(rig):
 
 
 def test_marker_object_points_order():
-    # TL, TR, BR, BL in the marker frame (x right, y up), DESIGN §1; exact binary fractions.
+    # TL, TR, BR, BL in the marker frame (x right, y up), docs/conventions.md §1; exact binary
+    # fractions.
     np.testing.assert_array_equal(
         marker_object_points(0.02),
         [[-0.01, 0.01, 0.0], [0.01, 0.01, 0.0], [0.01, -0.01, 0.0], [-0.01, -0.01, 0.0]],
     )
 
 
-# --- pose_error sign conventions (DESIGN §1) ---------------------------------------------------
+# --- pose_error sign conventions (docs/conventions.md §1) ---------------------------------------
 
 
 def expected_example(rig):

@@ -12,7 +12,7 @@ from simgap.core import transforms as tf
 from simgap.core.config import ConfigError
 from simgap.core.rig import FixtureErrors, load_rig
 
-# Table 1 of the paper (DESIGN §1), eyepoint to tag centre (m).
+# Table 1 of the paper (docs/conventions.md §1), eyepoint to tag centre (m).
 TABLE1_X0 = 0.0325
 TABLE1_Y0 = 0.28314414
 TABLE1_Z = -0.01616866
@@ -47,7 +47,7 @@ def table1(tag: int, p: float, theta: float) -> np.ndarray:
 
 
 def normal0(theta: float) -> np.ndarray:
-    """Outward normal of tag 0's face (DESIGN §1)."""
+    """Outward normal of tag 0's face (docs/conventions.md §1)."""
     return np.array([np.sin(theta), -np.cos(theta), 0.0])
 
 

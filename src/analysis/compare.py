@@ -99,7 +99,7 @@ def write_comparison(ds: xr.Dataset, out_dir: Path, baseline: str | None = None)
     Parameters
     ----------
     ds : xarray.Dataset
-        Result dataset (DESIGN section 3) with at least two variants.
+        Result dataset (docs/conventions.md §3) with at least two variants.
     out_dir : pathlib.Path
         Output folder, created if needed; files in it are replaced atomically.
     baseline : str, optional

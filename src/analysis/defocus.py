@@ -35,14 +35,14 @@ class DefocusCandidate(AppearanceCandidate):
     :class:`simgap.render.camera.OpenCVCamera`). The real edge width is modelled as the
     simulation's combined in quadrature with the disk's edge-spread width
     (:data:`DISK_10_90_PER_RADIUS` ``* R``); ``A`` and ``1 / z_f`` are fitted by bounded robust
-    least squares over the training tags.
+    least squares over the fit split's tags.
     """
 
     n_params = 2
     #: Samples per pixel of its renders: the thin lens adds Monte Carlo noise that a 16-spp
     #: render turns into corner noise the real camera does not have (a square, 8 x 8, as the
     #: multijitter sampler takes it). At 36 spp that noise decided against the lens in two of
-    #: three defocus trials of development seed 23 (held-out corners 0.36-0.52 px against the
+    #: three defocus trials of development seed 23 (choose-split corners 0.36-0.52 px against the
     #: blur's 0.27-0.36 px, while the lens fitted the aperture within 5-9 % and lowered the
     #: pose gap more).
     SPP = 64
@@ -111,7 +111,7 @@ class DefocusCandidate(AppearanceCandidate):
                 # a lens's signature is a widening that changes with depth: where it does,
                 # beyond what one widening at every depth explains, a depth-independent blur
                 # is not the explanation (measured: seed-23 trial 7, a 0.87 mm aperture
-                # focused at 2 m, tied with a 1 px blur on the held-out evidence and parsimony
+                # focused at 2 m, tied with a 1 px blur on the choose split's evidence and parsimony
                 # chose the blur)
                 "excludes": ("blur",) if depth_dependent else (),
             },

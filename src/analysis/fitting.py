@@ -159,7 +159,7 @@ class Fit:
         Wall time of the fit (s).
     extra : dict
         Solver by-products: ``x`` (the solver's parameter vector, for joint fits and
-        projections), ``corner_rms_px`` (training corner residual, px), ``train_misfit``.
+        projections), ``corner_rms_px`` (corner residual on the fit split, px), ``train_misfit``.
     """
 
     effect: str

@@ -3,7 +3,7 @@
 The statistics themselves are measured per tag and frame by :mod:`simgap.pose.image_stats` and
 stored in a result dataset as ``image_stats`` (variant, repeat, tag, p, theta, stat). Here they are
 put against the tag's distance and view angle, both computed from the dataset's ``expected`` pose
-(the dataset contract, DESIGN §3), so no rig is needed.
+(the dataset contract, docs/conventions.md §3), so no rig is needed.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ from simgap.render.imaging import GRAY_NOISE_VARIANCE_RATIO
 #: Largest photo-response non-uniformity of a real camera the noise fit allows (relative sigma):
 #: EMVA 1288 datasheets give below 1 % for machine-vision CMOS sensors; 2 % allows for the
 #: print's texture. Without a bound, shot noise and a multiplicative term cannot be told apart
-#: over the narrow range of paper levels of a training split (a blind capture's fit ran off to
+#: over the narrow range of paper levels of a fit split (a blind capture's fit ran off to
 #: a 10^6 e full well when its renderer's noise was twice the simulation's).
 PRNU_MAX = 0.02
 #: Range of full wells fitted (electrons per linear 1.0): from a very noisy sensor to none
@@ -59,13 +59,13 @@ class SensorNoiseCandidate(AppearanceCandidate):
       have: between minus the simulation's and :data:`PRNU_MAX` squared. It is not part of the
       effect.
 
-    The excess variance (real minus simulated) of ink and paper regions of every training tag is
-    fitted by bounded robust least squares on ``(1 / full_well, (read / full_well)^2, c)``.
-    Where the capture has two frames of a pose, shot and read noise are fitted on the temporal
-    noise instead (the frames' difference: no fixed pattern, so no ``c``; the simulation's own
-    sensor noise, if it models one, subtracted), and ``c`` alone on the spatial excess: over the
-    narrow range of paper levels of one capture the spatial noise cannot tell shot noise from
-    ``c`` (seed 25: full wells 1.4-2.2x too large from one frame).
+    The excess variance (real minus simulated) of ink and paper regions of every tag of the fit
+    split is fitted by bounded robust least squares on ``(1 / full_well, (read / full_well)^2, c)``.
+    Where the capture has two frames of a pose, shot and read noise are fitted on the temporal noise
+    instead (the frames' difference: no fixed pattern, so no ``c``; the simulation's own sensor
+    noise, if it models one, subtracted), and ``c`` alone on the spatial excess: over the narrow
+    range of paper levels of one capture the spatial noise cannot tell shot noise from ``c`` (seed
+    25: full wells 1.4-2.2x too large from one frame).
     """
 
     n_params = 2

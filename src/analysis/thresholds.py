@@ -107,18 +107,18 @@ PAIRED_MIN_SHARE: Final[float] = 0.05
 #: cap): a difference nothing in the catalogue explains (a print whose ink is blacker than the
 #: simulation's) is neither credited to nor blamed on an effect.
 RESIDUAL_CAP: Final[float] = 3.0
-#: A significant piece of evidence whose held-out misfit with the chosen model is at or above
+#: A significant piece of evidence whose misfit (choose split) with the chosen model is at or above
 #: this many channel units (one: the smallest difference that matters) is *unexplained*.
 UNEXPLAINED_MISFIT: Final[float] = 1.0
 
 # -- which: the model search -------------------------------------------------------------------
 
-#: Share by which a geometric effect must bring the held-out pose gap (all axes) closer to the
+#: Share by which a geometric effect must bring the pose gap (all axes, choose split) closer to the
 #: real one to enter a model (:meth:`simgap.analysis.selection.ModelSearch.select`): between
 #: the look-alikes (at most 6 % closer) and the true effects (at least 19 %) of seeds 22, 23
 #: and 25.
 MIN_POSE_REDUCTION: Final[float] = 0.10
-#: An effect whose pose contribution (median change of the held-out poses over their noise or
+#: An effect whose pose contribution (median change of the choose split's poses over their noise or
 #: the practical floor, :meth:`simgap.analysis.selection.ModelSearch.contributions`) is below
 #: this moves no pose by a relevant amount: it is *minor* (one unit: the floor itself).
 MINOR_CONTRIBUTION: Final[float] = 1.0
@@ -127,7 +127,7 @@ MINOR_CONTRIBUTION: Final[float] = 1.0
 
 #: An appearance effect is ranked only when one of its own statistics differs significantly in
 #: the where step, differs by at least :data:`SIGNATURE_MIN_MISFIT` floors (RMS over the
-#: training tags), and the fit lowers that by :data:`SIGNATURE_MIN_GAIN`; else the evidence does
+#: fit split's tags), and the fit lowers that by :data:`SIGNATURE_MIN_GAIN`; else the evidence does
 #: not call for it (a JPEG fitted where the blockiness matches within its floor would only be
 #: credited for side effects on noise; on sample-null a JPEG passed the RMS gate on a
 #: blockiness difference of +0.1 stop, p 0.06). One floor: the smallest difference that matters.

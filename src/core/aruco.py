@@ -1,6 +1,6 @@
 """ArUco facts every layer shares: predefined dictionaries, marker geometry, corner projection.
 
-Conventions (DESIGN §1): a marker's corners are TL, TR, BR, BL at ``(-L/2, L/2, 0)``,
+Conventions (docs/conventions.md §1): a marker's corners are TL, TR, BR, BL at ``(-L/2, L/2, 0)``,
 ``(L/2, L/2, 0)``, ``(L/2, -L/2, 0)``, ``(-L/2, -L/2, 0)`` in the marker frame (x right, y up,
 z out of the marker), ``L`` the side of the black square (m). The OpenCV camera frame is x right,
 y down, z forward; :data:`simgap.core.transforms.GLOBAL_FROM_CV` turns it into the eyepoint frame.

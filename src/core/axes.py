@@ -1,7 +1,7 @@
 """Pose axes of every error array and their units: the one definition the whole package reads.
 
 Translation errors are stored in metres and rotation errors (rotation-vector components) in
-radians (DESIGN §1); reports show them in millimetres and milliradians.
+radians (docs/conventions.md §1); reports show them in millimetres and milliradians.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The test fixture as data: camera, the transform tree of the paper's Table 1, grids and tags.
 
-Frames (DESIGN §1), all right-handed, lengths in metres, angles in radians:
+Frames (docs/conventions.md §1), all right-handed, lengths in metres, angles in radians:
 
 ``eyepoint``
     The camera's optical centre; orientation of the global frame (+X right, +Y forward, +Z up).

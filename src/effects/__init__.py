@@ -1,9 +1,9 @@
 """The effects catalogue: every physical or algorithmic effect as a small registered class.
 
 Each effect has a frozen, validated ``Params`` dataclass (units in the field names or docstring), a
-docstring saying what it models, and the ``stage`` at which it acts (DESIGN §2). The class header
-registers it, ``class TagGloss(Effect, name="tag_gloss", stage="scene")``, and each parameter
-declares its valid range once with :func:`~simgap.effects.base.param`. The stages:
+docstring saying what it models, and the ``stage`` at which it acts (docs/conventions.md §2). The
+class header registers it, ``class TagGloss(Effect, name="tag_gloss", stage="scene")``, and each
+parameter declares its valid range once with :func:`~simgap.effects.base.param`. The stages:
 
 ==============  ==========================================================  =====================
 stage           what it changes                                              recompute

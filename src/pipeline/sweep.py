@@ -1,7 +1,8 @@
 """Run an experiment: for every (p, theta), every variant and repeat, render -> frame -> pose.
 
 Stages and their caches (:mod:`simgap.pipeline.cache`), each keyed by a content hash of its inputs
-only, so a variant reuses everything upstream of the first stage it changes (DESIGN §2):
+only, so a variant reuses everything upstream of the first stage it changes
+(docs/conventions.md §2):
 
 =========  ===============================================  ====================================
 product    key depends on                                    stored as
@@ -15,8 +16,8 @@ result     frame key, estimation state, tags                 ``.npz`` of corners
 
 Only the pixels near the stickers facing the camera are rendered (:mod:`simgap.pipeline.region`),
 in their bounding crop; the detector reads the window of the full-size frame around that crop,
-with its size-relative thresholds set for the real image size (DESIGN §4), which finds what the
-whole frame would (:attr:`simgap.pose.detect.Detector.window_pad_px`).
+with its size-relative thresholds set for the real image size (docs/conventions.md §4), which
+finds what the whole frame would (:attr:`simgap.pose.detect.Detector.window_pad_px`).
 Work is spread over a Dask scheduler: a ``LocalCluster`` by default (two worker processes from
 :data:`PROCESS_SWEEP_MIN_CONFIGS` configurations on, else one in-process worker thread), or any
 cluster by address; one task is one (p, theta) for all variants and repeats, so renders are
@@ -40,7 +41,7 @@ from simgap.pipeline.cache import Cache, content_hash
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.variant import VariantPipeline, assets_hash
 from simgap.pose.tags import RESULT_FIELDS
-from simgap.results.dataset import build_dataset, empty_results
+from simgap.results.dataset import CONVENTIONS, build_dataset, empty_results
 
 _PIPELINES: dict[str, list[VariantPipeline]] = {}
 
@@ -240,5 +241,5 @@ def dataset_attrs(exp: Experiment, scheduler: str) -> dict[str, str]:
         "render_region": f"pixels within {exp.render.margin_px} px of a facing sticker",
         "detector": json.dumps({n: f"{s.estimation.detector}" for n, s in states}),
         "pnp": json.dumps({n: f"{s.estimation.pnp}" for n, s in states}),
-        "conventions": "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)",
+        "conventions": CONVENTIONS,
     }

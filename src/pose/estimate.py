@@ -1,8 +1,8 @@
 """Marker pose from corners (``cv2.solvePnP``), in the global frame, and its error.
 
-Conventions (DESIGN §1): pose = translation of the tag centre (m) and rotation vector of the marker
-frame (rad), both in the global frame. Error = estimated - expected translation per axis and
-``rotvec(R_est @ R_expected.T)`` per axis. Marker corners and their projection live in
+Conventions (docs/conventions.md §1): pose = translation of the tag centre (m) and rotation vector
+of the marker frame (rad), both in the global frame. Error = estimated - expected translation per
+axis and ``rotvec(R_est @ R_expected.T)`` per axis. Marker corners and their projection live in
 :mod:`simgap.core.aruco` (``marker_object_points``, ``project_tag_corners`` re-exported here).
 """
 

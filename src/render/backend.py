@@ -1,9 +1,10 @@
 """Choose and import the Mitsuba variant.
 
 Dr.Jit's LLVM back end reads ``DRJIT_LIBLLVM_PATH`` when ``drjit`` is imported, and LLVM 15/16 abort
-the whole process on the first kernel (DESIGN §4). This module therefore finds the newest
-libLLVM >= 19 *before* importing mitsuba, uses ``llvm_ad_rgb`` when one is found and falls back to
-``scalar_rgb`` (about 4x slower) with a warning otherwise. ``SIMGAP_VARIANT`` overrides the choice.
+the whole process on the first kernel (docs/conventions.md §4). This module therefore finds the
+newest libLLVM >= 19 *before* importing mitsuba, uses ``llvm_ad_rgb`` when one is found and falls
+back to ``scalar_rgb`` (about 4x slower) with a warning otherwise. ``SIMGAP_VARIANT`` overrides the
+choice.
 
 Importing this module imports nothing of Mitsuba: :func:`mitsuba` is the renderer's one explicit
 set-up (variant, then simgap's plugins), called when a scene is built.

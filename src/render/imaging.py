@@ -1,8 +1,8 @@
 """Camera pipeline basics: linear HDR <-> EXR, sRGB 8-bit encoding, crops pasted into frames.
 
-The linear render is the scene stage's product; everything here is the image stage (DESIGN §2).
-EXR files hold half floats; the pipeline always works from the half-float values (also right after
-rendering) so that a run served from cache gives bit-identical frames.
+The linear render is the scene stage's product; everything here is the image stage
+(docs/conventions.md §2). EXR files hold half floats; the pipeline always works from the half-float
+values (also right after rendering) so that a run served from cache gives bit-identical frames.
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ def tag_bsdf(tag: TagPrint, texture: np.ndarray, mi: ModuleType) -> dict[str, An
     """Tag BSDF: the marker texture (uint8, one texel per cell) mapped to ink/paper albedo.
 
     The bitmap's v is flipped (``to_uv``): a ``rectangle`` maps uv = ((x+1)/2, (y+1)/2) while
-    bitmap row 0 is the image's top (DESIGN §4).
+    bitmap row 0 is the image's top (docs/conventions.md §4).
     """
     if tag.texture_filter == "bilinear":
         texture = np.kron(texture, np.ones((BILINEAR_UPSAMPLE, BILINEAR_UPSAMPLE), texture.dtype))

@@ -1,8 +1,8 @@
 """The parametric Mitsuba scene of the fixture, built from the template and the rig.
 
 The scene is loaded once; :meth:`FixtureScene.set_pose` moves the carriage, camera and turntable
-through ``mi.traverse`` so that every pose reuses the compiled render kernels (DESIGN §4). The scene
-frame is the rig's ``rail`` frame (metres).
+through ``mi.traverse`` so that every pose reuses the compiled render kernels
+(docs/conventions.md §4). The scene frame is the rig's ``rail`` frame (metres).
 """
 
 from __future__ import annotations

@@ -1,4 +1,6 @@
-"""The result dataset (DESIGN §3): names, dims and units are a contract other tools read.
+"""The result dataset: names, dims and units are a contract other tools read.
+
+The contract is docs/conventions.md §3.
 
 Build it with :func:`build_dataset`, write it with :func:`write_netcdf` (atomic), read it with
 :func:`read_netcdf` and check a dataset from elsewhere against the contract with
@@ -30,7 +32,7 @@ ERROR_UNITS = "; ".join(
     for unit in dict.fromkeys(AXIS_UNITS.values())
 )
 FULL_DIMS = ("variant", "repeat", "tag", "p", "theta")
-#: The contract (DESIGN §3): variable -> (dims, kind), kind "number" or "boolean".
+#: The contract (docs/conventions.md §3): variable -> (dims, kind), kind "number" or "boolean".
 #: ``visible`` may also have a leading ``variant`` dim.
 CONTRACT: dict[str, tuple[tuple[str, ...], str]] = {
     "expected": (("tag", "p", "theta", "axis"), "number"),
@@ -53,11 +55,14 @@ COORDS = {
 #: Variables the analyses read unless they say otherwise.
 REQUIRED = ("error", "detected", "visible")
 #: ``conventions`` attr of every result dataset: the frame the poses are expressed in.
-CONVENTIONS = "DESIGN.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)"
+CONVENTIONS = "docs/conventions.md §1: global frame = eyepoint (+X right, +Y forward, +Z up)"
 
 
 class DatasetError(ConfigError):
-    """A result dataset does not follow the contract (DESIGN §3); names the file and variable."""
+    """A result dataset does not follow the contract (docs/conventions.md §3).
+
+    The message names the file and the variable.
+    """
 
 
 def _kind_problem(da: xr.DataArray, kind: str) -> str | None:
@@ -102,7 +107,7 @@ def _coord_problem(values: np.ndarray, kind: str) -> str | None:
 def check_dataset(
     ds: xr.Dataset, path: str | Path | None = None, required: Sequence[str] = REQUIRED
 ) -> xr.Dataset:
-    """Check a result dataset against the contract (DESIGN §3) before working on it.
+    """Check a result dataset against the contract (docs/conventions.md §3) before working on it.
 
     Checks that the ``required`` variables and every coordinate are present, that every contract
     variable present has the contract's dims (in order) and values (numbers; booleans or 0/1 for

@@ -136,7 +136,7 @@ def fit_error_model(
     config_mask: np.ndarray | None = None,
     source: str = "",
 ) -> ErrorModel:
-    """Fit an error model to a result dataset (DESIGN §3).
+    """Fit an error model to a result dataset (docs/conventions.md §3).
 
     Parameters
     ----------

@@ -30,7 +30,7 @@ def covariates(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def perturb(poses: np.ndarray, errors: np.ndarray) -> np.ndarray:
-    """Estimated poses from expected poses and errors (DESIGN §1), both ``(..., 6)``.
+    """Estimated poses from expected poses and errors (docs/conventions.md §1), both ``(..., 6)``.
 
     Translation: ``t + e_t``; rotation: ``R_est = R(e_r) R_exp``, the inverse of
     :func:`simgap.pose.estimate.pose_error`.

@@ -39,8 +39,8 @@ class TagPoses:
     tags : ndarray of int (N,)
         Tag ids.
     poses : ndarray (N, 6)
-        Poses in the global frame (DESIGN §1): translation (m), rotation vector (rad), as the
-        dataset's ``expected`` variable.
+        Poses in the global frame (docs/conventions.md §1): translation (m), rotation vector
+        (rad), as the dataset's ``expected`` variable.
     """
 
     tags: np.ndarray

@@ -1,7 +1,7 @@
 """Paper-style report of one result dataset: figures, Table 2 beside the paper's, and a summary.
 
 The entry point is :func:`write_report`. It validates the dataset against the result-dataset
-contract (DESIGN section 3), reduces the first variant to a
+contract (docs/conventions.md §3), reduces the first variant to a
 :class:`~simgap.analysis.report.summaries.VariantSummary` (absolute and signed errors averaged over
 repeats, restricted to visible configurations) and writes, atomically:
 
@@ -100,8 +100,8 @@ def write_report(ds: xr.Dataset, out_dir: Path, *, pin_pitch_m: float | None = N
     Parameters
     ----------
     ds : xarray.Dataset
-        Result dataset following DESIGN section 3. Only the first variant (``ds.variant[0]``) is
-        reported; errors are averaged over ``repeat`` with NaN skipped.
+        Result dataset following docs/conventions.md §3. Only the first variant
+        (``ds.variant[0]``) is reported; errors are averaged over ``repeat`` with NaN skipped.
     out_dir : pathlib.Path
         Output folder, created if needed; files in it are replaced atomically.
     pin_pitch_m : float, optional

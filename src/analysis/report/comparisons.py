@@ -125,7 +125,7 @@ def rig_facing_theta_rad(rig: Rig) -> dict[int, float]:
 
     A tag faces the camera when its outward normal, turned with the turntable, points along the
     global -Y axis (towards the eyepoint): 0 for a tag on the node's outer face, pi for one on
-    the inner face (DESIGN section 1). Angles in [0, 2 pi).
+    the inner face (docs/conventions.md §1). Angles in [0, 2 pi).
     """
     out = {}
     for tag in rig.tags.ids:
@@ -196,8 +196,8 @@ def compare_variants(
     Parameters
     ----------
     ds : xarray.Dataset
-        Result dataset (DESIGN section 3) with at least two variants; ``visible`` may have dims
-        ``(tag, p, theta)`` or ``(variant, tag, p, theta)``.
+        Result dataset (docs/conventions.md §3) with at least two variants; ``visible`` may have
+        dims ``(tag, p, theta)`` or ``(variant, tag, p, theta)``.
     baseline : str, optional
         Reference variant (see :func:`resolve_baseline`).
     facing_theta_rad : mapping of int to float, optional

@@ -94,7 +94,7 @@ def check_report_dataset(ds: xr.Dataset) -> None:
     Parameters
     ----------
     ds : xarray.Dataset
-        Result dataset following the contract of DESIGN section 3.
+        Result dataset following the contract of docs/conventions.md §3.
 
     Raises
     ------

@@ -1,7 +1,7 @@
 """ROS bags in and out, without a ROS installation (the ``rosbags`` and ``rosbags-image`` packages).
 
 In: a ROS 1 ``.bag`` file or a ROS 2 bag folder (``metadata.yaml`` + storage files) is converted
-into a capture folder (DESIGN §3), the common interchange, which
+into a capture folder (docs/conventions.md §3), the common interchange, which
 :func:`simgap.pipeline.capture.ingest` then turns into a result dataset: there is one ingest path.
 
 - frames: one image topic, ``sensor_msgs/Image`` (any 8-bit encoding rosbags-image converts to

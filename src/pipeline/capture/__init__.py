@@ -1,7 +1,7 @@
 """Real captures in and out: read and validate a capture folder, ingest it, write one.
 
-A capture folder (DESIGN §3) is what a rig operator records on real hardware, and also what
-pseudo-real data is written as::
+A capture folder (docs/conventions.md §3) is what a rig operator records on real hardware, and
+also what pseudo-real data is written as::
 
     capture/
       camera.yaml     the calibration the operator believes in: ROS camera_info YAML or OpenCV

@@ -3,7 +3,7 @@
 Like xarray's backends, every format is a small :class:`CalibrationFormat` registered under its name
 (:data:`CALIBRATION_FORMATS`); :func:`read_calibration` asks each format, in registration order,
 whether it can open a file's text and reads it with the first that can, and
-:func:`calibration_to_yaml` writes with the named one. The formats of DESIGN §3 are
+:func:`calibration_to_yaml` writes with the named one. The formats of docs/conventions.md §3 are
 :mod:`~simgap.pipeline.capture.opencv_yaml` (OpenCV FileStorage YAML, recognised by its ``%YAML``
 first line) and :mod:`~simgap.pipeline.capture.ros_yaml` (ROS camera_info YAML, everything else);
 this module holds the checks both share.

@@ -1,4 +1,4 @@
-"""A capture folder (DESIGN §3) read and validated against a rig.
+"""A capture folder (docs/conventions.md §3) read and validated against a rig.
 
 ::
 

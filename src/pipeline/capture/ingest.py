@@ -74,13 +74,13 @@ def ingest(
 ) -> xr.Dataset:
     """Detect markers and estimate poses in a capture; return the result dataset.
 
-    The dataset follows the contract of a simulated sweep (DESIGN §3): variant ``"real"``;
-    coords ``p``, ``theta`` and ``repeat`` are the sorted unique values of the manifest,
-    ``tag`` the rig's tag ids; configurations absent from the manifest are not detected (NaN).
-    Poses are estimated with the capture's calibration, and the image evidence measured, exactly
-    as :func:`simgap.pose.tags.estimate_tags` and :func:`~simgap.pose.tags.add_image_stats` do
-    for renders. Where a pose has more than one frame (repeats), its first frame's statistics
-    also carry the temporal noise measured against its second.
+    The dataset follows the contract of a simulated sweep (docs/conventions.md §3): variant
+    ``"real"``; coords ``p``, ``theta`` and ``repeat`` are the sorted unique values of the manifest,
+    ``tag`` the rig's tag ids; configurations absent from the manifest are not detected (NaN). Poses
+    are estimated with the capture's calibration, and the image evidence measured, exactly as
+    :func:`simgap.pose.tags.estimate_tags` and :func:`~simgap.pose.tags.add_image_stats` do for
+    renders. Where a pose has more than one frame (repeats), its first frame's statistics also carry
+    the temporal noise measured against its second.
 
     Parameters
     ----------

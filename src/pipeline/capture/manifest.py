@@ -26,7 +26,7 @@ REQUIRED_COLUMNS = ("image", "p", "theta_rad")
 OPTIONAL_COLUMNS = ("repeat", "note")
 #: How far a manifest angle may be from a turntable stop (rad).
 THETA_TOLERANCE_RAD = 1e-3
-#: Bit depth of PNG frames simgap refuses (DESIGN §3 frames are 8-bit).
+#: Bit depth of PNG frames simgap refuses (docs/conventions.md §3 frames are 8-bit).
 REFUSED_PNG_BITS = 16
 
 
@@ -138,8 +138,8 @@ def _image_path(folder: Path, name: str, where: str) -> Path:
     simgap.core.config.ConfigError
         For an empty, absolute or ``..`` path, one that resolves outside the folder (through a
         symbolic link), a missing or unreadable file, or a 16-bit PNG (simgap reads 8-bit frames,
-        DESIGN §3: the scaling of 16-bit data depends on the sensor's bit depth, so it is not
-        guessed; convert the frames to 8 bits first).
+        docs/conventions.md §3: the scaling of 16-bit data depends on the sensor's bit depth, so
+        it is not guessed; convert the frames to 8 bits first).
     """
     if not name:
         raise ConfigError(f"{where}: image: expected a path, got an empty field")
