@@ -1,4 +1,4 @@
-"""simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
+"""The ``simgap`` command line: simulate, report and compare; real captures; diagnose; catalogue.
 
 Commands: run, report, compare, study, ingest, export-bag, errormodel, diagnose, validate, effects,
 assets.
