@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from simgap.analysis.candidates import geometric_effects
 from simgap.cli import app
-from simgap.diagnosis.result import DiagnosisResult, Finding, Selection
+from simgap.diagnosis.result import DiagnosisResult, Finding, Scores, Selection
 
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
@@ -94,10 +94,7 @@ def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
 def _selecting(*effects: str) -> DiagnosisResult:
     """A diagnosis that selected ``effects`` (no parameters, all of them major)."""
     findings = [Finding(effect=e, params={}, pose_contribution=1.0, minor=False) for e in effects]
-    selection = Selection(
-        findings=findings, n_params=0, configurations=0, evidence_before=1.0,
-        evidence_after=0.0, pose_gap_after=0.0,
-    )  # fmt: skip
+    selection = Selection(findings=findings, n_params=0, configurations=0, scores=Scores())
     return DiagnosisResult(selection=selection)
 
 

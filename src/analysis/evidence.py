@@ -56,104 +56,70 @@ LEVEL_EPSILON = 0.002
 
 
 @dataclass(frozen=True, kw_only=True)
-class ScatterTest:
-    """Brown-Forsythe test of real vs simulated pose scatter on one axis and region.
+class EvidenceTest:
+    """A test of real against simulated evidence: its p-value and whether the difference matters.
 
-    Attributes
-    ----------
-    axis, region, unit : str
-        Pose axis, distance region (``"all"`` or a third) and the axis unit (m or rad).
-    n_real, n_sim : int
-        Noise samples of each side.
-    real_scatter, sim_scatter : float
-        Robust scales of the samples (m or rad).
-    ratio : float
-        ``real_scatter / sim_scatter``.
-    extra_scatter : float
-        ``sqrt(|real^2 - sim^2|)`` (m or rad).
-    p_value : float
-        The test's p-value.
-    significant : bool
-        See the module docstring.
+    ``significant``: the test rejects (at :data:`~simgap.analysis.thresholds.ALPHA`, Bonferroni
+    over its family) and the difference reaches its practical floor (see the module docstring).
     """
 
+    p_value: float
+    significant: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScatterTest(EvidenceTest):
+    """Brown-Forsythe test of real vs simulated pose scatter on one axis and region."""
+
+    #: pose axis, distance region (``"all"`` or a third) and the axis unit (m or rad)
     axis: str
     region: str
     unit: str
+    #: noise samples of each side
     n_real: int
     n_sim: int
+    #: robust scales of the samples (m or rad), their ratio real / simulated and the extra
+    #: scatter ``sqrt(|real^2 - sim^2|)`` (m or rad)
     real_scatter: float
     sim_scatter: float
     ratio: float
     extra_scatter: float
-    p_value: float
-    significant: bool
 
 
 @dataclass(frozen=True, kw_only=True)
-class DetectionTest:
-    """Fisher's exact test of real vs simulated detection rate in one region.
+class DetectionTest(EvidenceTest):
+    """Fisher's exact test of real vs simulated detection rate in one region."""
 
-    Attributes
-    ----------
-    region : str
-        ``"all"``, a distance third or a view-angle band.
-    real_detected, real_attempts, sim_detected, sim_attempts : int
-        Detections and attempts (visible configurations times repeats) of each side.
-    real_rate, sim_rate, difference : float
-        Detection rates (0-1) and real minus simulated.
-    p_value : float
-        The test's p-value.
-    significant : bool
-        See the module docstring.
-    """
-
+    #: ``"all"``, a distance third or a view-angle band
     region: str
+    #: detections and attempts (visible configurations times repeats) of each side
     real_detected: int
     real_attempts: int
     sim_detected: int
     sim_attempts: int
+    #: detection rates (0-1) and real minus simulated
     real_rate: float
     sim_rate: float
     difference: float
-    p_value: float
-    significant: bool
 
 
 @dataclass(frozen=True, kw_only=True)
-class ImageTest:
-    """Wilcoxon signed-rank test of the paired real - simulated difference of one statistic.
+class ImageTest(EvidenceTest):
+    """Wilcoxon signed-rank test of the paired real - simulated difference of one statistic."""
 
-    Attributes
-    ----------
-    stat : str
-        Statistic name (:data:`~simgap.analysis.thresholds.IMAGE_FLOORS`).
-    compared_as : str
-        ``"difference"`` or ``"log2 ratio (stops)"``.
-    n : int
-        Tags paired.
-    median_difference : float
-        Median difference real - simulated, in the comparison units.
-    real_median, sim_median : float
-        Median of the statistic on each side (its own units).
-    floor : float or None
-        Smallest median difference that matters (None: reported only).
-    p_value : float
-        The test's p-value.
-    significant : bool
-        Rejects at :data:`~simgap.analysis.thresholds.ALPHA` and the median difference reaches
-        the floor (never for a statistic without a floor).
-    """
-
+    #: statistic name (:data:`~simgap.analysis.thresholds.IMAGE_FLOORS`) and how it is compared:
+    #: ``"difference"`` or ``"log2 ratio (stops)"``
     stat: str
     compared_as: str
+    #: tags paired
     n: int
+    #: median difference real - simulated, in the comparison units
     median_difference: float
+    #: median of the statistic on each side (its own units)
     real_median: float
     sim_median: float
+    #: smallest median difference that matters (None: reported only, never significant)
     floor: float | None
-    p_value: float
-    significant: bool
 
 
 def robust_scale(values: np.ndarray) -> float:

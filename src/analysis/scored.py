@@ -118,27 +118,28 @@ class Scored:
             **extra,
         )
 
+    def channels(self, after: bool = True) -> np.ndarray:
+        """Misfit per evidence channel, in its unit (:func:`evidence_channels`).
+
+        With the model's effects (``after``), or without them.
+        """
+        if after:
+            corner, pose = self.corner_gap_after_px, self.pose_gap_all_axes_after
+            detection, image = self.detection_mismatch_after, self.image_misfit_after
+        else:
+            corner, pose = self.corner_gap_before_px, self.pose_gap_all_axes_before
+            detection, image = self.detection_mismatch_before, self.image_misfit_before
+        return evidence_channels(corner, pose, detection, image, self.corner_unit_px)
+
     @property
     def channels_after(self) -> np.ndarray:
-        """Misfit per evidence channel with the model, in its unit (:func:`evidence_channels`)."""
-        return evidence_channels(
-            self.corner_gap_after_px,
-            self.pose_gap_all_axes_after,
-            self.detection_mismatch_after,
-            self.image_misfit_after,
-            self.corner_unit_px,
-        )
+        """Misfit per evidence channel with the model's effects."""
+        return self.channels(after=True)
 
     @property
     def channels_before(self) -> np.ndarray:
         """Misfit per evidence channel without the model's effects."""
-        return evidence_channels(
-            self.corner_gap_before_px,
-            self.pose_gap_all_axes_before,
-            self.detection_mismatch_before,
-            self.image_misfit_before,
-            self.corner_unit_px,
-        )
+        return self.channels(after=False)
 
     @property
     def evidence_after(self) -> float:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simgap.analysis.channels import NOISE_STATS, Prediction
+from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
 from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
@@ -350,49 +351,10 @@ class ModelSearch:
         """Effects of a model seen in the evidence that move no pose beyond the floor."""
         return [e for e, w in self.contributions(scored).items() if w < MINOR_CONTRIBUTION]
 
-    def member_deltas(self, scored: Scored) -> dict[str, np.ndarray]:
-        """Change of error (N, 6) of the scored items due to each effect, the others held fixed.
-
-        For a projection effect: the model's projection prediction minus the same prediction
-        with that effect's parameters set to zero (no refit). For a simulation effect: its own
-        change of error.
-        """
-        out = dict(scored.simulation_deltas)
-        if scored.projection is not None:
-            joint, fit, shifted = scored.projection
-            full = np.nan_to_num(joint.delta(self.rig, self.base, fit, shifted))
-            members = joint.members if isinstance(joint, ProjectionSet) else [joint]
-            if len(members) == 1:
-                out[members[0].effect] = full
-            else:
-                cuts = np.cumsum([m.n_params for m in members])[:-1]
-                for k, (m, xm) in enumerate(
-                    zip(members, np.split(fit.extra["x"], cuts), strict=True)
-                ):
-                    x = fit.extra["x"].copy()
-                    start = 0 if k == 0 else cuts[k - 1]
-                    x[start : start + len(xm)] = 0.0
-                    without = Fit(fit.effect, fit.params, fit.seconds, {"x": x})
-                    out[m.effect] = full - np.nan_to_num(
-                        joint.delta(self.rig, self.base, without, shifted)
-                    )
-        return out
-
     def contributions(self, scored: Scored) -> dict[str, float]:
-        """How much each effect of a model moves its pose predictions (dimensionless).
+        """How much each effect of a model moves its pose predictions (:func:`pose_contributions`).
 
-        Per effect: the change of the model's pose predictions on the choose split that this
-        effect makes with the others held at their fitted values (:meth:`member_deltas`, no
-        refit: a refit would let a look-alike take over its share and make both look
-        irrelevant); per axis the median over items of the absolute change over the item's noise
-        (or the practical floor, the larger), the largest over the axes with a significant gap.
-        Below
-        :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` the effect changes no pose by a
-        relevant amount.
+        Below :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` an effect changes no pose by
+        a relevant amount.
         """
-        choose = self.items.subset(self.choose_index)
-        axes = self.significant_axes if np.any(self.significant_axes) else np.ones(6, bool)
-        return {
-            effect: float(np.max(np.nanmedian(np.abs(d) / choose.scale, axis=0)[axes]))
-            for effect, d in self.member_deltas(scored).items()
-        }
+        return pose_contributions(scored, self.rig, self.base, self.significant_axes)

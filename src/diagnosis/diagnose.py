@@ -51,10 +51,11 @@ from simgap.diagnosis.result import (
     DiagnosisResult,
     EquivalentModel,
     Finding,
+    RankedEffect,
+    Scores,
     Selection,
     Split,
     per_axis,
-    ranked_effect,
 )
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.sim_runner import SimRunner
@@ -152,9 +153,7 @@ class Diagnosis:
             ],
             n_params=chosen.n_params,
             configurations=len(self.choose_index),
-            evidence_before=chosen.evidence_before,
-            evidence_after=chosen.evidence_after,
-            pose_gap_after=chosen.pose_gap_after,
+            scores=Scores.of(chosen),
             equivalent_models=equivalent_alternatives(chosen, self.search.tried),
         )
 
@@ -165,18 +164,9 @@ class Diagnosis:
         interval = bootstrap_reductions(reported, self.significant_axes, seed=self.settings.seed)
         return Combined(
             configurations=len(self.report_index),
-            pose_gap_before=reported.pose_gap_before,
-            pose_gap_after=reported.pose_gap_after,
-            pose_gap_reduction=reported.pose_gap_reduction,
+            scores=Scores.of(reported),
             pose_gap_reduction_interval_90=interval.pose_gap,
-            corner_gap_before_px=reported.corner_gap_before_px,
-            corner_gap_after_px=reported.corner_gap_after_px,
-            evidence_before=reported.evidence_before,
-            evidence_after=reported.evidence_after,
-            evidence_reduction=reported.evidence_reduction,
             evidence_reduction_interval_90=interval.evidence,
-            median_abs_gap_before=per_axis(reported.median_abs_gap_before),
-            median_abs_gap_after=per_axis(reported.median_abs_gap_after),
         )
 
 
@@ -230,7 +220,7 @@ def diagnose(
     chosen = d.search.select(ranking) if where.significant else None
     result = DiagnosisResult(
         where=where,
-        ranking=[ranked_effect(s) for s in ranking],
+        ranking=[RankedEffect.of(s) for s in ranking],
         selection=d.selection(chosen) if chosen else None,
         unexplained_evidence=unexplained_evidence(chosen, where, settings)
         if where.significant
@@ -267,12 +257,6 @@ def equivalent_alternatives(
         and equivalent_models(s, chosen)
     ]
     return [
-        EquivalentModel(
-            effects=s.effects,
-            n_params=s.n_params,
-            corner_gap_after_px=s.corner_gap_after_px,
-            evidence_after=s.evidence_after,
-            pose_gap_after=s.pose_gap_after,
-        )
+        EquivalentModel(effects=s.effects, n_params=s.n_params, scores=Scores.of(s))
         for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
     ]

@@ -190,12 +190,13 @@ def which_markdown(result: DiagnosisResult) -> list[str]:
     ]
     for i, r in enumerate(result.ranking, 1):
         params = ", ".join(f"{k}={_fmt(v)}" for k, v in r.params.items())
+        s = r.scores
         cells = [
-            (r.corner_gap_before_px, r.corner_gap_after_px),
-            (r.pose_gap_before, r.pose_gap_after),
-            (r.image_misfit_before, r.image_misfit_after),
-            (r.detection_mismatch_before, r.detection_mismatch_after),
-            (r.evidence_before, r.evidence_after),
+            (s.corner_gap_before_px, s.corner_gap_after_px),
+            (s.pose_gap_before, s.pose_gap_after),
+            (s.image_misfit_before, s.image_misfit_after),
+            (s.detection_mismatch_before, s.detection_mismatch_after),
+            (s.evidence_before, s.evidence_after),
         ]
         values = " | ".join(f"{a:.2f} -> {b:.2f}" for a, b in cells)
         lines.append(f"| {i} | {r.effect} | {r.n_params} | {params} | {values} |")
@@ -241,7 +242,7 @@ def selection_markdown(result: DiagnosisResult) -> list[str]:
         ]
         lines += [
             f"- {' + '.join(a.effects)} ({a.n_params} parameters, "
-            f"{a.corner_gap_after_px:.2f} px)"
+            f"{a.scores.corner_gap_after_px:.2f} px)"
             for a in alternatives
         ]
     return lines
@@ -249,17 +250,17 @@ def selection_markdown(result: DiagnosisResult) -> list[str]:
 
 def how_far_markdown(result: DiagnosisResult) -> list[str]:
     """Markdown lines for the chosen model on the report split (fast and confirmed)."""
-    c, f = result.combined, result.confirmed
+    c, s, f = result.combined, result.combined.scores, result.confirmed
     lines = [
         "## How far it shrinks",
         "",
         f"Measured on the report split ({c.configurations} configurations that neither "
         "fitted nor chose the model): pose gap "
-        f"{c.pose_gap_before:.2f} -> {c.pose_gap_after:.2f} "
-        f"({c.pose_gap_reduction:.0%} reduction, 90 % bootstrap interval "
+        f"{s.pose_gap_before:.2f} -> {s.pose_gap_after:.2f} "
+        f"({s.pose_gap_reduction:.0%} reduction, 90 % bootstrap interval "
         f"{c.pose_gap_reduction_interval_90[0]:.0%} to "
         f"{c.pose_gap_reduction_interval_90[1]:.0%}); all evidence "
-        f"{c.evidence_before:.2f} -> {c.evidence_after:.2f} ({c.evidence_reduction:.0%}, "
+        f"{s.evidence_before:.2f} -> {s.evidence_after:.2f} ({s.evidence_reduction:.0%}, "
         f"interval {c.evidence_reduction_interval_90[0]:.0%} to "
         f"{c.evidence_reduction_interval_90[1]:.0%}), with the fitted effects (fast model).",
     ]
@@ -292,8 +293,8 @@ def how_far_markdown(result: DiagnosisResult) -> list[str]:
         unit, k = display_unit(axis)
         confirmed = f"{f.median_abs_gap_after[axis] * k:.3f} {unit} |" if f else "|"
         lines.append(
-            f"| {axis} | {c.median_abs_gap_before[axis] * k:.3f} {unit} | "
-            f"{c.median_abs_gap_after[axis] * k:.3f} {unit} | " + confirmed
+            f"| {axis} | {s.median_abs_gap_before[axis] * k:.3f} {unit} | "
+            f"{s.median_abs_gap_after[axis] * k:.3f} {unit} | " + confirmed
         )
     lines.append("")
     return lines
@@ -313,15 +314,16 @@ def plot_ranking(result: DiagnosisResult) -> Figure:
     FigureCanvasAgg(fig)
     ranking = result.ranking
     names = [r.effect for r in ranking][::-1]
+    scores = [r.scores for r in ranking]
     panels = [
         (
-            [r.evidence_after for r in ranking],
-            ranking[0].evidence_before if ranking else None,
+            [s.evidence_after for s in scores],
+            scores[0].evidence_before if scores else None,
             "misfit of all evidence on the choose split (the ranking key)",
         ),
         (
-            [r.corner_gap_after_px for r in ranking],
-            ranking[0].corner_gap_before_px if ranking else None,
+            [s.corner_gap_after_px for s in scores],
+            scores[0].corner_gap_before_px if scores else None,
             "corner residual on the choose split [px]",
         ),
     ]

@@ -14,7 +14,7 @@ read (:func:`upgrade_v1`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
 from simgap.analysis.channels import root_sum_square
@@ -26,6 +26,7 @@ from simgap.diagnosis.result_json import from_jsonable, jsonable
 
 #: Version of the ``result.json`` schema written.
 SCHEMA_VERSION = 2
+NAN = float("nan")
 
 
 @dataclass(kw_only=True)
@@ -46,34 +47,68 @@ class Where:
 
 
 @dataclass(kw_only=True)
-class RankedEffect:
-    """One candidate alone, fitted on the fit split and scored on the choose split.
+class Scores:
+    """A model's misfit of the evidence of one split, before and after its effects.
 
-    Each score is given before (the simulation alone) and after (with the effect); see
-    :class:`simgap.analysis.scored.Scored` for their units. ``median_abs_gap_*`` are per axis
-    (m or rad), ``image_misfit_*`` the root sum of squares over the image statistics (floors).
+    ``*_before``: the simulation alone; ``*_after``: with the model's effects. Units as
+    :class:`simgap.analysis.scored.Scored`'s: ``pose_gap`` on the axes with a significant gap,
+    ``pose_gap_all_axes``, ``median_abs_gap`` per axis (m or rad), ``corner_gap_*_px``,
+    ``image_misfit`` (root sum of squares over the image statistics, floors),
+    ``detection_mismatch`` (5 % units) and ``evidence`` (all channels combined); the reductions
+    are relative falls. Scores that a schema-1 file did not keep are NaN (per axis: empty).
     """
+
+    pose_gap_before: float = NAN
+    pose_gap_after: float = NAN
+    pose_gap_reduction: float = NAN
+    pose_gap_all_axes_before: float = NAN
+    pose_gap_all_axes_after: float = NAN
+    median_abs_gap_before: dict[str, float] = field(default_factory=dict)
+    median_abs_gap_after: dict[str, float] = field(default_factory=dict)
+    corner_gap_before_px: float = NAN
+    corner_gap_after_px: float = NAN
+    image_misfit_before: float = NAN
+    image_misfit_after: float = NAN
+    detection_mismatch_before: float = NAN
+    detection_mismatch_after: float = NAN
+    evidence_before: float = NAN
+    evidence_after: float = NAN
+    evidence_reduction: float = NAN
+
+    @classmethod
+    def of(cls, scored: Scored) -> Scores:
+        """The scores of a scored model: its values of the same names (arrays reduced)."""
+        values = {f.name: getattr(scored, f.name) for f in fields(cls)}
+        for side in ("before", "after"):
+            values[f"median_abs_gap_{side}"] = per_axis(values[f"median_abs_gap_{side}"])
+            values[f"image_misfit_{side}"] = root_sum_square(values[f"image_misfit_{side}"])
+        return cls(**values)
+
+
+@dataclass(kw_only=True)
+class RankedEffect:
+    """One candidate alone, fitted on the fit split and scored on the choose split."""
 
     effect: str
     params: dict[str, Any]
     n_params: int
+    #: "projection" (fitted on the corners) or "appearance" (on the image evidence)
     kind: str
-    pose_gap_before: float
-    pose_gap_after: float
-    pose_gap_reduction: float
-    pose_gap_all_axes_before: float
-    pose_gap_all_axes_after: float
-    corner_gap_before_px: float
-    corner_gap_after_px: float
-    median_abs_gap_before: dict[str, float]
-    median_abs_gap_after: dict[str, float]
-    image_misfit_before: float
-    image_misfit_after: float
-    detection_mismatch_before: float
-    detection_mismatch_after: float
-    evidence_before: float
-    evidence_after: float
     fit_seconds: float
+    scores: Scores
+
+    @classmethod
+    def of(cls, scored: Scored) -> RankedEffect:
+        """The ranking entry of a single-effect model."""
+        cand, fit = scored.fits[0]
+        return cls(
+            effect=fit.effect,
+            params=fit.params,
+            n_params=cand.n_params,
+            kind=cand.kind,
+            fit_seconds=fit.seconds,
+            scores=Scores.of(scored),
+        )
 
 
 @dataclass(kw_only=True)
@@ -105,9 +140,7 @@ class EquivalentModel:
 
     effects: list[str]
     n_params: int
-    corner_gap_after_px: float
-    evidence_after: float
-    pose_gap_after: float
+    scores: Scores
 
 
 @dataclass(kw_only=True)
@@ -118,9 +151,7 @@ class Selection:
     n_params: int
     #: configurations of the choose split
     configurations: int
-    evidence_before: float
-    evidence_after: float
-    pose_gap_after: float
+    scores: Scores
     equivalent_models: list[EquivalentModel] = field(default_factory=list)
 
 
@@ -128,22 +159,13 @@ class Selection:
 class Combined:
     """The chosen model measured on the report split (neither fitted nor chose it).
 
-    Intervals are 90 % bootstrap intervals ([low, high]) of the reductions.
+    The intervals are 90 % bootstrap intervals ([low, high]) of the scores' reductions.
     """
 
     configurations: int
-    pose_gap_before: float
-    pose_gap_after: float
-    pose_gap_reduction: float
+    scores: Scores
     pose_gap_reduction_interval_90: tuple[float, float]
-    corner_gap_before_px: float
-    corner_gap_after_px: float
-    evidence_before: float
-    evidence_after: float
-    evidence_reduction: float
     evidence_reduction_interval_90: tuple[float, float]
-    median_abs_gap_before: dict[str, float]
-    median_abs_gap_after: dict[str, float]
 
 
 @dataclass(kw_only=True)
@@ -233,33 +255,6 @@ class DiagnosisResult:
         return from_jsonable(cls, data, source)
 
 
-def ranked_effect(scored: Scored) -> RankedEffect:
-    """The ranking entry of a single-effect model scored on the choose split."""
-    cand, fit = scored.fits[0]
-    return RankedEffect(
-        effect=fit.effect,
-        params=fit.params,
-        n_params=cand.n_params,
-        kind=cand.kind,
-        pose_gap_before=scored.pose_gap_before,
-        pose_gap_after=scored.pose_gap_after,
-        pose_gap_reduction=scored.pose_gap_reduction,
-        pose_gap_all_axes_before=scored.pose_gap_all_axes_before,
-        pose_gap_all_axes_after=scored.pose_gap_all_axes_after,
-        corner_gap_before_px=scored.corner_gap_before_px,
-        corner_gap_after_px=scored.corner_gap_after_px,
-        median_abs_gap_before=per_axis(scored.median_abs_gap_before),
-        median_abs_gap_after=per_axis(scored.median_abs_gap_after),
-        image_misfit_before=root_sum_square(scored.image_misfit_before),
-        image_misfit_after=root_sum_square(scored.image_misfit_after),
-        detection_mismatch_before=scored.detection_mismatch_before,
-        detection_mismatch_after=scored.detection_mismatch_after,
-        evidence_before=scored.evidence_before,
-        evidence_after=scored.evidence_after,
-        fit_seconds=fit.seconds,
-    )
-
-
 def per_axis(values: Any) -> dict[str, float]:
     """A (6,) per-axis array as ``{axis: value}``."""
     return dict(zip(AXES, map(float, values), strict=True))
@@ -287,8 +282,10 @@ _V1_RANKED = {
 }
 
 
-def _renamed(record: dict[str, Any], drop: tuple[str, ...] = ()) -> dict[str, Any]:
-    return {_V1_RANKED.get(k, k): v for k, v in record.items() if k not in drop}
+def _scored_record(record: dict[str, Any], keep: tuple[str, ...]) -> dict[str, Any]:
+    """A schema-1 record with its scores (the keys not in ``keep``) renamed under ``scores``."""
+    scores = {_V1_RANKED.get(k, k): v for k, v in record.items() if k not in keep}
+    return {_V1_RANKED.get(k, k): record[k] for k in keep if k in record} | {"scores": scores}
 
 
 def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
@@ -313,7 +310,8 @@ def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
         for r in where.get("regions", [])
     ]
     out["where"] = where
-    out["ranking"] = [_renamed(r) for r in data.get("ranking", [])]
+    ranked = ("effect", "params", "n_params", "stage", "fit_seconds")
+    out["ranking"] = [_scored_record(r, ranked) for r in data.get("ranking", [])]
     if "split" in data:
         s = data["split"]
         out["split"] = {"fit": s["train"], "choose": s["heldout"]} | {
@@ -326,14 +324,17 @@ def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
             "findings": combined.get("effects", []),
             "n_params": combined.get("n_params"),
             "configurations": choice.get("configurations"),
-            "evidence_before": choice.get("heldout_evidence_before"),
-            "evidence_after": choice.get("heldout_evidence_after"),
-            "pose_gap_after": choice.get("heldout_gap_after"),
-            "equivalent_models": [_renamed(m) for m in combined.get("equivalent_models", [])],
+            "scores": _scored_record(choice, ("configurations",))["scores"],
+            "equivalent_models": [
+                _scored_record(m, ("effects", "n_params"))
+                for m in combined.get("equivalent_models", [])
+            ],
         }
         moved = ("effects", "n_params", "choice", "equivalent_models", "measured_on")
-        out["combined"] = _renamed(combined, drop=moved)
+        kept = ("configurations", "reduction_interval_90", "evidence_reduction_interval_90")
+        rest = {k: v for k, v in combined.items() if k not in moved}
+        out["combined"] = _scored_record(rest, kept)
     if data.get("confirmed") is not None:
-        out["confirmed"] = _renamed(data["confirmed"])
+        out["confirmed"] = {_V1_RANKED.get(k, k): v for k, v in data["confirmed"].items()}
     return out
 

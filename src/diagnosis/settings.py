@@ -1,54 +1,42 @@
-"""Settings of the gap diagnosis."""
+"""Settings of the gap diagnosis: its splits, subsample sizes and render seeds."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from simgap.analysis.thresholds import EXPLAINED_REDUCTION
+
 
 @dataclass(frozen=True)
 class DiagnoseSettings:
-    """Settings of the diagnosis.
+    """Settings of the diagnosis (the defaults are the diagnosis's; see each attribute)."""
 
-    Attributes
-    ----------
-    fit_fraction : float
-        Share of the visible configurations used to fit effects (the fit split).
-    choose_fraction : float
-        Share used to rank, add, simplify and prune effects (the choose split). The rest is the
-        report split: the reduction is measured there only, never on configurations that
-        fitted or chose the model.
-    seed : int
-        Seed of the split and the subsamples.
-    max_sim_fit_items : int
-        Configurations used when fitting a candidate by simulation (a subsample of the fit
-        split).
-    max_choose_items : int
-        Most configurations of the choose split (all candidates are scored on them).
-    explained_reduction : float
-        Pose-gap reduction (choose split) below which a significant pose gap is reported as
-        unexplained.
-    confirm : bool
-        Re-run the full pipeline with the selected effects to confirm the reduction.
-    min_simulated_frames : int
-        A capture with fewer configurations is simulated at several render seeds, until it has
-        this many simulated frames (at most ``max_render_seeds`` per configuration): the render
-        noise of each configuration is then measured, and a far, oblique tag whose pose moves
-        millimetres with its render noise no longer decides the choice between effects
-        (measured on the 9-configuration public sample: docs/results/sample_focal_render_seeds.md).
-        Larger captures are simulated with the experiment's own repeats (usually one); their
-        medians over many items are robust to one noisy configuration.
-    max_render_seeds : int
-        Most render seeds per configuration.
-    """
-
+    #: Share of the visible configurations used to fit effects (the fit split).
     fit_fraction: float = 0.5
+    #: Share used to rank, add, simplify and prune effects (the choose split). The rest is the
+    #: report split: the reduction is measured there only, never on configurations that fitted
+    #: or chose the model.
     choose_fraction: float = 0.25
+    #: Seed of the split and the subsamples.
     seed: int = 0
+    #: Configurations used when fitting a candidate by simulation (a subsample of the fit split).
     max_sim_fit_items: int = 40
+    #: Most configurations of the choose split (all candidates are scored on them).
     max_choose_items: int = 80
-    explained_reduction: float = 0.3
+    #: Pose-gap reduction (choose split) below which a significant pose gap is reported as
+    #: unexplained.
+    explained_reduction: float = EXPLAINED_REDUCTION
+    #: Re-run the full pipeline with the selected effects to confirm the reduction.
     confirm: bool = True
+    #: A capture with fewer configurations is simulated at several render seeds, until it has
+    #: this many simulated frames (at most ``max_render_seeds`` per configuration): the render
+    #: noise of each configuration is then measured, and a far, oblique tag whose pose moves
+    #: millimetres with its render noise no longer decides the choice between effects (measured
+    #: on the 9-configuration public sample: docs/results/sample_focal_render_seeds.md). Larger
+    #: captures are simulated with the experiment's own repeats (usually one); their medians
+    #: over many items are robust to one noisy configuration.
     min_simulated_frames: int = 36
+    #: Most render seeds per configuration.
     max_render_seeds: int = 4
 
     def render_seeds(self, configurations: int) -> int:

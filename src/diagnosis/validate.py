@@ -172,9 +172,11 @@ class Trial:
             true, got = np.atleast_1d(params[key]), np.atleast_1d(fitted[name].get(key, 0.0))
             mags[name] = float(np.linalg.norm(got - true) / np.linalg.norm(true))
         out["magnitude_error"] = mags
-        combined = self.result.combined
-        measured = self.result.confirmed or combined
-        out["reduction"] = measured.pose_gap_reduction if measured else None
+        combined, confirmed = self.result.combined, self.result.confirmed
+        if confirmed is not None:
+            out["reduction"] = confirmed.pose_gap_reduction
+        else:
+            out["reduction"] = combined.scores.pose_gap_reduction if combined else None
         out["reduction_interval_90"] = combined.pose_gap_reduction_interval_90 if combined else None
         return out
 

@@ -24,11 +24,11 @@ Statistics (see :data:`STATS` for names, units and meanings):
 - contrast: Michelson contrast of the linear levels;
 - edge width: the 10-90 % rise of an edge-spread function fitted across the marker's outer border
   (the slanted-edge idea of ISO 12233: pixels at many sub-pixel distances from a straight edge
-  sample the edge-spread function finely). The model is ``ink + (paper - ink) E(d - d0; s)``
-  on linearised values, with ``E`` a Gaussian PSF of ``s`` px seen through square pixels
-  (:func:`pixel_esf`), fitted by robust least squares; the width is the 10-90 % rise of
-  ``E`` (px; 0.8 px for a perfectly sharp edge, ``~2.563 sqrt(s^2 + 1/12)`` for a blurred one).
-  All four sides, and the left/right (``x``) and top/bottom (``y``) pairs apart, which
+  sample the edge-spread function finely). The model is ``ink + (paper - ink) E(d - d0; s)`` on
+  linearised values, with ``E`` a Gaussian PSF of ``s`` px seen through square pixels
+  (:func:`simgap.pose.edge_spread.pixel_esf`), fitted by robust least squares; the width is the
+  10-90 % rise of ``E`` (px; 0.8 px for a perfectly sharp edge, ``~2.563 sqrt(s^2 + 1/12)`` for a
+  blurred one). All four sides, and the left/right (``x``) and top/bottom (``y``) pairs apart, which
   tells a directional blur (motion) from an isotropic one. Only from detected corners (expected
   corners can be off by pixels);
 - noise: standard deviation of flat ink and paper pixels from differences of horizontal
@@ -59,11 +59,12 @@ from dataclasses import dataclass
 import colour
 import cv2
 import numpy as np
-from scipy.optimize import brentq, least_squares
-from scipy.special import ndtr
 
 from simgap.core.robust import MAD_TO_SIGMA
+from simgap.pose.edge_spread import fit_esf_width
 
+#: Long name of a temporal noise statistic (``{}``: ink or paper).
+TEMPORAL = "temporal noise sigma in flat {} pixels (two frames of one pose), linearised"
 #: ``(name, units, long name)`` of every statistic, in storage order.
 STATS: tuple[tuple[str, str, str], ...] = (
     ("ink_dn", "DN", "median 8-bit level of the marker's black border"),
@@ -78,16 +79,8 @@ STATS: tuple[tuple[str, str, str], ...] = (
     ("noise_paper_dn", "DN", "noise standard deviation in flat paper pixels"),
     ("noise_ink_linear", "1", "noise standard deviation in flat ink pixels, linearised"),
     ("noise_paper_linear", "1", "noise standard deviation in flat paper pixels, linearised"),
-    (
-        "temporal_noise_ink_linear",
-        "1",
-        "temporal noise sigma in flat ink pixels (two frames of one pose), linearised",
-    ),
-    (
-        "temporal_noise_paper_linear",
-        "1",
-        "temporal noise sigma in flat paper pixels (two frames of one pose), linearised",
-    ),
+    ("temporal_noise_ink_linear", "1", TEMPORAL.format("ink")),
+    ("temporal_noise_paper_linear", "1", TEMPORAL.format("paper")),
     ("clipped_fraction", "1", "share of sticker pixels at 0 or 255 DN"),
     ("highlight_fraction", "1", "share of sticker pixels far above the tag's paper level"),
     ("rejected_candidates", "1", "detector candidates rejected on the sticker"),
@@ -108,9 +101,6 @@ EDGE_WIDTH_SIDES: dict[str, tuple[int, ...]] = {
 EDGE_WIDTH_STATS: tuple[str, ...] = tuple(EDGE_WIDTH_SIDES)
 STAT_INDEX = {name: i for i, name in enumerate(STAT_NAMES)}
 
-#: 10-90 % width of a Gaussian edge-spread function in units of its standard deviation:
-#: ``2 * Phi^-1(0.9)``.
-ESF_10_90_PER_SIGMA = 2.0 * 1.2815515655446004
 #: Highlight threshold above the paper level: this many paper noise sigmas, at least
 #: :data:`HIGHLIGHT_MIN_DN`.
 HIGHLIGHT_SIGMAS = 5.0
@@ -121,8 +111,6 @@ ESF_MAX_DISTANCE_PX = 4.0
 ESF_MAX_CELL_SHARE = 0.9
 #: Share of each side (about its middle) used for the edge-spread fit: corners are left out.
 ESF_SIDE_SHARE = 0.7
-#: Smallest PSF sigma fitted to an edge (px): sharper edges are a 1 px pixel ramp anyway.
-ESF_MIN_SIGMA_PX = 0.02
 #: Fewest pixels a region needs for its statistic (else NaN).
 MIN_PIXELS = 12
 #: Side of the JPEG block grid, aligned with the full frame's top-left pixel (px).
@@ -247,83 +235,6 @@ def _edge_samples(
     return out
 
 
-def pixel_esf(d: np.ndarray, sigma: float) -> np.ndarray:
-    """Edge-spread function of a Gaussian PSF (``sigma`` px) seen through square pixels.
-
-    The value of a pixel whose centre is at signed distance ``d`` (px) from a unit step along a
-    pixel axis: ``Phi(u / sigma)`` averaged over ``u`` in ``[d - 1/2, d + 1/2]``, in closed form
-    ``sigma [G((d + 1/2) / sigma) - G((d - 1/2) / sigma)]`` with ``G(t) = t Phi(t) + phi(t)``.
-    Modelling the pixel aperture makes the fitted PSF independent of where the edge falls within
-    a pixel (the tag edges here are nearly aligned with the pixel grid, so the sub-pixel phases
-    that a slanted edge would spread out are few).
-    """
-    return pixel_esf_terms(d, sigma)[0]
-
-
-def pixel_esf_terms(d: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`pixel_esf` and its derivatives, which share Phi and phi at the pixel's two ends.
-
-    Returns
-    -------
-    tuple of ndarray
-        ``E``; ``dE/dd = Phi(a) - Phi(b)``; ``dE/dsigma = phi(a) - phi(b)``, with
-        ``a, b = (d +- 1/2) / sigma`` (``G(t) = t Phi(t) + phi(t)`` is the antiderivative of
-        the standard normal CDF).
-    """
-    a, b = (d + 0.5) / sigma, (d - 0.5) / sigma
-    cdf_a, cdf_b = ndtr(a), ndtr(b)
-    # exp(-t^2 / 2), the standard normal density times sqrt(2 pi)
-    gauss_a, gauss_b = np.exp(-0.5 * a * a), np.exp(-0.5 * b * b)
-    g_a = a * cdf_a + gauss_a / np.sqrt(2 * np.pi)
-    g_b = b * cdf_b + gauss_b / np.sqrt(2 * np.pi)
-    return sigma * (g_a - g_b), cdf_a - cdf_b, (gauss_a - gauss_b) / np.sqrt(2 * np.pi)
-
-
-def esf_width_10_90(sigma: float) -> float:
-    """10-90 % rise (px) of :func:`pixel_esf` for a PSF of ``sigma`` px (0.8 px when sharp)."""
-    lo = brentq(lambda d: pixel_esf(np.array([d]), sigma)[0] - 0.1, -sigma * 8 - 1, 0.0)
-    return -2.0 * lo
-
-
-def _esf_width(d: np.ndarray, v: np.ndarray, ink: float, paper: float) -> float:
-    """10-90 % width (px) of ``ink + (paper - ink) pixel_esf(d - d0, s)`` fitted to (d, v)."""
-    if d.size < 2 * MIN_PIXELS or not paper > ink:
-        return float("nan")
-
-    # the solver asks for the Jacobian where it last evaluated the model: compute both once
-    last: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-
-    def terms(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        key = x.tobytes()
-        if key not in last:
-            last.clear()
-            last[key] = pixel_esf_terms(d - x[2], x[3])
-        return last[key]
-
-    def residual(x: np.ndarray) -> np.ndarray:
-        lo, hi = x[0], x[1]
-        return lo + (hi - lo) * terms(x)[0] - v
-
-    def jacobian(x: np.ndarray) -> np.ndarray:
-        # analytic (a third of the fit's time went to finite differences)
-        lo, hi = x[0], x[1]
-        esf, slope, spread = terms(x)
-        return np.stack([1.0 - esf, esf, -(hi - lo) * slope, (hi - lo) * spread], axis=1)
-
-    try:
-        sol = least_squares(
-            residual,
-            np.array([ink, paper, 0.0, 0.5]),
-            jac=jacobian,
-            bounds=([-1.0, -1.0, -2.0, ESF_MIN_SIGMA_PX], [2.0, 2.0, 2.0, 5.0]),
-            loss="soft_l1",
-            f_scale=max(0.05 * (paper - ink), 1e-4),
-        )
-    except ValueError:
-        return float("nan")
-    return esf_width_10_90(float(sol.x[3])) if sol.success else float("nan")
-
-
 def _map(norm: np.ndarray, corners: np.ndarray) -> np.ndarray:
     """Normalised marker coordinates (N, 2) to image pixels (N, 2)."""
     h = cv2.getPerspectiveTransform(_UNIT_SQUARE.astype(np.float32), corners.astype(np.float32))
@@ -423,7 +334,7 @@ def tag_stats(
             sides = EDGE_WIDTH_SIDES[name]
             idx = np.concatenate([samples[k][0] for k in sides]).astype(np.intp)
             d = np.concatenate([samples[k][1] for k in sides])
-            out[s[name]] = _esf_width(d, lin_values[idx], ink_lin, paper_lin)
+            out[s[name]] = fit_esf_width(d, lin_values[idx], ink_lin, paper_lin, 2 * MIN_PIXELS)
     n_rejected = 0
     for quad in rejected:
         centre = np.asarray(quad, np.float64).reshape(4, 2).mean(axis=0) - offset

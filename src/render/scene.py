@@ -290,13 +290,12 @@ def projected_sticker_outlines(
 
 
 def projected_sticker_boxes(
-    rig: Rig,
-    p: float,
-    theta: float,
-    errors: FixtureErrors = NOMINAL,
-    camera: CameraModel | None = None,
-    tag_scale: float = 1.0,
+    rig: Rig, p: float, theta: float, **options: Any
 ) -> dict[int, tuple[float, float, float, float]]:
-    """Pixel bounding boxes ``(u0, v0, u1, v1)`` of the stickers facing the camera, by tag id."""
-    outlines = projected_sticker_outlines(rig, p, theta, errors, camera, tag_scale)
+    """Pixel bounding boxes ``(u0, v0, u1, v1)`` of the stickers facing the camera, by tag id.
+
+    ``options`` (``errors``, ``camera``, ``tag_scale``) are those of
+    :func:`projected_sticker_outlines`.
+    """
+    outlines = projected_sticker_outlines(rig, p, theta, **options)
     return {k: (*uv.min(axis=0), *uv.max(axis=0)) for k, uv in outlines.items()}
