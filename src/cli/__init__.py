@@ -1,4 +1,4 @@
-"""The ``simgap`` command line: simulate, report and compare; real captures; diagnose; catalogue.
+"""simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
 
 Commands: run, report, compare, study, ingest, export-bag, errormodel, diagnose, validate, effects,
 assets.
