@@ -52,7 +52,7 @@ from simgap.pipeline.experiment import load_experiment
 from simgap.results.dataset import build_dataset, check_dataset, read_netcdf, write_netcdf
 
 from fuzz_outputs import (  # isort: skip  (beside this script)
-    BIG_FRAME_TARGET_MIB,
+    BIG_FRAME_TARGET_MB,
     OUTPUT_CASES,
     big_frame_peaks,
     big_png,
@@ -469,6 +469,13 @@ def image_cases(tmp: Path, rng: random.Random) -> list[Case]:
         cases.append(
             Case("images", label, lambda f=folder: ingest(f, rig), str(bad), frame_failure=True)
         )
+    folder = _capture(tmp / "unsized", "png")  # an OpenCV camera.yaml without the image size
+    long_lens = CameraModel(64, 48, 1386.0, 1386.0, 31.5, 23.5)  # plausible at 25000 px too
+    cal = calibration_to_yaml(long_lens, "opencv").replace("image_width: 64\n", "")
+    (folder / "camera.yaml").write_text(cal.replace("image_height: 48\n", ""))
+    (folder / "images" / "p00_t000.png").write_bytes((tmp / "big.png").read_bytes())
+    label = "png of 25000x25000 px, camera.yaml without a size"
+    cases.append(Case("images", label, lambda: ingest(folder, rig), str(folder / "camera.yaml")))
     return cases
 
 
@@ -718,7 +725,7 @@ def main() -> None:
         print(f"\n{kind} in {family} ({len(lines)}), e.g.:")
         for line in lines[: args.examples]:
             print(f"  {' '.join(line.split())[:300]}")
-    print(f"\n25000 x 25000 px frame refused (target: under {BIG_FRAME_TARGET_MIB} MiB):")
+    print(f"\n25000 x 25000 px frame refused (target: under {BIG_FRAME_TARGET_MB} MB):")
     with tempfile.TemporaryDirectory(prefix="simgap-big-") as tmp_name:
         for peak in big_frame_peaks(Path(tmp_name)):
             print(

@@ -40,14 +40,14 @@ import numpy as np
 from simgap.cli.outputs import OUTPUT
 from simgap.core.rig import CameraModel, load_rig
 from simgap.pipeline.bag import capture_to_bag
-from simgap.pipeline.capture import write_capture
-from simgap.results.dataset import build_dataset, ground_truth, software_versions, write_netcdf
+from simgap.pipeline.capture import ingest, write_capture
+from simgap.results.dataset import write_netcdf
 
 SMALL = CameraModel(64, 48, 60.0, 60.0, 31.5, 23.5)
 #: The frame of issue 26: 25000 x 25000 px, about 600 KB as a grey PNG.
 BIG_SIDE_PX = 25000
-#: The memory target of refusing it (MiB).
-BIG_FRAME_TARGET_MIB = 300
+#: The memory target of refusing it (MB, issue 26).
+BIG_FRAME_TARGET_MB = 300
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,7 @@ class Scenario:
     root: Path
     experiment: Path  # inherits ``parent``
     parent: Path
-    result: Path  # a result dataset simgap wrote
+    result: Path  # the capture's result dataset (simgap ingest)
     capture: Path  # camera.yaml, manifest.csv, images/
     bag1: Path  # ROS 1 .bag exported from the capture
     bag2: Path  # ROS 2 bag folder exported from the capture
@@ -73,24 +73,6 @@ class Scenario:
         if not path.is_symlink():
             path.symlink_to(target)
         return path
-
-
-def _result_dataset() -> object:
-    """A small result dataset with simgap's provenance attrs (no rendering)."""
-    rig = load_rig()
-    tags, ps, thetas = rig.tags.ids, (0, 7), np.deg2rad([0.0, 30.0])
-    expected, visible = ground_truth(rig, tags, ps, thetas)
-    full = (1, 1, len(tags), len(ps), len(thetas))
-    error = np.random.default_rng(0).normal(0, 0.002, full + (6,))
-    results = {
-        "detected": visible[None, None].copy(),
-        "estimated": expected[None, None] + error,
-        "error": error,
-        "reproj_px": np.full(full, 0.1),
-        "corners": np.full(full + (4, 2), 500.0),
-    }
-    attrs = {"title": "simgap result: fuzz", **software_versions()}
-    return build_dataset(tags, ps, thetas, expected, visible, results, attrs=attrs)
 
 
 def make_scenario(root: Path) -> Scenario:
@@ -114,9 +96,9 @@ def make_scenario(root: Path) -> Scenario:
         return s
     s.parent.write_text("name: parent\nconfigurations: {p: [7], theta_deg: [0, 30]}\n")
     s.experiment.write_text("name: child\ninherit: parent.yaml\nrender: {spp: 4}\n")
-    write_netcdf(_result_dataset(), s.result)
     img = np.full((SMALL.height, SMALL.width, 3), 200, np.uint8)
     write_capture(s.capture, [(0, 0.0, 0, img), (7, math.radians(30), 0, img)], SMALL)
+    write_netcdf(ingest(s.capture), s.result)  # a result dataset as simgap writes it
     capture_to_bag(s.capture, s.bag1, "ros1")
     capture_to_bag(s.capture, s.bag2, "ros2")
     os.mkfifo(s.fifo)

@@ -22,8 +22,9 @@ from simgap.cli import app
 from simgap.cli.outputs import RESULT_DATASET, VALIDATION_FOLDER
 from simgap.core.config import ConfigError
 from simgap.core.outputs import OUTPUT_MARKER, OutputPathError, check_output, claim_folder
+from simgap.core.rig import CameraModel
 from simgap.pipeline.bag import BagFrame, capture_to_bag, ingest_bag, is_exported_bag, write_bag
-from simgap.pipeline.capture import CaptureWarning, ingest, write_capture
+from simgap.pipeline.capture import CaptureWarning, calibration_to_yaml, ingest, write_capture
 from simgap.render.imaging import encoded_size
 from simgap.results.provenance import is_result_dataset_file
 
@@ -210,6 +211,18 @@ def test_big_first_frame_is_refused_from_its_header(tmp_path, big):
             ingest(folder)
 
     assert _traced_peak(refuse) < TRACED_LIMIT_BYTES
+
+
+def test_big_frame_needs_a_stated_size(tmp_path, big):
+    """An OpenCV camera.yaml may leave the size to the frames; not a 25000 x 25000 px one."""
+    long_lens = CameraModel(64, 48, 1386.0, 1386.0, 31.5, 23.5)  # plausible at 25000 px too
+    folder = write_capture(tmp_path / "cap", [(0, 0.0, 0, GREY)], long_lens).parent
+    unsized = calibration_to_yaml(long_lens, "opencv").replace("image_width: 64\n", "")
+    (folder / "camera.yaml").write_text(unsized.replace("image_height: 48\n", ""))
+    assert ingest(folder).attrs["frames_unreadable"] == 0  # 64 x 48 from the frame's header
+    (folder / "images" / "p00_t000.png").write_bytes(big)
+    with pytest.raises(ConfigError, match=r"camera.yaml: image_width, image_height: required for"):
+        ingest(folder)
 
 
 @pytest.mark.parametrize("fmt", ["png", "jpg"])

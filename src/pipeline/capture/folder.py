@@ -22,6 +22,11 @@ from simgap.pipeline.capture.calibration import read_calibration
 from simgap.pipeline.capture.manifest import CaptureFrame, read_manifest
 from simgap.render.imaging import encoded_size, truncation
 
+#: Frames over this many pixels are read only when ``camera.yaml`` states the image size itself
+#: (else the first frame's header would set it and a 600 KB PNG of 25000 x 25000 px would be
+#: decoded): Pillow's decompression-bomb threshold, ``PIL.Image.MAX_IMAGE_PIXELS`` (89.5 MP,
+#: 268 MB decoded as 8-bit colour).
+UNSTATED_SIZE_MAX_PIXELS = 89_478_485
 CALIBRATION_FILE = "camera.yaml"
 MANIFEST_FILE = "manifest.csv"
 IMAGES_DIR = "images"
@@ -142,6 +147,15 @@ def read_capture(folder: Path, rig: Rig) -> Capture:
         )
     frame, (w, h) = first
     cal = read_calibration(cal_path, w, h)
+    if w * h > UNSTATED_SIZE_MAX_PIXELS:
+        try:
+            read_calibration(cal_path)  # the file's own size (an OpenCV file may not state one)
+        except ConfigError:
+            raise ConfigError(
+                f"{cal_path}: image_width, image_height: required for frames over "
+                f"{UNSTATED_SIZE_MAX_PIXELS} px ({frame.image} is {w}x{h}); state the camera's "
+                "image size"
+            ) from None
     if (cal.width, cal.height) != (w, h):
         raise ConfigError(
             f"{cal_path}: image size {cal.width}x{cal.height} differs from the images' "
