@@ -24,7 +24,8 @@ Commands: run, report, compare, study, ingest, export-bag, errormodel, diagnose,
 assets.
 
 Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
-shows the traceback instead).
+shows the traceback instead). No command writes over one of its inputs or a device, and a file
+simgap did not write is replaced only with ``--overwrite``.
 """
 )
 _STATE = {"debug": False}
