@@ -1,8 +1,11 @@
 """Feed generated bad inputs to simgap's real loaders and count how each one is refused.
 
 Five input families (issue 10): experiment YAML, calibration files, capture manifests, frame
-images and result datasets, plus command-line calls. Every input is invalid by construction. For
-each, the outcome is one of
+images (with a 600 KB PNG of 25000 x 25000 px, issue 26) and result datasets, plus command-line
+calls, and the output paths of every command that would destroy an input, a capture's files or
+a device (issue 26, ``benchmarks/fuzz_outputs.py``: for these, named also means the scenario's
+files are byte-identical afterwards and nothing was written). Every input is invalid by
+construction. For each, the outcome is one of
 
 - ``named``: simgap's own error (ConfigError / DatasetError) naming the offending file (for a frame,
   a recorded failure: CaptureWarning and ``frames_unreadable``); for a command-line call, exit code
@@ -47,6 +50,16 @@ from simgap.pipeline.capture import (
 )
 from simgap.pipeline.experiment import load_experiment
 from simgap.results.dataset import build_dataset, check_dataset, read_netcdf, write_netcdf
+
+from fuzz_outputs import (  # isort: skip  (beside this script)
+    BIG_FRAME_TARGET_MB,
+    OUTPUT_CASES,
+    big_frame_peaks,
+    big_png,
+    jpeg_claiming,
+    make_scenario,
+    run_case,
+)
 
 NAN, INF = float("nan"), float("inf")
 SMALL = CameraModel(64, 48, 60.0, 60.0, 31.5, 23.5)
@@ -444,6 +457,8 @@ def image_cases(tmp: Path, rng: random.Random) -> list[Case]:
     out.append(("png of the wrong size", "png", big.tobytes()))
     ok, sixteen = cv2.imencode(".png", np.full((48, 64, 3), 40000, np.uint16))
     out.append(("16-bit png", "png", sixteen.tobytes()))
+    out.append(("png of 25000x25000 px (600 KB)", "png", big_png(tmp / "big.png").read_bytes()))
+    out.append(("jpg whose header says 25000x25000 px", "jpg", jpeg_claiming(25000, 25000)))
     ok, sixteen_gray = cv2.imencode(".png", np.full((48, 64), 1000, np.uint16))
     out.append(("16-bit grey png", "png", sixteen_gray.tobytes()))
     cases = []
@@ -454,6 +469,13 @@ def image_cases(tmp: Path, rng: random.Random) -> list[Case]:
         cases.append(
             Case("images", label, lambda f=folder: ingest(f, rig), str(bad), frame_failure=True)
         )
+    folder = _capture(tmp / "unsized", "png")  # an OpenCV camera.yaml without the image size
+    long_lens = CameraModel(64, 48, 1386.0, 1386.0, 31.5, 23.5)  # plausible at 25000 px too
+    cal = calibration_to_yaml(long_lens, "opencv").replace("image_width: 64\n", "")
+    (folder / "camera.yaml").write_text(cal.replace("image_height: 48\n", ""))
+    (folder / "images" / "p00_t000.png").write_bytes((tmp / "big.png").read_bytes())
+    label = "png of 25000x25000 px, camera.yaml without a size"
+    cases.append(Case("images", label, lambda: ingest(folder, rig), str(folder / "camera.yaml")))
     return cases
 
 
@@ -670,6 +692,11 @@ def main() -> None:
             "datasets": dataset_cases(tmp, rng),
         }
         families["cli"] = cli_cases(tmp, families)
+        scenario = make_scenario(tmp / "outputs")
+        families["outputs"] = [
+            Case("outputs", label, lambda c=c: ("cli", *run_case(scenario, c)), "")
+            for label, c in OUTPUT_CASES.items()
+        ]
         results: dict[str, Counter] = defaultdict(Counter)
         examples: dict[tuple[str, str], list[str]] = defaultdict(list)
         for family, cases in families.items():
@@ -688,7 +715,7 @@ def main() -> None:
             f"{counts['accepted']:8d}"
         )
     n = sum(total.values())
-    files = n - sum(results["cli"].values())
+    files = n - sum(results["cli"].values()) - sum(results["outputs"].values())
     print(
         f"{'total':12s} {n:6d} {100 * total['named'] / n:8.1f} {total['raw']:5d} "
         f"{total['accepted']:8d}   ({files} generated bad inputs + {n - files} CLI calls, "
@@ -698,6 +725,14 @@ def main() -> None:
         print(f"\n{kind} in {family} ({len(lines)}), e.g.:")
         for line in lines[: args.examples]:
             print(f"  {' '.join(line.split())[:300]}")
+    print(f"\n25000 x 25000 px frame refused (target: under {BIG_FRAME_TARGET_MB} MB):")
+    with tempfile.TemporaryDirectory(prefix="simgap-big-") as tmp_name:
+        for peak in big_frame_peaks(Path(tmp_name)):
+            print(
+                f"  {peak.label:24s} exit {peak.exit_code}, peak {peak.peak_mib:5.0f} MiB "
+                f"({peak.peak_mib * 2**20 / 1e6:.0f} MB), whole simgap ingest process: "
+                f"{' '.join(peak.message.split())[:150]}"
+            )
 
 
 if __name__ == "__main__":

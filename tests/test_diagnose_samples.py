@@ -14,6 +14,8 @@ from typer.testing import CliRunner
 
 from simgap.analysis.candidates import geometric_effects
 from simgap.cli import app
+from simgap.cli.outputs import DIAGNOSIS_JSON
+from simgap.core.outputs import OUTPUT_MARKER
 from simgap.diagnosis.result import DiagnosisResult
 
 
@@ -40,6 +42,8 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
         ],
     )
     assert res.exit_code == 0, res.output
+    # its outputs are recognised as simgap's: a rerun may replace them (issue 26)
+    assert DIAGNOSIS_JSON.is_ours(js) and (out / OUTPUT_MARKER).is_file()
     result = DiagnosisResult.from_json(json.loads(js.read_text()))
     assert result.where.significant and result.where.axis_gaps["ty"].significant
     assert result.ranking[0].effect == "focal_length"

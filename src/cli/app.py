@@ -12,6 +12,7 @@ import click
 import typer
 
 from simgap.core.config import ConfigError
+from simgap.core.outputs import OutputPathError
 
 #: The app's ``--help`` text (the command line's description, unchanged from the one-module CLI).
 HELP = (
@@ -23,14 +24,18 @@ Commands: run, report, compare, study, ingest, export-bag, errormodel, diagnose,
 assets.
 
 Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
-shows the traceback instead).
+shows the traceback instead). No command writes over one of its inputs or a device, and a file
+simgap did not write is replaced only with ``--overwrite``.
 """
 )
 _STATE = {"debug": False}
 
 
 def _error_line(exc: BaseException, paths: list[Path]) -> str:
-    """One line for ``exc``, prefixed with the command's input file unless it names a file."""
+    """One line for ``exc``, prefixed with the command's input file unless it names a file.
+
+    A refused output path is never prefixed: its message starts with the option and the path.
+    """
     if isinstance(exc, OSError) and exc.filename and exc.strerror:
         message = f"{exc.filename}: {exc.strerror}"
     elif isinstance(exc, (ConfigError, ValueError, OSError)):
@@ -39,7 +44,8 @@ def _error_line(exc: BaseException, paths: list[Path]) -> str:
         message = "out of memory (reduce the experiment's size)"
     else:
         message = f"{type(exc).__name__}: {exc} (unexpected; rerun with --debug for the traceback)"
-    if paths and not any(str(p) in message for p in paths):
+    named = isinstance(exc, OutputPathError) or any(str(p) in message for p in paths)
+    if paths and not named:
         message = f"{paths[0]}: {message}"
     return " ".join(message.split())
 

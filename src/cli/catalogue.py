@@ -7,6 +7,15 @@ from pathlib import Path
 import typer
 
 from simgap.cli.app import CacheOption, SchedulerOption, app, read_experiment
+from simgap.cli.outputs import (
+    OUTPUT,
+    REPORT_FOLDER,
+    RESULT_DATASET,
+    STUDY_FOLDER,
+    OverwriteOption,
+    check_outputs,
+    experiment_inputs,
+)
 from simgap.cli.simulate import report, run
 
 
@@ -42,9 +51,14 @@ def study(
     output: Path = typer.Option(Path("results"), "-o", "--output", help="Output folder."),
     cache: CacheOption = None,
     scheduler: SchedulerOption = None,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
+    inputs = experiment_inputs(experiment, "EXPERIMENT")
+    check_outputs([(OUTPUT, output, STUDY_FOLDER)], inputs, overwrite)
     name = read_experiment(experiment).name
-    nc = output / f"{name}.nc"
-    run(experiment, nc, cache, True, scheduler)
-    report(nc, output / f"{name}-report", None)
+    nc, folder = output / f"{name}.nc", output / f"{name}-report"
+    outputs = [(OUTPUT, nc, RESULT_DATASET), (OUTPUT, folder, REPORT_FOLDER)]
+    check_outputs(outputs, inputs, overwrite)
+    run(experiment, nc, cache, True, scheduler, overwrite)
+    report(nc, folder, None, overwrite)

@@ -18,6 +18,17 @@ from simgap.cli.app import (
     read_result_dataset,
     read_simulation,
 )
+from simgap.cli.outputs import (
+    DIAGNOSIS_FOLDER,
+    DIAGNOSIS_JSON,
+    ERROR_MODEL,
+    OUTPUT,
+    VALIDATION_FOLDER,
+    OverwriteOption,
+    check_outputs,
+    experiment_inputs,
+    simulation_inputs,
+)
 
 
 @app.command("errormodel")
@@ -28,10 +39,15 @@ def errormodel(
     check: bool = typer.Option(
         True, "--check/--no-check", help="Also fit on half the configurations, test on the rest."
     ),
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
     from simgap.analysis.errormodel import check_error_model, fit_error_model
 
+    outputs = [(OUTPUT, output, ERROR_MODEL)]
+    if output.suffix != ".json":  # the model is written as OUTPUT and OUTPUT with .json
+        outputs.append((f"{OUTPUT} (its .json)", output.with_suffix(".json"), ERROR_MODEL))
+    check_outputs(outputs, [("RESULT", result)], overwrite)
     ds = read_result_dataset(result)
     model = fit_error_model(ds, variant=variant, source=str(result))
     summary = check_error_model(ds, variant=variant) if check else None
@@ -56,8 +72,10 @@ def diagnose(
     cache: CacheOption = None,
     seed: int = typer.Option(0, "--seed", help="Seed of the fit / choose / report split."),
     scheduler: SchedulerOption = None,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
+    from simgap.core.outputs import claimed_folder
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.diagnose import diagnose as run_diagnosis
     from simgap.diagnosis.diagnosis_report import selected_names, write_diagnosis_report
@@ -66,12 +84,16 @@ def diagnose(
     from simgap.pipeline.simulator import Simulator
     from simgap.results.dataset import read_netcdf
 
+    outputs = [(OUTPUT, output, DIAGNOSIS_FOLDER), ("--json", json_path, DIAGNOSIS_JSON)]
+    check_outputs(outputs, [("REAL", real)] + simulation_inputs(sim, "--sim"), overwrite)
     data = read_netcdf(real)
     exp = read_simulation(sim)
     settings = DiagnoseSettings(seed=seed)
     simulator = Simulator(cache or default_cache_dir(), scheduler=scheduler)
     result, state = run_diagnosis(data, exp, simulator, settings)
-    for p in write_diagnosis_report(result, state, output):
+    with claimed_folder(output):
+        paths = write_diagnosis_report(result, state, output)
+    for p in paths:
         typer.echo(str(p))
     if json_path:
         typer.echo(str(write_json(result, json_path)))
@@ -102,6 +124,7 @@ def validate(
         help="Comma-separated hidden effects to draw from, e.g. sensor_noise (default: all); "
         "then every trial hides one of them (two when several are given, as often as usual).",
     ),
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores.
 
@@ -110,9 +133,12 @@ def validate(
     With --effects the trials are targeted: no trial without a hidden effect or with one
     outside the catalogue.
     """
+    from simgap.core.outputs import claimed_folder
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.validate import ValidateSettings, run_validation
 
+    inputs = experiment_inputs(experiment, "--experiment")
+    check_outputs([(OUTPUT, output, VALIDATION_FOLDER)], inputs, overwrite)
     exp = read_experiment(experiment)
     k, _, n = shard.partition("/")
     if not (k.isdigit() and n.isdigit()):
@@ -127,7 +153,10 @@ def validate(
             )
         except ValueError as exc:  # "effects: expected ...": name the option
             raise ValueError(f"--{exc}") from exc
-    summary = run_validation(exp, output, cache or default_cache_dir(), settings, log=typer.echo)
+    with claimed_folder(output):  # before the first trial: shards and resumes find it marked
+        summary = run_validation(
+            exp, output, cache or default_cache_dir(), settings, log=typer.echo
+        )
     typer.echo((output / "validation.md").read_text())
     typer.echo(
         f"top-1 accuracy {summary['top1_accuracy']}, "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
 
@@ -17,6 +18,17 @@ from simgap.cli.app import (
     read_experiment,
     read_result_dataset,
     read_simulation,
+)
+from simgap.cli.outputs import (
+    CAPTURE_FOLDER,
+    OUTPUT,
+    RESULT_DATASET,
+    ROS1_BAG,
+    ROS2_BAG,
+    OverwriteOption,
+    check_outputs,
+    experiment_inputs,
+    simulation_inputs,
 )
 
 
@@ -48,18 +60,25 @@ def ingest(
     keep_capture: Path | None = typer.Option(
         None, "--keep-capture", help="Bag only: keep the intermediate capture folder here."
     ),
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
+    from simgap.core.outputs import claimed_folder
+    from simgap.pipeline.bag import ingest_bag, is_bag
     from simgap.pipeline.capture import ingest as ingest_capture
     from simgap.results.dataset import write_netcdf
 
+    bag = is_bag(capture)
+    inputs = [("CAPTURE", capture), ("--ranges", ranges)]
+    inputs += experiment_inputs(experiment, "--experiment") if experiment is not None else []
+    outputs = [(OUTPUT, output, RESULT_DATASET)]
+    outputs += [("--keep-capture", keep_capture, CAPTURE_FOLDER)] if bag else []
+    check_outputs(outputs, inputs, overwrite)
     kwargs = {}
     if experiment is not None:
         exp = read_experiment(experiment)
         kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
-    from simgap.pipeline.bag import ingest_bag, is_bag
-
-    if is_bag(capture):
+    if bag:
         bag_options = {
             "ranges_csv": ranges,
             "image_topic": image_topic,
@@ -67,7 +86,8 @@ def ingest(
             "fixture_topic": fixture_topic,
             "keep_capture": keep_capture,
         }
-        ds = ingest_bag(capture, show_progress=progress, **bag_options, **kwargs)
+        with claimed_folder(keep_capture) if keep_capture is not None else nullcontext():
+            ds = ingest_bag(capture, show_progress=progress, **bag_options, **kwargs)
     else:
         ds = ingest_capture(capture, show_progress=progress, **kwargs)
     write_netcdf(ds, output)
@@ -94,6 +114,7 @@ def export_bag(
     ),
     variant: VariantOption = None,
     cache: CacheOption = None,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
     from simgap.core.paths import default_cache_dir
@@ -102,6 +123,9 @@ def export_bag(
     fmt = fmt or ("ros1" if output.suffix == ".bag" else "ros2")
     if fmt not in BAG_FORMATS:
         fail(f"--format: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
+    inputs = [("SOURCE", source)] if source.is_dir() else simulation_inputs(source, "SOURCE")
+    kind = ROS1_BAG if fmt == "ros1" else ROS2_BAG
+    check_outputs([(OUTPUT, output, kind)], inputs, overwrite)
     if source.is_dir():
         path = capture_to_bag(source, output, fmt, compressed=compressed)
     else:

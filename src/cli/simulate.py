@@ -16,6 +16,15 @@ from simgap.cli.app import (
     read_experiment,
     read_result_dataset,
 )
+from simgap.cli.outputs import (
+    COMPARISON_FOLDER,
+    OUTPUT,
+    REPORT_FOLDER,
+    RESULT_DATASET,
+    OverwriteOption,
+    check_outputs,
+    experiment_inputs,
+)
 
 
 @app.command()
@@ -27,12 +36,15 @@ def run(
     cache: CacheOption = None,
     progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Run an experiment and write its result dataset."""
     from simgap.core.paths import default_cache_dir
     from simgap.pipeline.sweep import run_experiment
     from simgap.results.dataset import write_netcdf
 
+    inputs = experiment_inputs(experiment, "EXPERIMENT")
+    check_outputs([(OUTPUT, output, RESULT_DATASET)], inputs, overwrite)
     exp = read_experiment(experiment)
     ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
     write_netcdf(ds, output)
@@ -52,20 +64,25 @@ def report(
     result: Annotated[Path, typer.Argument(help="Result dataset (netCDF) from `simgap run`.")],
     output: Annotated[Path, output_option("Report folder to write.")],
     model: Annotated[Path | None, typer.Option("--model", help=MODEL_HELP)] = None,
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
     from simgap.analysis.report import write_report
+    from simgap.core.outputs import claimed_folder
 
+    inputs = [("RESULT", result), ("--model", model)]
+    check_outputs([(OUTPUT, output, REPORT_FOLDER)], inputs, overwrite)
     ds = read_result_dataset(result)
-    paths = write_report(ds, output)
-    if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
-        from simgap.analysis.compare import write_comparison
+    with claimed_folder(output):
+        paths = write_report(ds, output)
+        if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
+            from simgap.analysis.compare import write_comparison
 
-        paths += write_comparison(ds, output)
-    if model is not None:
-        from simgap.analysis.errormodel_report import write_error_model_bands
+            paths += write_comparison(ds, output)
+        if model is not None:
+            from simgap.analysis.errormodel_report import write_error_model_bands
 
-        paths.append(write_error_model_bands(model, ds, output))
+            paths.append(write_error_model_bands(model, ds, output))
     for p in paths:
         typer.echo(str(p))
 
@@ -77,9 +94,15 @@ def compare(
     baseline: str | None = typer.Option(
         None, "--baseline", help="Reference variant (default: 'baseline', else the first)."
     ),
+    overwrite: OverwriteOption = False,
 ) -> None:
     """Compare each variant of a result dataset with the reference variant."""
     from simgap.analysis.compare import write_comparison
+    from simgap.core.outputs import claimed_folder
 
-    for p in write_comparison(read_result_dataset(result), output, baseline):
+    check_outputs([(OUTPUT, output, COMPARISON_FOLDER)], [("RESULT", result)], overwrite)
+    ds = read_result_dataset(result)
+    with claimed_folder(output):
+        paths = write_comparison(ds, output, baseline)
+    for p in paths:
         typer.echo(str(p))

@@ -7,6 +7,7 @@ values (also right after rendering) so that a run served from cache gives bit-id
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import colour
@@ -134,6 +135,29 @@ def png_bit_depth(data: bytes) -> int | None:
     if not data.startswith(PNG_SIGNATURE) or len(data) < 25 or data[12:16] != b"IHDR":
         return None
     return data[24]
+
+
+def encoded_size(data: bytes) -> tuple[int, int] | None:
+    """Width and height (px) of an encoded PNG or JPEG from its header alone, or None.
+
+    The size comes from the PNG ``IHDR`` chunk or the JPEG start-of-frame segment, read by
+    Pillow's format plugins, which parse the header and decode nothing (so there is no
+    decompression-bomb check either: the caller compares the size with what it expects before
+    any decoder sees the data). None for other data and for a header that cannot be parsed.
+    """
+    from PIL import JpegImagePlugin, PngImagePlugin
+
+    if data.startswith(PNG_SIGNATURE):
+        plugin = PngImagePlugin.PngImageFile
+    elif data.startswith(JPEG_SOI):
+        plugin = JpegImagePlugin.JpegImageFile
+    else:
+        return None
+    try:
+        with plugin(io.BytesIO(data)) as image:
+            return image.size
+    except (OSError, SyntaxError, ValueError, EOFError, IndexError):  # a damaged header
+        return None
 
 
 def read_png(path: Path) -> np.ndarray:

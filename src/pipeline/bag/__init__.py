@@ -48,6 +48,7 @@ from simgap.pipeline.bag.formats import (
     BagFormat,
     bag_format,
     is_bag,
+    is_exported_bag,
 )
 from simgap.pipeline.bag.ranges import TimeRange, read_time_ranges
 from simgap.pipeline.bag.reader import BagConversion, bag_to_capture, ingest_bag
@@ -72,6 +73,7 @@ __all__ = [
     "experiment_to_bag",
     "ingest_bag",
     "is_bag",
+    "is_exported_bag",
     "read_time_ranges",
     "write_bag",
 ]

@@ -56,3 +56,20 @@ def is_bag(path: Path) -> bool:
     except ConfigError:
         return False
     return True
+
+
+def is_exported_bag(path: Path) -> bool:
+    """Whether ``path`` is a bag simgap wrote: a ROS 1 or ROS 2 bag with :data:`FIXTURE_TOPIC`.
+
+    Reads the bag's index (connections) only. False for anything else, readable or not.
+    """
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    if not is_bag(path):
+        return False
+    try:
+        with AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as bag:
+            return any(c.topic == FIXTURE_TOPIC for c in bag.connections)
+    except Exception:  # rosbags raises its own error types for damaged or foreign bags
+        return False

@@ -159,8 +159,13 @@ def _fixture_from_joints(reader: Any, conns: list, bag: Path, rig: Rig) -> list[
     return sorted(out, key=lambda x: x[0])
 
 
-def _image_bytes(msg: Any, msgtype: str, where: str) -> tuple[bytes, str]:
-    """The frame as file bytes and extension: a CompressedImage's own bytes, else a PNG."""
+def _image_bytes(msg: Any, msgtype: str, where: str, cal: CameraModel) -> tuple[bytes, str]:
+    """The frame as file bytes and extension: a CompressedImage's own bytes, else a PNG.
+
+    A raw ``Image`` is converted only when its ``width`` and ``height`` fields match the
+    calibration's; a CompressedImage is kept as it is (ingest compares its header's size with
+    the calibration before decoding it).
+    """
     if msgtype == COMPRESSED_TYPE:
         data = bytes(msg.data)
         if data.startswith(b"\x89PNG"):
@@ -170,6 +175,11 @@ def _image_bytes(msg: Any, msgtype: str, where: str) -> tuple[bytes, str]:
         return data, "img"  # undecodable: ingest records it as a detection failure
     from rosbags.image import ImageError, message_to_cvimage
 
+    if (int(msg.width), int(msg.height)) != (cal.width, cal.height):
+        raise ConfigError(
+            f"{where}: width x height: expected {cal.width}x{cal.height} as the CameraInfo "
+            f"states, got {int(msg.width)}x{int(msg.height)}"
+        )
     try:
         bgr = message_to_cvimage(msg, "bgr8")
     except (ImageError, ValueError, KeyError) as exc:
@@ -235,7 +245,7 @@ def bag_to_capture(
     try:
         images = _pick_topic(reader, bag, image_topic, (IMAGE_TYPE, COMPRESSED_TYPE), "frames")
         infos = _pick_topic(reader, bag, camera_info_topic, (CAMERA_INFO_TYPE,), "calibration")
-        _read_calibration(reader, infos, bag, folder)
+        cal = _read_calibration(reader, infos, bag, folder)
         joints: list[tuple] = []
         if ranges is None:
             topic = fixture_topic or FIXTURE_TOPIC
@@ -250,7 +260,7 @@ def bag_to_capture(
         else:
             source = str(ranges_csv)
         info = BagConversion(bag, fmt, images[0].topic, infos[0].topic, source)
-        rows = _write_frames(reader, images, bag, folder, ranges, joints, info)
+        rows = _write_frames(reader, images, bag, folder, ranges, joints, info, cal)
     finally:
         reader_cm.__exit__(None, None, None)
     if not rows:
@@ -274,6 +284,7 @@ def _write_frames(
     ranges: list[TimeRange] | None,
     joints: list[tuple],
     info: BagConversion,
+    cal: CameraModel,
 ) -> list[list]:
     """Write each frame that has a configuration; return the manifest rows."""
     stamps = [j[0] for j in joints]
@@ -294,7 +305,8 @@ def _write_frames(
         if config is None:
             info.frames_skipped += 1
             continue
-        data, ext = _image_bytes(msg, conn.msgtype, f"{bag}: topic {conn.topic}: message {i}")
+        where = f"{bag}: topic {conn.topic}: message {i}"
+        data, ext = _image_bytes(msg, conn.msgtype, where, cal)
         repeat = counts.get(config, 0)
         counts[config] = repeat + 1
         name = f"{IMAGES_DIR}/{image_name(config[0], config[1], repeat, ext)}"

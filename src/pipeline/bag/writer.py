@@ -34,7 +34,7 @@ from simgap.pipeline.bag.formats import (
     TURNTABLE_JOINT,
     BagFormat,
 )
-from simgap.pipeline.capture.folder import read_capture
+from simgap.pipeline.capture.folder import read_capture, read_image
 from simgap.render import imaging
 
 
@@ -216,24 +216,37 @@ def capture_to_bag(
     """Export a capture folder as a bag (frames in manifest order, ground truth from the rig).
 
     With ``compressed`` the image files' bytes are kept (PNG or JPEG); otherwise frames
-    are decoded to raw ``bgr8``. Either way :func:`ingest_bag` of the bag gives the same data as
+    are decoded to raw ``bgr8``, each after its header's size was checked against the
+    calibration's. Either way :func:`ingest_bag` of the bag gives the same data as
     :func:`simgap.pipeline.capture.ingest` of the folder (repeats renumbered 0, 1, ... in
     manifest order).
 
     Raises
     ------
     simgap.core.config.ConfigError
-        As :func:`simgap.pipeline.capture.read_capture`.
+        As :func:`simgap.pipeline.capture.read_capture`; without ``compressed`` also for a frame
+        that cannot be decoded or whose size differs from the calibration's.
     """
     rig = rig or load_rig()
     cap = read_capture(Path(folder), rig)
+    cal = cap.calibration
 
     def frames() -> Iterator[BagFrame]:
         for f in sorted(cap.frames, key=lambda f: f.repeat):
-            image = (f.image.read_bytes(), f.image.suffix.lstrip(".").lower())
-            yield BagFrame(f.p, f.theta, f.repeat, image, _expected(rig, f.p, f.theta))
+            yield BagFrame(f.p, f.theta, f.repeat, frame(f.image), _expected(rig, f.p, f.theta))
 
-    return write_bag(bag, fmt, cap.calibration, frames(), rig, compressed)
+    def frame(path: Path) -> np.ndarray | tuple[bytes, str]:
+        if compressed:
+            return path.read_bytes(), path.suffix.lstrip(".").lower()
+        bgr = read_image(path, cal.width, cal.height)
+        if isinstance(bgr, str):
+            raise ConfigError(
+                f"{path}: frame {bgr}; a raw bag holds decoded frames of the calibration's "
+                "size (--compressed keeps the file's bytes instead)"
+            )
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+    return write_bag(bag, fmt, cal, frames(), rig, compressed)
 
 
 def experiment_to_bag(

@@ -20,8 +20,13 @@ from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel, Rig
 from simgap.pipeline.capture.calibration import read_calibration
 from simgap.pipeline.capture.manifest import CaptureFrame, read_manifest
-from simgap.render.imaging import truncation
+from simgap.render.imaging import encoded_size, truncation
 
+#: Frames over this many pixels are read only when ``camera.yaml`` states the image size itself
+#: (else the first frame's header would set it and a 600 KB PNG of 25000 x 25000 px would be
+#: decoded): Pillow's decompression-bomb threshold, ``PIL.Image.MAX_IMAGE_PIXELS`` (89.5 MP,
+#: 268 MB decoded as 8-bit colour).
+UNSTATED_SIZE_MAX_PIXELS = 89_478_485
 CALIBRATION_FILE = "camera.yaml"
 MANIFEST_FILE = "manifest.csv"
 IMAGES_DIR = "images"
@@ -50,24 +55,50 @@ class Capture:
     frames: list[CaptureFrame] = field(default_factory=list)
 
 
-def read_image(path: Path) -> np.ndarray | None:
-    """An image as 8-bit BGR, or None when it cannot be read, is truncated or cannot be decoded.
+def frame_size(path: Path) -> tuple[int, int] | None:
+    """Width and height (px) of a complete PNG or JPEG frame from its header, or None.
 
-    Truncation is checked on the bytes (:func:`simgap.render.imaging.truncation`: a PNG must end
-    with its IEND chunk, a JPEG with the end-of-image marker), because decoders return a
-    grey-filled image for a truncated JPEG with only a warning on stderr.
+    None when the file cannot be read, is truncated (:func:`simgap.render.imaging.truncation`)
+    or is not a PNG or JPEG whose header can be parsed. Nothing is decoded, so a frame of
+    25000 x 25000 px costs its file's bytes, not the gigabytes of its pixels.
     """
     try:
         data = path.read_bytes()
     except OSError:
         return None
-    if truncation(data) is not None:
-        return None
+    return None if truncation(data) is not None else encoded_size(data)
+
+
+def read_image(path: Path, width: int, height: int) -> np.ndarray | str:
+    """A frame as 8-bit BGR, or why it cannot be used (its size is checked before decoding).
+
+    Returns
+    -------
+    ndarray or str
+        The ``(height, width, 3)`` image, or ``"cannot be decoded"`` (unreadable, truncated, not
+        a PNG or JPEG, or refused by the decoder) or ``"is WxH, expected WxH"``: the header's
+        size differs from ``width`` x ``height`` (px), and the frame is not decoded. Truncation
+        is checked on the bytes, because decoders return a grey-filled image for a truncated
+        JPEG with only a warning on stderr.
+    """
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return "cannot be decoded"
+    size = None if truncation(data) is not None else encoded_size(data)
+    if size is None:
+        return "cannot be decoded"
+    if size != (width, height):
+        return f"is {size[0]}x{size[1]}, expected {width}x{height}"
     try:
         img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
     except cv2.error:
-        return None
-    return img if img is not None and img.size > 0 else None
+        return "cannot be decoded"
+    if img is None or img.size == 0:
+        return "cannot be decoded"
+    if img.shape[:2] != (height, width):  # e.g. turned by its EXIF orientation
+        return f"is {img.shape[1]}x{img.shape[0]} decoded, expected {width}x{height}"
+    return img
 
 
 def read_capture(folder: Path, rig: Rig) -> Capture:
@@ -93,8 +124,9 @@ def read_capture(folder: Path, rig: Rig) -> Capture:
         has an unknown or missing column, a ``p`` that is not a pin hole, a ``theta_rad`` that
         is not a turntable stop (within ``THETA_TOLERANCE_RAD``), a bad ``repeat`` or a
         duplicate (p, theta, repeat); the calibration is invalid, or its image size differs from
-        the images' (checked on the first image that can be decoded); or no image can be
-        decoded. Messages name the file and the manifest row.
+        the images' (read from the header of the first complete PNG or JPEG, before any
+        frame is decoded); or no image is a complete PNG or JPEG. Messages name the file and
+        the manifest row.
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -107,12 +139,23 @@ def read_capture(folder: Path, rig: Rig) -> Capture:
                 f"{MANIFEST_FILE} and the images)"
             )
     frames = read_manifest(manifest_path, folder, rig)
-    first = next(((f, img) for f in frames if (img := read_image(f.image)) is not None), None)
+    first = next(((f, size) for f in frames if (size := frame_size(f.image)) is not None), None)
     if first is None:
-        raise ConfigError(f"{folder}: none of the {len(frames)} images can be decoded")
-    frame, img = first
-    h, w = img.shape[:2]
+        raise ConfigError(
+            f"{folder}: none of the {len(frames)} images can be decoded (expected complete "
+            "8-bit PNG or JPEG frames)"
+        )
+    frame, (w, h) = first
     cal = read_calibration(cal_path, w, h)
+    if w * h > UNSTATED_SIZE_MAX_PIXELS:
+        try:
+            read_calibration(cal_path)  # the file's own size (an OpenCV file may not state one)
+        except ConfigError:
+            raise ConfigError(
+                f"{cal_path}: image_width, image_height: required for frames over "
+                f"{UNSTATED_SIZE_MAX_PIXELS} px ({frame.image} is {w}x{h}); state the camera's "
+                "image size"
+            ) from None
     if (cal.width, cal.height) != (w, h):
         raise ConfigError(
             f"{cal_path}: image size {cal.width}x{cal.height} differs from the images' "

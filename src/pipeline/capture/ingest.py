@@ -48,16 +48,14 @@ def _progress(show: bool) -> Progress:
 
 
 def _read_gray(frame: CaptureFrame, cal: CameraModel, failed: list[str]) -> np.ndarray | None:
-    """The 8-bit grey frame, or None (warned and added to ``failed``) when unreadable."""
-    img = read_image(frame.image)
-    if img is None or img.shape[:2] != (cal.height, cal.width):
-        why = (
-            "cannot be decoded"
-            if img is None
-            else f"is {img.shape[1]}x{img.shape[0]}, expected {cal.width}x{cal.height}"
-        )
+    """The 8-bit grey frame, or None (warned and added to ``failed``) when unusable.
+
+    A frame whose header gives another size than the calibration's is not decoded.
+    """
+    img = read_image(frame.image, cal.width, cal.height)
+    if isinstance(img, str):
         warnings.warn(
-            f"{frame.image}: frame {why}; recorded as not detected", CaptureWarning, stacklevel=3
+            f"{frame.image}: frame {img}; recorded as not detected", CaptureWarning, stacklevel=3
         )
         failed.append(str(frame.image))
         return None

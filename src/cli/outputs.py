@@ -1,0 +1,140 @@
+"""What each command writes, checked before it works (:mod:`simgap.core.outputs`), and --overwrite.
+
+Every command that writes calls :func:`check_outputs` first with its output paths, what it
+writes at each (an :class:`~simgap.core.outputs.OutputKind` of this module) and its inputs.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from simgap.core.config import ConfigError
+from simgap.core.outputs import OutputKind, OutputPathError, check_output
+
+#: The ``-o/--output`` option in messages.
+OUTPUT = "-o/--output"
+OVERWRITE_HELP = (
+    "Replace an existing file, or write into a folder, that simgap did not write (never an "
+    "input, a device or a folder where a file goes)."
+)
+#: ``--overwrite`` (default ``False``).
+OverwriteOption = Annotated[bool, typer.Option("--overwrite", help=OVERWRITE_HELP)]
+#: A command's input: the argument or option that names it, and its path (None: not given).
+Input = tuple[str, Path | None]
+#: The largest JSON file read to recognise an earlier output (bytes); simgap's are far smaller.
+MAX_JSON_BYTES = 64 * 2**20
+#: Keys every diagnosis ``result.json`` has (README, result.json).
+DIAGNOSIS_KEYS = frozenset({"where", "ranking", "selected", "unexplained"})
+
+
+def _json_object(path: Path) -> dict:
+    """The JSON object in ``path``, or ``{}`` when it is not one (or too large to be simgap's)."""
+    if path.stat().st_size > MAX_JSON_BYTES:
+        return {}
+    try:
+        data = json.loads(path.read_bytes())
+    except (ValueError, OSError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _is_result_dataset(path: Path) -> bool:
+    """A result dataset simgap wrote (netCDF with its provenance attrs)."""
+    from simgap.results.provenance import is_result_dataset_file
+
+    return is_result_dataset_file(path)
+
+
+def _is_error_model(path: Path) -> bool:
+    """An error model simgap wrote: netCDF or JSON with the model schema."""
+    from simgap.analysis.errormodel.io import SCHEMA
+    from simgap.results.provenance import netcdf_header
+
+    header = netcdf_header(path)
+    schema = header[0].get("schema") if header is not None else _json_object(path).get("schema")
+    return schema == SCHEMA
+
+
+def _is_diagnosis_json(path: Path) -> bool:
+    """A diagnosis ``result.json`` (its top-level keys)."""
+    return DIAGNOSIS_KEYS <= _json_object(path).keys()
+
+
+def _is_exported_bag(path: Path) -> bool:
+    """A ROS 1 or ROS 2 bag simgap exported."""
+    from simgap.pipeline.bag import is_exported_bag
+
+    return is_exported_bag(path)
+
+
+def _is_ros2_bag_or_empty(folder: Path) -> bool:
+    """A ROS 2 bag simgap exported, or an empty folder (either may be replaced whole)."""
+    return next(folder.iterdir(), None) is None or _is_exported_bag(folder)
+
+
+def _any_folder(folder: Path) -> bool:
+    """Any folder: ``study`` writes two named entries into it, each checked on its own."""
+    return True
+
+
+RESULT_DATASET = OutputKind("result dataset (netCDF)", is_ours=_is_result_dataset)
+ERROR_MODEL = OutputKind("error model (netCDF or JSON)", is_ours=_is_error_model)
+DIAGNOSIS_JSON = OutputKind("diagnosis result (JSON)", is_ours=_is_diagnosis_json)
+REPORT_FOLDER = OutputKind("report folder", folder=True)
+COMPARISON_FOLDER = OutputKind("comparison folder", folder=True)
+DIAGNOSIS_FOLDER = OutputKind("diagnosis folder", folder=True)
+VALIDATION_FOLDER = OutputKind("validation folder", folder=True)
+CAPTURE_FOLDER = OutputKind("capture folder", folder=True)
+ROS1_BAG = OutputKind("ROS 1 bag", is_ours=_is_exported_bag)
+ROS2_BAG = OutputKind(
+    "ROS 2 bag folder", folder=True, is_ours=_is_ros2_bag_or_empty, replaced_whole=True
+)
+STUDY_FOLDER = OutputKind("study folder", folder=True, is_ours=_any_folder)
+
+
+def experiment_inputs(path: Path, label: str) -> list[Input]:
+    """An experiment file and the files it inherits from, as inputs."""
+    from simgap.pipeline.experiment_files import read_chain
+
+    try:
+        chain = read_chain(Path(path))
+    except (ConfigError, OSError):  # the command's own loading names the problem
+        return [(label, path)]
+    return [(label, path)] + [(f"{label} (inherited)", p) for p, _ in chain[:-1]]
+
+
+def simulation_inputs(path: Path, label: str) -> list[Input]:
+    """The inputs of an experiment YAML or result dataset given as the simulation."""
+    if Path(path).suffix in (".yaml", ".yml"):
+        return experiment_inputs(path, label)
+    return [(label, path)]
+
+
+def check_outputs(
+    outputs: Iterable[tuple[str, Path | None, OutputKind]],
+    inputs: Sequence[Input],
+    overwrite: bool,
+) -> None:
+    """Check a command's outputs ``(option, path, kind)`` before it works (None: not given).
+
+    Raises
+    ------
+    simgap.core.outputs.OutputPathError
+        As :func:`simgap.core.outputs.check_output`, or when two outputs are one path.
+    """
+    seen: dict[Path, str] = {}
+    for option, path, kind in outputs:
+        if path is None:
+            continue
+        check_output(path, option, kind, inputs, overwrite)
+        real = Path(path).resolve()
+        if real in seen:
+            raise OutputPathError(
+                f"{option} {path}: also given as {seen[real]}; expected another path"
+            )
+        seen[real] = option
