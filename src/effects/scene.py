@@ -10,15 +10,13 @@ import numpy as np
 
 from simgap.effects.base import Check, Effect, EffectParams, RelativeScale, param
 from simgap.effects.state import RenderQuality, VariantState
-from simgap.scene.lights import LightSpec, default_target
+from simgap.scene.lights import BT709_LUMINANCE, LightSpec, default_target
 from simgap.scene.materials import Coating, Conductor, Diffuse, Plastic
 from simgap.scene.spec import SceneSpec
 
 Vec3 = tuple[float, float, float]
 #: Conductor name of bare aluminium (Mitsuba's table of measured metals).
 ALUMINIUM = "Al"
-#: Relative luminance of linear sRGB primaries (ITU-R BT.709).
-BT709_LUMINANCE = (0.2126, 0.7152, 0.0722)
 
 
 def cct_to_rgb(cct_k: float | None) -> tuple[float, float, float]:

@@ -8,6 +8,7 @@ frame is the rig's ``rail`` frame (metres).
 from __future__ import annotations
 
 import copy
+from types import ModuleType
 from typing import Any
 
 import cv2
@@ -168,8 +169,11 @@ class FixtureScene:
     def render_pixels(self, pixels: np.ndarray, seed: int = 0) -> np.ndarray:
         """Render any set of full-image pixels: only these are sampled.
 
-        Each pixel gets :attr:`spp` stratified samples over its square, traced by the scene's
-        integrator and averaged (a box reconstruction filter, as the template's film). The
+        Each pixel gets :attr:`spp` stratified samples, traced by the scene's integrator and
+        averaged; the samples' offsets from the pixel centre are drawn from the scene's
+        reconstruction filter (:func:`filter_offsets`: filter importance sampling), so a ``box``
+        filter samples the pixel's square and a ``tent`` or ``gaussian`` one a softer
+        footprint reaching into the neighbours, as the template's film would weigh them. The
         number of pixels is not part of the compiled kernel: regions of any size and shape reuse
         it (one kernel per scene, launched in chunks of :data:`SAMPLES_PER_LAUNCH` samples).
 
@@ -210,17 +214,47 @@ class FixtureScene:
         pixel = dr.arange(mi.UInt32, lanes) // spp
         u = dr.gather(mi.Float, mi.Float(padded[:, 0]), pixel)
         v = dr.gather(mi.Float, mi.Float(padded[:, 1]), pixel)
-        jitter, aperture = sampler.next_2d(), sampler.next_2d()
-        ray = self.camera.ray_through(u + jitter.x - 0.5, v + jitter.y - 0.5, aperture)
+        offset = filter_offsets(self.spec.rfilter, sampler.next_2d(), mi)
+        aperture = sampler.next_2d()
+        ray = self.camera.ray_through(u + offset.x, v + offset.y, aperture)
         radiance, _, _ = self.scene.integrator().sample(
             self.scene, sampler, mi.RayDifferential3f(ray)
         )
         dr.eval(radiance)
-        # the box filter: the mean of each pixel's consecutive samples; per channel, so that an
-        # evaluated Float converts to numpy without a (size-specific) kernel
+        # the samples were drawn from the reconstruction filter, so each pixel's value is the
+        # plain mean of its consecutive samples; per channel, so that an evaluated Float
+        # converts to numpy without a (size-specific) kernel
         means = [dr.block_sum(c, spp) / spp for c in (radiance.x, radiance.y, radiance.z)]
         dr.eval(means)
         return np.stack([np.asarray(c) for c in means], axis=-1)[:n]
+
+
+def filter_offsets(rfilter: dict[str, Any], sample, mi: ModuleType):
+    """Sample offsets from the pixel centre (px) drawn from a reconstruction filter.
+
+    Filter importance sampling (Ernst et al. 2006): a pixel's value is the plain mean of radiance
+    samples whose offsets follow the filter's (separable, normalised) weight, which equals the
+    weighted mean a film computes, without negative weights or splatting; the sampler's
+    stratification of ``sample`` carries over through the warps. ``box``: uniform over the
+    pixel's square (the offsets ``sample - 0.5`` exactly); ``tent``: Mitsuba's
+    ``square_to_tent`` scaled by the radius; ``gaussian``: ``square_to_std_normal`` scaled by the
+    standard deviation.
+
+    Parameters
+    ----------
+    rfilter : dict
+        The scene's ``rfilter`` (checked: :data:`simgap.scene.spec.RFILTERS`).
+    sample : mitsuba.Point2f
+        Uniform samples in the unit square.
+    mi : module
+        The Mitsuba module (variant set).
+    """
+    kind = rfilter["type"]
+    if kind == "tent":
+        return mi.warp.square_to_tent(sample) * float(rfilter.get("radius", 1.0))
+    if kind == "gaussian":
+        return mi.warp.square_to_std_normal(sample) * float(rfilter.get("stddev", 0.5))
+    return sample - 0.5
 
 
 def pose_transforms(
