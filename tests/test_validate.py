@@ -100,15 +100,15 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     geometric effect that was not hidden may not; magnitudes read the camera's totals."""
     from simgap.core.rig import load_rig
     from simgap.diagnosis.nuisance import draw_nuisance, exposure_truth, with_exposure
-    from simgap.diagnosis.validate import HIDDEN, Trial
+    from simgap.diagnosis.validate import HIDDEN, REPORTED_AS, Trial
     from simgap.effects import make_effect
 
     rng = np.random.default_rng(0)
-    for name, (sampler, key) in HIDDEN.items():
+    for name, (sampler, keys) in HIDDEN.items():
         for _ in range(5):
             params = sampler(rng)
-            make_effect(name, params)  # raises on an invalid parameter
-            assert key is None or key in params
+            make_effect(REPORTED_AS.get(name, name), params)  # raises on an invalid parameter
+            assert all(key in params for key in keys)
     rig = load_rig()
     camera = with_exposure(draw_nuisance(np.random.default_rng(1), rig), 1.2, rig)
     # the exposure setting makes the camera's total (light meter, transfer curve) the hidden one
@@ -120,7 +120,7 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     }
     hit = Trial(0, hidden, camera, result, rig=rig).score()
     assert hit["correct"] and hit["top1"] == "focal_length" and hit["spurious"] == []
-    assert hit["magnitude_error"]["focal_length"] == pytest.approx(0.05)
+    assert hit["magnitude_error"]["focal_length.scale"] == pytest.approx(0.05)
     miss = Trial(0, hidden, camera, {"selected": ["focal_length", "tag_scale"]}, rig=rig).score()
     assert not miss["correct"] and miss["spurious"] == ["tag_scale"]
     found_exposure = Trial(
@@ -134,7 +134,21 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
         rig=rig,
     ).score()
     assert found_exposure["correct"]
-    assert found_exposure["magnitude_error"]["exposure"] == pytest.approx(0.1, abs=1e-3)
+    assert found_exposure["magnitude_error"]["exposure.ev"] == pytest.approx(0.1, abs=1e-3)
+    # a calibration file claiming k1 0.1 for a lens without distortion: lens_distortion names it,
+    # and a fitted k1 of 0.01 is 10 % of the claimed distortion off
+    faulty = Trial(
+        0,
+        {"faulty_calibration": {"k1": 0.1}},
+        camera,
+        {
+            "selected": ["lens_distortion", "blur"],
+            "combined": {"effects": [{"effect": "lens_distortion", "params": {"k1": 0.01}}]},
+        },
+        rig=rig,
+    ).score()
+    assert faulty["correct"]
+    assert faulty["magnitude_error"]["lens_distortion.k1"] == pytest.approx(0.1)
 
 
 def test_targeted_validation_draws_only_the_named_effects(tmp_path):

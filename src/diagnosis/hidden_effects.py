@@ -19,41 +19,60 @@ def _signed(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(rng.choice([-1.0, 1.0]) * rng.uniform(lo, hi))
 
 
+def _lens(rng: np.random.Generator) -> dict[str, Any]:
+    """Barrel or pincushion distortion: k1 alone, or with k2 and k3 of a wide-angle module.
+
+    Half the draws have higher orders of the kind an Intel RealSense D435's colour lens
+    calibrates to (k1 0.16, k2 -0.48, k3 0.42): k2 against k1's sign, k3 with it.
+    """
+    k1 = _signed(rng, 0.08, 0.2)
+    if rng.uniform() < 0.5:
+        return {"k1": k1}
+    sign = float(np.sign(k1))
+    k2, k3 = -sign * float(rng.uniform(0.1, 0.5)), sign * float(rng.uniform(0.0, 0.45))
+    return {"k1": k1, "k2": k2, "k3": k3}
+
+
 #: Hidden effects and how their magnitudes are drawn (realistic hardware ranges), with the
-#: parameter whose fitted value is scored (None: not a magnitude effect).
-HIDDEN: dict[str, tuple[Sampler, str | None]] = {
-    "focal_length": (lambda r: {"scale": _signed(r, 0.01, 0.03)}, "scale"),
+#: parameters whose fitted values are scored (empty: not a magnitude effect).
+HIDDEN: dict[str, tuple[Sampler, tuple[str, ...]]] = {
+    "focal_length": (lambda r: {"scale": _signed(r, 0.01, 0.03)}, ("scale",)),
     "principal_point": (
         lambda r: {"dx_px": _signed(r, 4, 12), "dy_px": _signed(r, 4, 12)},
-        "dx_px",
+        ("dx_px", "dy_px"),
     ),
-    "lens_distortion": (lambda r: {"k1": _signed(r, 0.08, 0.2)}, "k1"),
+    "lens_distortion": (_lens, ("k1",)),
+    # the calibration file claims a distortion the lens does not have (the paper's "faulty
+    # calibration file"): the right answer is the lens as it is, lens_distortion near zero
+    "faulty_calibration": (lambda r: {"k1": _signed(r, 0.05, 0.12)}, ("k1",)),
     "camera_mount": (
-        lambda r: {"translation_m": (_signed(r, 0.001, 0.003), 0.0, _signed(r, 0.001, 0.003))},
-        "translation_m",
+        lambda r: {"translation_m": tuple(_signed(r, 0.001, 0.004) for _ in range(3))},
+        ("translation_m",),
     ),
-    "turntable_offset": (lambda r: {"angle_rad": _signed(r, 0.015, 0.04)}, "angle_rad"),
-    "carriage_pitch": (lambda r: {"scale": _signed(r, 0.01, 0.03)}, "scale"),
-    "tag_scale": (lambda r: {"scale": _signed(r, 0.015, 0.04)}, "scale"),
+    "turntable_offset": (lambda r: {"angle_rad": _signed(r, 0.015, 0.04)}, ("angle_rad",)),
+    "carriage_pitch": (lambda r: {"scale": _signed(r, 0.01, 0.03)}, ("scale",)),
+    "tag_scale": (lambda r: {"scale": _signed(r, 0.015, 0.04)}, ("scale",)),
     # appearance: the paper's own suspects (lighting, focus, the camera's image formation)
-    "blur": (lambda r: {"sigma_px": float(r.uniform(0.9, 1.8))}, "sigma_px"),
-    "exposure": (lambda r: {"ev": _signed(r, 0.8, 2.0)}, "ev"),
+    "blur": (lambda r: {"sigma_px": float(r.uniform(0.6, 1.8))}, ("sigma_px",)),
+    "exposure": (lambda r: {"ev": _signed(r, 0.8, 2.0)}, ("ev",)),
     "sensor_noise": (
         lambda r: {
             "full_well_e": float(r.uniform(400, 1500)),
-            "read_noise_e": float(r.uniform(8, 20)),
+            "read_noise_e": float(r.uniform(6, 20)),
         },
-        "full_well_e",
+        ("full_well_e",),
     ),
     "defocus": (
         lambda r: {
             "aperture_radius_m": float(r.uniform(6e-4, 1.2e-3)),
-            "focus_distance_m": float(r.uniform(1.0, 2.5)),
+            "focus_distance_m": float(r.uniform(0.8, 2.5)),
         },
-        "aperture_radius_m",
+        ("aperture_radius_m", "focus_distance_m"),
     ),
-    "jpeg": (lambda r: {"quality": int(r.integers(25, 76))}, "quality"),
+    "jpeg": (lambda r: {"quality": int(r.integers(25, 76))}, ("quality",)),
 }
+#: Hidden effects that are no catalogue effect, and the effect that names them.
+REPORTED_AS: dict[str, str] = {"faulty_calibration": "lens_distortion"}
 #: Appearance effects among :data:`HIDDEN` (scored per effect).
 APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg")
 #: Appearance effects every other camera has some of (:mod:`simgap.diagnosis.nuisance`: its
@@ -74,5 +93,5 @@ CAPTURE_REPEATS = 2
 
 
 def found(hidden: str, selected: list[str]) -> bool:
-    """Whether a hidden effect is among the selected ones."""
-    return hidden in selected
+    """Whether a hidden effect is among the selected ones (itself or as :data:`REPORTED_AS`)."""
+    return REPORTED_AS.get(hidden, hidden) in selected

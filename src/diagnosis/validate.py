@@ -36,6 +36,7 @@ from simgap.diagnosis.hidden_effects import (
     CAMERA_NAMED,
     HIDDEN,
     OUTSIDE,
+    REPORTED_AS,
     Sampler,
     found,
 )
@@ -165,19 +166,32 @@ class Trial:
             )
         )
 
-    def truth(self) -> dict[str, dict[str, Any]]:
-        """What a diagnosis should find, by effect, with the magnitudes it should read.
+    def truth(self) -> dict[str, tuple[dict[str, Any], dict[str, float]]]:
+        """What a diagnosis should find, by the effect that names it: parameters and scales.
 
-        The hidden effects' own parameters, except for the appearance effects the other camera
-        has too (:data:`CAMERA_NAMED`): exposure reads the camera's total exposure and blur its
-        total softness (:func:`exposure_truth`, :func:`softness_truth`).
+        Per effect: the parameters it should read, and per scored parameter the size an error is
+        relative to. The hidden effects' own parameters (relative to themselves), except where
+        the other camera has the same kind of effect (:data:`CAMERA_NAMED`): exposure reads the
+        camera's total exposure and blur its total softness (:func:`exposure_truth`,
+        :func:`softness_truth`); a faulty calibration file is read as the lens it describes
+        wrongly: no distortion, an error relative to the distortion the file claims.
         """
-        out = {name: dict(params) for name, params in self.hidden.items() if name in HIDDEN}
-        if self.camera is not None and self.rig is not None:
-            if "exposure" in out:
-                out["exposure"] = {"ev": exposure_truth(self.camera, self.rig)}
-            if "blur" in out:
-                out["blur"] = {"sigma_px": softness_truth(self.camera, out["blur"]["sigma_px"])}
+        out: dict[str, tuple[dict[str, Any], dict[str, float]]] = {}
+        for name, params in self.hidden.items():
+            if name not in HIDDEN:
+                continue
+            params = dict(params)
+            if name == "faulty_calibration":
+                scale = {"k1": abs(float(params["k1"]))}
+                out[REPORTED_AS[name]] = ({"k1": 0.0}, scale)
+                continue
+            if self.camera is not None and self.rig is not None:
+                if name == "exposure":
+                    params = {"ev": exposure_truth(self.camera, self.rig)}
+                if name == "blur":
+                    params = {"sigma_px": softness_truth(self.camera, params["sigma_px"])}
+            keys = HIDDEN[name][1]
+            out[name] = (params, {k: float(np.linalg.norm(_magnitude(params, k))) for k in keys})
         return out
 
     def score(self) -> dict[str, Any]:
@@ -189,12 +203,15 @@ class Trial:
         nor is one every camera has, :data:`CAMERA_NAMED`); for an effect outside the catalogue,
         "unexplained" and no geometric effect; without a hidden effect, nothing but the camera's
         own appearance. ``top1`` is the first named effect that is not only the camera's own.
+        Magnitude errors are per scored parameter (``effect.parameter``), relative to
+        :meth:`truth`'s scale.
         """
         selected = list(self.result.get("selected", []))
         hidden = list(self.hidden)
+        named = {REPORTED_AS.get(h, h) for h in hidden}
         geometric = [e for e in selected if e in geometric_effects()]
-        spurious = [e for e in selected if e not in hidden and e not in CAMERA_NAMED]
-        own = [e for e in selected if e in hidden or e not in CAMERA_NAMED]
+        spurious = [e for e in selected if e not in named and e not in CAMERA_NAMED]
+        own = [e for e in selected if e in named or e not in CAMERA_NAMED]
         out: dict[str, Any] = {
             "hidden": hidden,
             "selected": selected,
@@ -217,12 +234,12 @@ class Trial:
             e["effect"]: e["params"] for e in self.result.get("combined", {}).get("effects", [])
         }
         mags = {}
-        for name, params in self.truth().items():
-            key = HIDDEN[name][1]
-            if key is None or name not in fitted:
+        for name, (params, scales) in self.truth().items():
+            if name not in fitted:
                 continue
-            true, got = _magnitude(params, key), _magnitude(fitted[name], key)
-            mags[name] = float(np.linalg.norm(got - true) / np.linalg.norm(true))
+            for key, scale in scales.items():
+                error = _magnitude(fitted[name], key) - _magnitude(params, key)
+                mags[f"{name}.{key}"] = float(np.linalg.norm(error) / scale)
         out["magnitude_error"] = mags
         combined = self.result.get("combined", {})
         out["reduction"] = self.result.get("confirmed", combined).get("reduction")
@@ -273,7 +290,8 @@ def pseudo_real_experiment(
     camera's; a hidden exposure is already the camera's total, :func:`draw_trials`), its scene
     overrides, samples per pixel, poses and frames a pose.
     """
-    effects = {**camera.effects, **{k: v for k, v in hidden.items() if k != "exposure"}}
+    rendered = {k: v for k, v in hidden.items() if k != "exposure" and k not in REPORTED_AS}
+    effects = {**camera.effects, **rendered}
     return dataclasses.replace(
         base.with_render(seed=seed, spp=camera.spp),
         name="pseudo_real",
@@ -286,7 +304,12 @@ def pseudo_real_experiment(
     )
 
 
-def render_capture(exp: Experiment, simulator: Simulator | Path, folder: Path) -> Path:
+def render_capture(
+    exp: Experiment,
+    simulator: Simulator | Path,
+    folder: Path,
+    hidden: dict[str, dict[str, Any]] | None = None,
+) -> Path:
     """Render ``exp``'s frames and write them as a capture folder (what a rig operator records).
 
     Parameters
@@ -297,12 +320,19 @@ def render_capture(exp: Experiment, simulator: Simulator | Path, folder: Path) -
         The simulator, or a cache folder to build one on.
     folder : Path
         Capture folder to write.
+    hidden : dict, optional
+        The trial's hidden effects: a ``faulty_calibration`` puts its distortion into the
+        calibration file (``camera.yaml``), not into the lens.
     """
     if not isinstance(simulator, Simulator):
         simulator = Simulator(simulator, show_progress=False)
     frames = list(simulator.frames(exp))
-    # the operator's calibration is the nominal camera, whatever the true one is
-    write_capture(folder, frames, exp.rig_model.camera)
+    # the operator's calibration is the nominal camera, whatever the true one is ...
+    calibration = exp.rig_model.camera
+    claimed = (hidden or {}).get("faulty_calibration")
+    if claimed is not None:  # ... or a file that claims a distortion the lens does not have
+        calibration = calibration.replace(distortion=(float(claimed["k1"]), 0.0, 0.0, 0.0, 0.0))
+    write_capture(folder, frames, calibration)
     return folder
 
 
@@ -341,7 +371,7 @@ def run_validation(
         t0 = time.perf_counter()
         folder = out_dir / "captures" / f"trial_{i:03d}"
         exp = pseudo_real_experiment(base, hidden, camera, 1000 + settings.seed * 1000 + i)
-        render_capture(exp, simulator, folder)
+        render_capture(exp, simulator, folder, hidden)
         real = ingest(folder, rig)
         result, _ = diagnose(real, base, simulator)
         trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig)

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from simgap.diagnosis.hidden_effects import APPEARANCE, OUTSIDE, found
+from simgap.diagnosis.hidden_effects import APPEARANCE, OUTSIDE, REPORTED_AS, found
 
 
 def _share(flags: list[bool]) -> float | None:
@@ -31,7 +31,12 @@ def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
     for name in sorted({h for s in inside for h in s["hidden"]}):
         alone = [s for s in single if s["hidden"] == [name]]
         anywhere = [s for s in inside if name in s["hidden"]]
-        errors = [s["magnitude_error"][name] for s in anywhere if name in s["magnitude_error"]]
+        errors = [
+            v
+            for s in anywhere
+            for k, v in s.get("magnitude_error", {}).items()
+            if k.split(".")[0] in (name, REPORTED_AS.get(name))
+        ]
         per_effect[name] = {
             "single_trials": len(alone),
             "top1_single": _share([s["correct"] for s in alone]),

@@ -20,7 +20,7 @@ from simgap.core.paths import assets_dir
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors, Rig
 from simgap.render.backend import mitsuba
 from simgap.render.camera import PLUGIN_NAME as SENSOR_PLUGIN
-from simgap.render.mitsuba_scene import bsdf, emitter, tag_bsdf
+from simgap.render.mitsuba_scene import bsdf, emitter, light_transform, tag_bsdf
 from simgap.scene.spec import SceneSpec, load_scene_spec
 
 #: Most samples traced in one kernel launch of :meth:`FixtureScene.render_pixels` (bounds memory).
@@ -119,8 +119,9 @@ class FixtureScene:
                 "type": "rectangle",
                 "bsdf": tag_bsdf(spec.tag, texture, mi),
             }
+        rail_from_eyepoint = rig.rail_from_eyepoint(0, errors)
         for name, light in spec.lights.items():
-            scene_dict[f"light_{name}"] = emitter(light, mi)
+            scene_dict[f"light_{name}"] = emitter(light.placed(rail_from_eyepoint), mi)
         try:
             # optimize=False: Mitsuba would merge meshes sharing a BSDF, and we move them apart
             self.scene = mi.load_dict(scene_dict, optimize=False)
@@ -149,6 +150,14 @@ class FixtureScene:
             self.params[f"{name}.vertex_positions"] = mi.Float(moved.ravel().astype(np.float32))
         for face in self.rig.tags.faces:
             self.params[f"tag_{face.id}.to_world"] = mi.ScalarTransform4f(world[f"tag_{face.id}"])
+        for name, light in self.spec.lights.items():
+            if light.frame == "rail" or light.type == "constant":
+                continue
+            placed = light.placed(world[light.frame])
+            if light.type == "point":
+                self.params[f"light_{name}.position"] = mi.ScalarPoint3f(placed.position)
+            else:
+                self.params[f"light_{name}.to_world"] = light_transform(placed, mi)
         self.params.update()
         self.camera.set_pose(world["camera"])
         self.pose = (p, theta)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Literal
 
@@ -34,7 +34,11 @@ class LightSpec:
     type : {"area", "point", "spot", "constant"}
         Rectangle area light, isotropic point, spot light or uniform environment.
     position, target : tuple of float
-        Light position and aim point (m, rail frame); unused for ``constant``.
+        Light position and aim point (m, in ``frame``); unused for ``constant``.
+    frame : {"rail", "eyepoint"}
+        The rig frame the light is fixed to: ``rail`` (a lab light, still while the carriage
+        moves) or ``eyepoint`` (a light on the camera, beside the lens, moving with it; the
+        eyepoint frame is the global frame: x right, y forward, z up, metres from the lens).
     size : tuple of float
         Side lengths of an area light (m).
     radiance : float
@@ -50,6 +54,7 @@ class LightSpec:
     type: Literal["area", "point", "spot", "constant"]
     position: tuple[float, float, float] = (0.0, -0.3, 0.4)
     target: tuple[float, float, float] = field(default_factory=default_target)
+    frame: Literal["rail", "eyepoint"] = "rail"
     size: tuple[float, float] = (0.3, 0.3)
     radiance: float = 1.0
     intensity: float = 1.0
@@ -59,6 +64,24 @@ class LightSpec:
     def __post_init__(self) -> None:
         require(self.radiance >= 0 and self.intensity >= 0, "radiance/intensity: expected >= 0")
         require(0 < self.cutoff_deg < 90, "cutoff_deg: expected 0 < x < 90 (deg)")
+
+    def placed(self, rail_from_frame: np.ndarray) -> LightSpec:
+        """The light with its position and target in the rail frame (m), ``frame`` ``rail``.
+
+        ``rail_from_frame`` is the 4x4 pose of the light's frame at the configuration (the
+        identity for a rail light).
+        """
+        if self.frame == "rail":
+            return self
+        m = np.asarray(rail_from_frame, float)
+        position = m[:3, :3] @ np.asarray(self.position) + m[:3, 3]
+        target = m[:3, :3] @ np.asarray(self.target) + m[:3, 3]
+        return replace(
+            self,
+            position=tuple(float(v) for v in position),
+            target=tuple(float(v) for v in target),
+            frame="rail",
+        )
 
 
 #: Quadrature points per side of an area light in :func:`irradiance` (midpoint rule; the
@@ -81,7 +104,7 @@ def irradiance(light: LightSpec, points: np.ndarray, normals: np.ndarray) -> np.
     Parameters
     ----------
     light : LightSpec
-        The light (rail frame, m).
+        The light, placed in the rail frame (:meth:`LightSpec.placed`; m).
     points, normals : ndarray (N, 3)
         Surface points (m, rail frame) and their unit normals.
 
