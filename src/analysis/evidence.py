@@ -14,9 +14,14 @@ scatter
     ``sqrt(|real^2 - sim^2|)`` reaches :data:`SCATTER_FLOOR_SHARE` of the practical floor.
 detection
     Detected / visible counts of the real data and of the simulation (over repeats), overall,
-    per distance region and per view-angle band; Fisher's exact test
-    (``scipy.stats.fisher_exact``). Significant when it rejects at :data:`ALPHA` (Bonferroni) and
-    the rates differ by :data:`DETECTION_MIN_DIFFERENCE` or more.
+    per distance region and per view-angle band; Boschloo's exact test of the 2 x 2 table
+    (:func:`detection_pvalue`). The overall test is the one planned test, at :data:`ALPHA`; the
+    six regional tests are corrected for their multiplicity by Holm's step-down rule at
+    :data:`ALPHA` (:func:`holm_reject`). Significant when the test rejects and the rates differ
+    by :data:`DETECTION_MIN_DIFFERENCE` or more. A fifth of 45 detections lost overall (36 / 45
+    against 45 / 45: p = 0.00098) and half of one 15-configuration region (7 / 15 against
+    15 / 15: p = 0.00082 < 0.01 / 6) are significant; with Fisher's test and Bonferroni over
+    all seven (p 0.0025 against 0.0014) the first was not.
 image
     Per statistic of :mod:`simgap.pose.image_stats`, the paired difference real - simulated over
     tags visible in both (levels and noise as log2 ratios, in stops); Wilcoxon's signed-rank test
@@ -48,6 +53,10 @@ SCATTER_RATIO = 1.5
 SCATTER_FLOOR_SHARE = 0.5
 #: Smallest difference of detection rates that matters.
 DETECTION_MIN_DIFFERENCE = 0.05
+#: Largest number of attempts (the smaller side of a 2 x 2 table) for which Boschloo's test is
+#: run; beyond it Fisher's, whose power is then the same and which is far cheaper (Boschloo on
+#: 540 x 2160 attempts: 7.6 s, measured).
+BOSCHLOO_MAX_ATTEMPTS = 200
 #: View-angle bands (deg) for the detection tests: oblique, intermediate, frontal.
 VIEW_BANDS_DEG = ((0.0, 35.0), (35.0, 60.0), (60.0, 90.1))
 #: Added to linear levels before taking log2 ratios (a tenth of an 8-bit step near black).
@@ -176,8 +185,42 @@ def scatter_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
     return rows
 
 
+def detection_pvalue(kr: int, nr: int, ks: int, ns: int) -> float:
+    """Two-sided p-value that real and simulated detection rates are equal.
+
+    ``kr`` of ``nr`` real attempts detected, ``ks`` of ``ns`` simulated. Boschloo's exact test
+    (``scipy.stats.boschloo_exact``), uniformly more powerful than Fisher's for a 2 x 2 table
+    with fixed attempts; Fisher's beyond :data:`BOSCHLOO_MAX_ATTEMPTS` attempts, where both
+    have the same power.
+    """
+    table = [[kr, nr - kr], [ks, ns - ks]]
+    if kr + ks in (0, nr + ns):  # every attempt detected (or none) on both sides: no evidence
+        return 1.0
+    if min(nr, ns) > BOSCHLOO_MAX_ATTEMPTS:
+        return float(sps.fisher_exact(table).pvalue)
+    return float(min(sps.boschloo_exact(table).pvalue, 1.0))
+
+
+def holm_reject(pvalues: list[float], alpha: float = ALPHA) -> list[bool]:
+    """Holm's step-down rule: which of ``pvalues`` are rejected at family-wise ``alpha``.
+
+    The k-th smallest p-value (k from 0) is compared with ``alpha / (m - k)``; testing stops at
+    the first that is not below it. Uniformly more powerful than Bonferroni, same guarantee.
+    """
+    order = np.argsort(pvalues)
+    reject = [False] * len(pvalues)
+    for k, i in enumerate(order):
+        if not pvalues[i] < alpha / (len(pvalues) - k):
+            break
+        reject[i] = True
+    return reject
+
+
 def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
-    """Fisher exact tests of real vs simulated detection rates, overall and per region."""
+    """Tests of real vs simulated detection rates, overall and per region (module docstring).
+
+    Rows: ``all`` (the planned test), then the distance regions and view-angle bands (Holm).
+    """
     real, sim = align(real, sim)
     visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
     _, view = tag_distance_and_view_angle(real)
@@ -191,7 +234,6 @@ def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
         for lo, hi in VIEW_BANDS_DEG
     ]
     rows = []
-    n_tests = len(masks)
     for name, mask in masks:
         nr = int((mask.sum() * real.sizes["repeat"]).item())
         ns = int((mask.sum() * sim.sizes["repeat"]).item())
@@ -199,8 +241,6 @@ def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
             continue
         kr = int(det_r.where(mask).sum().item())
         ks = int(det_s.where(mask).sum().item())
-        pvalue = float(sps.fisher_exact([[kr, nr - kr], [ks, ns - ks]]).pvalue)
-        diff = kr / nr - ks / ns
         rows.append(
             {
                 "region": name,
@@ -210,13 +250,16 @@ def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[dict[str, Any]]:
                 "sim_attempts": ns,
                 "real_rate": kr / nr,
                 "sim_rate": ks / ns,
-                "difference": diff,
-                "p_value": pvalue,
-                "significant": bool(
-                    pvalue < ALPHA / n_tests and abs(diff) >= DETECTION_MIN_DIFFERENCE
-                ),
+                "difference": kr / nr - ks / ns,
+                "p_value": detection_pvalue(kr, nr, ks, ns),
             }
         )
+    regional = [r for r in rows if r["region"] != "all"]
+    rejected = holm_reject([r["p_value"] for r in regional])
+    for row in rows:
+        reject = row["p_value"] < ALPHA if row["region"] == "all" else rejected[regional.index(row)]
+        row["test"] = "planned" if row["region"] == "all" else "Holm over regions"
+        row["significant"] = bool(reject and abs(row["difference"]) >= DETECTION_MIN_DIFFERENCE)
     return rows
 
 
