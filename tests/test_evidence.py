@@ -83,7 +83,7 @@ def test_the_issue_numbers_of_lost_detections_are_significant():
         True, False, False, True, False, False,
     ]  # fmt: skip
     assert evidence.holm_reject([0.002, 0.0021]) == [True, True]  # 0.002 < 0.005, 0.0021 < 0.01
-    assert evidence.holm_reject([0.006, 0.0021]) == [False, True]
+    assert evidence.holm_reject([0.012, 0.0021]) == [False, True]  # 0.012 >= 0.01
 
 
 def test_a_fifth_of_45_detections_lost_is_significant_overall():
