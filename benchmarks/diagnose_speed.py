@@ -1,8 +1,8 @@
 """Time to diagnose a pseudo-real capture against the whole catalogue, from an empty cache.
 
-Renders a pseudo-real capture (another camera's image formation, see ``simgap.diagnosis.validate``;
-hidden:
-focal length +2 %), ingests it, and times ``diagnose``: simulation of the same configurations,
+Renders a pseudo-real capture (another camera, drawn with a fixed seed as the blind validation
+draws them, ``simgap.diagnosis.nuisance``; hidden: focal length +2 %), ingests it, and times
+``diagnose``: simulation of the same configurations,
 the gap and its evidence, every candidate fitted and ranked, the greedy combination, the report
 split and the confirmation by re-rendering. ``--configs 48`` is the blind validation's capture
 (6 p x 8 theta; issue 8 target <= 3 min on 2 cores from an empty cache), ``--configs 540`` the
@@ -19,10 +19,16 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from simgap.diagnosis.diagnose import diagnose
+from simgap.diagnosis.nuisance import draw_nuisance
 from simgap.diagnosis.validate import ValidateSettings, pseudo_real_experiment, render_capture
 from simgap.pipeline.capture import ingest
 from simgap.pipeline.experiment import Configurations, load_experiment
+
+#: Seed of the other camera the capture is rendered through.
+CAMERA_SEED = 42
 
 
 def main() -> None:
@@ -34,21 +40,24 @@ def main() -> None:
     args = ap.parse_args()
     base = load_experiment(args.experiment)
     rig = base.rig_model
-    settings = ValidateSettings()
+    settings = ValidateSettings(
+        p=(0, 3, 6, 9, 12, 14), theta_deg=(0, 20, 40, 320, 340, 160, 180, 200), frames_per_pose=2
+    )
     if args.configs == 540:
         settings = dataclasses.replace(
             settings,
             p=rig.grid.p,
             theta_deg=tuple(rig.grid.theta_step_deg * k for k in range(rig.grid.theta_count)),
         )
+    camera = settings.camera(draw_nuisance(np.random.default_rng(CAMERA_SEED), rig))
     sim = dataclasses.replace(
-        base, configurations=Configurations(tuple(settings.p), tuple(settings.theta_deg), ())
+        base, configurations=Configurations(tuple(camera.p), tuple(camera.theta_deg), ())
     )
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(args.cache or Path(tmp) / "cache")
         out = Path(args.out or Path(tmp) / "capture")
         hidden = {"focal_length": {"scale": 0.02}}
-        capture = pseudo_real_experiment(base, hidden, 4242, settings)
+        capture = pseudo_real_experiment(base, hidden, camera, 4242)
         t0 = time.perf_counter()
         render_capture(capture, cache, out)
         t_capture = time.perf_counter() - t0

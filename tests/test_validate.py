@@ -16,7 +16,7 @@ from simgap.diagnosis.result import DiagnosisResult, Finding, Scores, Selection
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table."""
-    from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
+    from simgap.diagnosis.validate import CAMERA_NAMED, OUTSIDE, ValidateSettings, run_validation
     from simgap.pipeline.experiment import load_experiment
 
     settings = ValidateSettings(
@@ -24,10 +24,11 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         seed=3,
         p=(0, 7, 14),  # 12 configurations: the smallest capture the three-way split still splits
         theta_deg=(0, 20, 340, 180),
+        frames_per_pose=2,
         p_none=0.5,
         p_pair=0.0,
         effects=("focal_length", "carriage_pitch"),
-        spp=25,  # geometric effects only: fewer samples than the default's suffice
+        spp=25,  # geometric effects only: fewer samples than the drawn cameras' suffice
     )
     exp = load_experiment("experiments/baseline.yaml")
     ran: list[str] = []
@@ -42,7 +43,7 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     assert summary["trials"] == 2 and summary["trials_planned"] == 2
     kept = tmp_path / "trials" / "trial_000.json"  # as if made by another seed: refused
     kept.write_text(json.dumps(dict(json.loads(kept.read_text()), params={"x": {"v": 1}})))
-    with pytest.raises(ValueError, match="other hidden effects"):
+    with pytest.raises(ValueError, match="other hidden effects or another camera"):
         run_validation(exp, tmp_path, session_cache, settings, log=ran.append)
     text = (tmp_path / "validation.md").read_text()
     assert "Confusion table" in text
@@ -51,13 +52,17 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     assert (tmp_path / "captures" / "trial_000" / "manifest.csv").is_file()
     for t in data["trials"]:
         geometric = set(t["selected"]) & geometric_effects()
+        # the camera's own exposure, noise and softness may be named; nothing else not hidden
+        extra = set(t["selected"]) - set(t["hidden"]) - set(CAMERA_NAMED)
         if set(t["hidden"]) & set(OUTSIDE):  # outside the catalogue: must read "unexplained"
             expected = bool(t["unexplained"]) and not geometric
         elif t["hidden"]:
-            expected = bool(t["selected"]) and t["selected"][0] in t["hidden"]
-        else:  # another camera's image formation may be reported; no geometric cause may
-            expected = not geometric
+            expected = set(t["hidden"]) <= set(t["selected"]) and not extra
+        else:
+            expected = not extra
         assert t["correct"] == expected
+        assert t["camera"]["p"] == [0, 7, 14] and t["camera"]["frames_per_pose"] == 2
+        assert set(t["bins"]) == {"exposure", "softness", "noise", "frames"}
         result = DiagnosisResult.from_json(t["result"])
         if result.combined:  # the reduction is measured on configurations that did not choose
             assert result.combined.configurations == result.split.report
@@ -91,30 +96,51 @@ def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
     }
 
 
-def _selecting(*effects: str) -> DiagnosisResult:
-    """A diagnosis that selected ``effects`` (no parameters, all of them major)."""
-    findings = [Finding(effect=e, params={}, pose_contribution=1.0, minor=False) for e in effects]
+def _selecting(*effects: str, **params: dict[str, float]) -> DiagnosisResult:
+    """A diagnosis that selected ``effects`` (all major), with ``params`` fitted per effect."""
+    findings = [
+        Finding(effect=e, params=params.get(e, {}), pose_contribution=1.0, minor=False)
+        for e in effects
+    ]
     selection = Selection(findings=findings, n_params=0, configurations=0, scores=Scores())
     return DiagnosisResult(selection=selection)
 
 
-def test_hidden_effects_are_valid_and_lighting_is_scored_as_exposure():
-    """Every hidden sampler makes a valid effect; a dimmer key light reported as exposure hits."""
+def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong():
+    """Every hidden sampler makes a valid effect; the camera's own exposure may be named, a
+    geometric effect that was not hidden may not; magnitudes read the camera's totals."""
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.nuisance import draw_nuisance, exposure_truth, with_exposure
     from simgap.diagnosis.validate import HIDDEN, REPORTED_AS, Trial
     from simgap.effects import make_effect
 
     rng = np.random.default_rng(0)
-    for name, (sampler, key) in HIDDEN.items():
+    for name, (sampler, keys) in HIDDEN.items():
         for _ in range(5):
             params = sampler(rng)
-            make_effect(name, params)  # raises on an invalid parameter
-            assert key is None or key in params
-    assert REPORTED_AS["lighting"] in HIDDEN
-    light = HIDDEN["lighting"][0](rng)
-    hit = Trial(0, {"lighting": light}, _selecting("exposure", "sensor_noise")).score()
-    assert hit["correct"] and hit["recall"] == 1.0
-    miss = Trial(0, {"lighting": light}, _selecting("tag_scale", "exposure")).score()
-    assert not miss["correct"] and miss["recall"] == 1.0
+            make_effect(REPORTED_AS.get(name, name), params)  # raises on an invalid parameter
+            assert all(key in params for key in keys)
+    rig = load_rig()
+    camera = with_exposure(draw_nuisance(np.random.default_rng(1), rig), 1.2, rig)
+    # the exposure setting makes the camera's total (light meter, transfer curve) the hidden one
+    assert exposure_truth(camera, rig) == pytest.approx(1.2, abs=1e-3)
+    hidden = {"focal_length": {"scale": 0.02}}
+    result = _selecting("exposure", "focal_length", focal_length={"scale": 0.021})
+    hit = Trial(0, hidden, camera, result, rig=rig).score()
+    assert hit["correct"] and hit["top1"] == "focal_length" and hit["spurious"] == []
+    assert hit["magnitude_error"]["focal_length.scale"] == pytest.approx(0.05)
+    miss = Trial(0, hidden, camera, _selecting("focal_length", "tag_scale"), rig=rig).score()
+    assert not miss["correct"] and miss["spurious"] == ["tag_scale"]
+    answer = _selecting("exposure", exposure={"ev": 1.08})
+    found_exposure = Trial(0, {"exposure": {"ev": 1.2}}, camera, answer, rig=rig).score()
+    assert found_exposure["correct"]
+    assert found_exposure["magnitude_error"]["exposure.ev"] == pytest.approx(0.1, abs=1e-3)
+    # a calibration file claiming k1 0.1 for a lens without distortion: lens_distortion names it,
+    # and a fitted k1 of 0.01 is 10 % of the claimed distortion off
+    answer = _selecting("lens_distortion", "blur", lens_distortion={"k1": 0.01})
+    faulty = Trial(0, {"faulty_calibration": {"k1": 0.1}}, camera, answer, rig=rig).score()
+    assert faulty["correct"]
+    assert faulty["magnitude_error"]["lens_distortion.k1"] == pytest.approx(0.1)
 
 
 def test_targeted_validation_draws_only_the_named_effects(tmp_path):

@@ -123,7 +123,7 @@ def evidence_markdown(where: Where) -> list[str]:
         lines += ["Pose scatter (Brown-Forsythe, robust scales):", ""]
         lines += markdown_table(header, rows) + [""]
     if where.detection_tests:
-        header = ["region", "real", "simulation", "difference", "p", "significant"]
+        header = ["region", "real", "simulation", "difference", "p", "test", "significant"]
         rows = [
             [
                 t.region,
@@ -131,11 +131,12 @@ def evidence_markdown(where: Where) -> list[str]:
                 f"{t.sim_detected}/{t.sim_attempts}",
                 f"{t.difference:+.1%}",
                 f"{t.p_value:.2g}",
+                t.test,
                 _yes(t.significant),
             ]
             for t in where.detection_tests
         ]
-        lines += ["Detection (Fisher's exact test):", ""]
+        lines += ["Detection (Boschloo's exact test; the overall one planned, regions by Holm):", ""]
         lines += markdown_table(header, rows) + [""]
     if where.image_tests:
         header = ["statistic", "real median", "simulation median", "median difference"]

@@ -1,14 +1,14 @@
 """Blind validation of the gap diagnosis (``simgap validate``).
 
 Each trial draws none, one or two hidden effects with magnitudes, geometric and appearance ones
-(:data:`HIDDEN`), or one effect outside the diagnosis catalogue (:data:`OUTSIDE`), renders a
-pseudo-real capture folder with them through the full pipeline under another camera's image
-formation than the simulation's (:data:`NUISANCE_EFFECTS`, :data:`NUISANCE_SCENE`: another
-light, another background, a Gaussian pixel filter, bilinear texture filtering, supersampling,
-sensor noise, another render seed), ingests it like hardware data, diagnoses it without being
-told, and scores the answer: top-1 accuracy (overall and per effect), recall for pairs, relative
-magnitude error, the reduction on the report split, "no geometric or calibration effect" on
-effect-free trials and "unexplained" on trials with an effect outside the catalogue.
+(:data:`HIDDEN`), or one effect outside the diagnosis catalogue (:data:`OUTSIDE`), and its own
+"other camera" (:func:`simgap.diagnosis.nuisance.draw_nuisance`: lights, exposure, pixel filter,
+supersampling, texture filtering, sensor, transfer curve, vignetting, paint, poses, one or two
+frames a pose). It renders a pseudo-real capture folder through that camera with the hidden
+effects, ingests it like hardware data, diagnoses it without being told, and scores the answer
+(:meth:`Trial.score`): correct when every hidden effect is named and nothing is named that the
+capture does not have, magnitudes against the camera's truths, the reduction on the report
+split, and the nuisance bins of the trial's camera.
 
 Thresholds of the diagnosis are fixed before a blind run; reports on a seed never used while
 developing are the ones quoted.
@@ -29,18 +29,24 @@ import numpy as np
 from simgap.analysis.candidates import geometric_effects
 from simgap.core.atomic import atomic_write
 from simgap.core.config import deep_merge
+from simgap.core.rig import Rig
 from simgap.diagnosis.diagnose import diagnose
 from simgap.diagnosis.hidden_effects import (
     APPEARANCE,
-    CAPTURE_REPEATS,
+    CAMERA_NAMED,
     HIDDEN,
-    NUISANCE_EFFECTS,
-    NUISANCE_SCENE,
-    NUISANCE_SPP,
     OUTSIDE,
     REPORTED_AS,
     Sampler,
     found,
+)
+from simgap.diagnosis.nuisance import (
+    NuisanceCamera,
+    draw_nuisance,
+    exposure_truth,
+    nuisance_bins,
+    softness_truth,
+    with_exposure,
 )
 from simgap.diagnosis.result import DiagnosisResult
 from simgap.diagnosis.result_json import jsonable, write_json
@@ -52,15 +58,12 @@ from simgap.pipeline.simulator import Simulator
 __all__ = [
     "APPEARANCE",
     "HIDDEN",
-    "NUISANCE_EFFECTS",
-    "NUISANCE_SCENE",
-    "NUISANCE_SPP",
     "OUTSIDE",
-    "REPORTED_AS",
     "Sampler",
     "ValidateSettings",
     "Trial",
     "draw_hidden",
+    "draw_trials",
     "pseudo_real_experiment",
     "render_capture",
     "run_validation",
@@ -80,11 +83,15 @@ class ValidateSettings:
     trials : int
         Number of trials.
     seed : int
-        Seed of the draws (and of the pseudo-real render seeds).
-    p : tuple of int
-        Pin holes of the pseudo-real captures.
-    theta_deg : tuple of float
-        Turntable stops of the pseudo-real captures (deg).
+        Seed of the draws (hidden effects, other cameras, render seeds).
+    p : tuple of int or None
+        Pin holes of every capture; None: drawn per trial with the other camera.
+    theta_deg : tuple of float or None
+        Turntable stops of every capture (deg); None: drawn per trial.
+    frames_per_pose : int or None
+        Frames a pose of every capture; None: drawn per trial (one or two).
+    spp : int or None
+        Samples per pixel of every capture; None: drawn per trial.
     p_none, p_pair, p_outside : float
         Probability of a trial with no hidden effect, with two, and with one effect outside the
         catalogue (:data:`OUTSIDE`).
@@ -92,20 +99,19 @@ class ValidateSettings:
         Hidden effects drawn from (default: all of :data:`HIDDEN`).
     shard : (int, int)
         ``(K, N)``: run only the trials whose index is K modulo N (processes side by side).
-    spp : int
-        Samples per pixel of the pseudo-real captures (:data:`NUISANCE_SPP`).
     """
 
     trials: int = 30
     seed: int = 0
-    p: tuple[int, ...] = (0, 3, 6, 9, 12, 14)
-    theta_deg: tuple[float, ...] = (0, 20, 40, 320, 340, 160, 180, 200)
+    p: tuple[int, ...] | None = None
+    theta_deg: tuple[float, ...] | None = None
+    frames_per_pose: int | None = None
+    spp: int | None = None
     p_none: float = 0.15
     p_pair: float = 0.2
     p_outside: float = 0.1
     effects: tuple[str, ...] = tuple(HIDDEN)
     shard: tuple[int, int] = (0, 1)
-    spp: int = NUISANCE_SPP
 
     def __post_init__(self) -> None:
         k, n = self.shard
@@ -119,58 +125,121 @@ class ValidateSettings:
                 else "effects: expected at least one hidden effect"
             )
 
+    def camera(self, drawn: NuisanceCamera) -> NuisanceCamera:
+        """The drawn camera with the poses, frames and samples these settings fix."""
+        changes: dict[str, Any] = {}
+        if self.p is not None:
+            changes["p"] = tuple(self.p)
+        if self.theta_deg is not None:
+            changes["theta_deg"] = tuple(float(t) for t in self.theta_deg)
+        if self.frames_per_pose is not None:
+            changes["frames_per_pose"] = int(self.frames_per_pose)
+        if self.spp is not None:
+            changes["spp"] = int(self.spp)
+        return dataclasses.replace(drawn, **changes)
+
+
+def _magnitude(params: dict[str, Any], key: str) -> np.ndarray:
+    return np.atleast_1d(np.asarray(params.get(key, 0.0), float))
+
 
 @dataclass
 class Trial:
-    """One trial: what was hidden and what the diagnosis said."""
+    """One trial: what was hidden, the other camera, and what the diagnosis said."""
 
     index: int
     hidden: dict[str, dict[str, Any]]
+    camera: NuisanceCamera | None = None
     result: DiagnosisResult = field(default_factory=DiagnosisResult)
     seconds: float = 0.0
+    rig: Rig | None = None
 
     def record(self) -> dict[str, Any]:
-        """The trial as ``validation.json`` keeps it: its score, params, result and seconds."""
+        """The trial as ``validation.json`` keeps it: its score, draws, result and seconds."""
         return jsonable(
             dict(
                 self.score(),
                 index=self.index,
                 params=self.hidden,
+                camera=self.camera.record() if self.camera else None,
                 result=self.result,
                 seconds=self.seconds,
             )
         )
 
+    def truth(self) -> dict[str, tuple[dict[str, Any], dict[str, float]]]:
+        """What a diagnosis should find, by the effect that names it: parameters and scales.
+
+        Per effect: the parameters it should read, and per scored parameter the size an error is
+        relative to. The hidden effects' own parameters (relative to themselves), except where
+        the other camera has the same kind of effect (:data:`CAMERA_NAMED`): exposure reads the
+        camera's total exposure and blur its total softness (:func:`exposure_truth`,
+        :func:`softness_truth`); a faulty calibration file is read as the lens it describes
+        wrongly: no distortion, an error relative to the distortion the file claims.
+        """
+        out: dict[str, tuple[dict[str, Any], dict[str, float]]] = {}
+        for name, params in self.hidden.items():
+            if name not in HIDDEN:
+                continue
+            params = dict(params)
+            if name == "faulty_calibration":
+                scale = {"k1": abs(float(params["k1"]))}
+                out[REPORTED_AS[name]] = ({"k1": 0.0}, scale)
+                continue
+            if self.camera is not None and self.rig is not None:
+                if name == "exposure":
+                    params = {"ev": exposure_truth(self.camera, self.rig)}
+                if name == "blur":
+                    params = {"sigma_px": softness_truth(self.camera, params["sigma_px"])}
+            keys = HIDDEN[name][1]
+            out[name] = (params, {k: float(np.linalg.norm(_magnitude(params, k))) for k in keys})
+        return out
+
     def score(self) -> dict[str, Any]:
-        """Top-1, recall, magnitude errors and gap reduction of this trial."""
-        sel = self.result.selected
+        """Correctness, recall, magnitude errors, reduction and nuisance bins of this trial.
+
+        Correct: every hidden catalogue effect is named (for a pair: at least one, and the
+        recall says how many), and nothing is named that the capture does not have (a geometric
+        or calibration effect that was not hidden; an appearance effect that neither was hidden
+        nor is one every camera has, :data:`CAMERA_NAMED`); for an effect outside the catalogue,
+        "unexplained" and no geometric effect; without a hidden effect, nothing but the camera's
+        own appearance. ``top1`` is the first named effect that is not only the camera's own.
+        Magnitude errors are per scored parameter (``effect.parameter``), relative to
+        :meth:`truth`'s scale.
+        """
+        selected = list(self.result.selected)
         hidden = list(self.hidden)
+        named = {REPORTED_AS.get(h, h) for h in hidden}
+        geometric = [e for e in selected if e in geometric_effects()]
+        spurious = [e for e in selected if e not in named and e not in CAMERA_NAMED]
+        own = [e for e in selected if e in named or e not in CAMERA_NAMED]
         out: dict[str, Any] = {
             "hidden": hidden,
-            "selected": sel,
-            "top1": sel[0] if sel else "none",
+            "selected": selected,
+            "top1": own[0] if own else (selected[0] if selected else "none"),
             "unexplained": self.result.unexplained,
+            "geometric_selected": geometric,
+            "spurious": spurious,
+            "bins": nuisance_bins(self.camera, self.rig) if self.camera and self.rig else {},
         }
-        geometric = [e for e in sel if e in geometric_effects()]
-        out["geometric_selected"] = geometric
         if not hidden:
-            out["correct"] = not geometric
+            out["correct"] = not spurious
             return out
         if set(hidden) <= set(OUTSIDE):
             out["correct"] = self.result.unexplained and not geometric
             return out
-        accepted = set(hidden) | {REPORTED_AS[h] for h in hidden if h in REPORTED_AS}
-        out["correct"] = bool(sel) and sel[0] in accepted
-        out["recall"] = sum(found(h, sel) for h in hidden) / len(hidden)
+        hits = [found(h, selected) for h in hidden]
+        out["correct"] = (all(hits) if len(hidden) == 1 else any(hits)) and not spurious
+        out["recall"] = sum(hits) / len(hidden)
         selection = self.result.selection
         fitted = {f.effect: f.params for f in selection.findings} if selection else {}
         mags = {}
-        for name, params in self.hidden.items():
-            key = HIDDEN[name][1] if name in HIDDEN else None
-            if key is None or name not in fitted:
+        for name, (params, scales) in self.truth().items():
+            if name not in fitted:
                 continue
-            true, got = np.atleast_1d(params[key]), np.atleast_1d(fitted[name].get(key, 0.0))
-            mags[name] = float(np.linalg.norm(got - true) / np.linalg.norm(true))
+            for key, scale in scales.items():
+                error = _magnitude(fitted[name], key) - _magnitude(params, key)
+                mags[f"{name}.{key}"] = float(np.linalg.norm(error) / scale)
         out["magnitude_error"] = mags
         combined, confirmed = self.result.combined, self.result.confirmed
         if confirmed is not None:
@@ -193,24 +262,57 @@ def draw_hidden(rng: np.random.Generator, settings: ValidateSettings) -> dict[st
     return {str(n): HIDDEN[str(n)][0](rng) for n in names}
 
 
+def draw_trials(
+    settings: ValidateSettings, rig: Rig
+) -> list[tuple[dict[str, dict[str, Any]], NuisanceCamera]]:
+    """Every trial's hidden effects and other camera, in trial order (the same for any shard).
+
+    The hidden draws and the cameras come from two streams of the seed, so that a change of the
+    camera's ranges leaves the hidden draws of a seed as they were. A hidden exposure sets the
+    camera's total exposure (:func:`simgap.diagnosis.nuisance.with_exposure`); a hidden sensor
+    noise replaces the camera's sensor.
+    """
+    hidden_rng = np.random.default_rng(settings.seed)
+    camera_rng = np.random.default_rng([settings.seed, 1])
+    out = []
+    for _ in range(settings.trials):
+        hidden = draw_hidden(hidden_rng, settings)
+        camera = settings.camera(draw_nuisance(camera_rng, rig))
+        if "exposure" in hidden:
+            camera = with_exposure(camera, float(hidden["exposure"]["ev"]), rig)
+        out.append((hidden, camera))
+    return out
+
+
 def pseudo_real_experiment(
-    base: Experiment, hidden: dict, seed: int, settings: ValidateSettings
+    base: Experiment, hidden: dict, camera: NuisanceCamera, seed: int
 ) -> Experiment:
-    """The experiment that renders a pseudo-real capture: another camera, hidden effects, seed."""
-    effects = {**NUISANCE_EFFECTS, **hidden}
+    """The experiment that renders a pseudo-real capture: the other camera, hidden effects, seed.
+
+    The camera's effects with the hidden ones on top (a hidden sensor noise replaces the
+    camera's; a hidden exposure is already the camera's total, :func:`draw_trials`), its scene
+    overrides, samples per pixel, poses and frames a pose.
+    """
+    rendered = {k: v for k, v in hidden.items() if k != "exposure" and k not in REPORTED_AS}
+    effects = {**camera.effects, **rendered}
     return dataclasses.replace(
-        base.with_render(seed=seed, spp=settings.spp),
+        base.with_render(seed=seed, spp=camera.spp),
         name="pseudo_real",
-        scene=deep_merge(base.scene, NUISANCE_SCENE),
-        configurations=Configurations(tuple(settings.p), tuple(settings.theta_deg), ()),
+        scene=deep_merge(base.scene, camera.scene),
+        configurations=Configurations(tuple(camera.p), tuple(camera.theta_deg), ()),
         effects=effects,
         variants=(VariantSpec("baseline"),),
         grid={},
-        repeats=CAPTURE_REPEATS,
+        repeats=camera.frames_per_pose,
     )
 
 
-def render_capture(exp: Experiment, simulator: Simulator | Path, folder: Path) -> Path:
+def render_capture(
+    exp: Experiment,
+    simulator: Simulator | Path,
+    folder: Path,
+    hidden: dict[str, dict[str, Any]] | None = None,
+) -> Path:
     """Render ``exp``'s frames and write them as a capture folder (what a rig operator records).
 
     Parameters
@@ -221,12 +323,19 @@ def render_capture(exp: Experiment, simulator: Simulator | Path, folder: Path) -
         The simulator, or a cache folder to build one on.
     folder : Path
         Capture folder to write.
+    hidden : dict, optional
+        The trial's hidden effects: a ``faulty_calibration`` puts its distortion into the
+        calibration file (``camera.yaml``), not into the lens.
     """
     if not isinstance(simulator, Simulator):
         simulator = Simulator(simulator, show_progress=False)
     frames = list(simulator.frames(exp))
-    # the operator's calibration is the nominal camera, whatever the true one is
-    write_capture(folder, frames, exp.rig_model.camera)
+    # the operator's calibration is the nominal camera, whatever the true one is ...
+    calibration = exp.rig_model.camera
+    claimed = (hidden or {}).get("faulty_calibration")
+    if claimed is not None:  # ... or a file that claims a distortion the lens does not have
+        calibration = calibration.replace(distortion=(float(claimed["k1"]), 0.0, 0.0, 0.0, 0.0))
+    write_capture(folder, frames, calibration)
     return folder
 
 
@@ -242,61 +351,60 @@ def run_validation(
 
     Each finished trial is kept in ``out_dir/trials/trial_NNN.json`` (atomic write): a run that is
     stopped resumes where it was, and processes given disjoint shards (``settings.shard``) may
-    run side by side on one output folder and cache; the hidden draws are the same whatever the
-    shard, since every process draws all trials in order. The summary covers every trial finished
-    by then, by any shard: the last shard to finish writes the complete one.
+    run side by side on one output folder and cache; the draws are the same whatever the shard,
+    since every process draws all trials in order. The summary covers every trial finished by
+    then, by any shard: the last shard to finish writes the complete one.
 
     ``simulator`` renders the captures and runs the diagnoses (default: one on ``cache_dir``).
 
     Raises
     ------
     ValueError
-        When a kept trial file was made with other hidden effects (another seed or settings).
+        When a kept trial file was made with other draws (another seed or settings).
     """
     simulator = simulator or Simulator(cache_dir)
-    rng = np.random.default_rng(settings.seed)
     out_dir = Path(out_dir)
-    sim_exp = dataclasses.replace(
-        base, configurations=Configurations(tuple(settings.p), tuple(settings.theta_deg), ())
-    )
+    rig = base.rig_model
     shard, shards = settings.shard
-    draws = [draw_hidden(rng, settings) for _ in range(settings.trials)]
-    for i, hidden in enumerate(draws):
+    draws = draw_trials(settings, rig)
+    for i, (hidden, camera) in enumerate(draws):
         path = out_dir / "trials" / f"trial_{i:03d}.json"
-        if i % shards != shard or _kept_trial(path, hidden) is not None:
+        if i % shards != shard or _kept_trial(path, hidden, camera) is not None:
             continue
         t0 = time.perf_counter()
         folder = out_dir / "captures" / f"trial_{i:03d}"
-        exp = pseudo_real_experiment(base, hidden, 1000 + settings.seed * 1000 + i, settings)
-        render_capture(exp, simulator, folder)
-        real = ingest(folder, exp.rig_model)
-        result, _ = diagnose(real, sim_exp, simulator)
-        trial = Trial(i, hidden, result, time.perf_counter() - t0)
+        exp = pseudo_real_experiment(base, hidden, camera, 1000 + settings.seed * 1000 + i)
+        render_capture(exp, simulator, folder, hidden)
+        real = ingest(folder, rig)
+        result, _ = diagnose(real, base, simulator)
+        trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig)
         record = trial.record()
         write_json(record, path)
         log(
-            f"trial {i}: hidden {record['hidden'] or ['none']} -> {record['top1']} "
+            f"trial {i}: hidden {record['hidden'] or ['none']} -> {record['selected'] or ['-']} "
             f"({'ok' if record['correct'] else 'MISS'}, {trial.seconds:.0f} s)"
         )
-    kept = (_kept_trial(out_dir / "trials" / f"trial_{i:03d}.json", h) for i, h in enumerate(draws))
+    trials_dir = out_dir / "trials"
+    kept = (_kept_trial(trials_dir / f"trial_{i:03d}.json", *d) for i, d in enumerate(draws))
     records = [r for r in kept if r is not None]  # every shard's trials finished so far
     summary = summarize_scores(records)
     summary["trials_planned"] = settings.trials
-    summary["pseudo_real_spp"] = settings.spp
-    summary["pseudo_real_frames_per_pose"] = CAPTURE_REPEATS
     write_json({"summary": summary, "trials": records}, out_dir / "validation.json")
     atomic_write(out_dir / "validation.md", validation_markdown(summary, records))
     return summary
 
 
-def _kept_trial(path: Path, hidden: dict[str, Any]) -> dict[str, Any] | None:
+def _kept_trial(
+    path: Path, hidden: dict[str, Any], camera: NuisanceCamera
+) -> dict[str, Any] | None:
     """The trial kept at ``path`` (None if there is none yet), checked against its draw."""
     if not path.is_file():
         return None
     record = json.loads(path.read_text())
-    if record["params"] != jsonable(hidden):
+    if record["params"] != jsonable(hidden) or record.get("camera") != jsonable(camera.record()):
         raise ValueError(
-            f"{path}: made with other hidden effects ({record['params']}, this run draws "
-            f"{jsonable(hidden)}); use another output folder for another seed or settings"
+            f"{path}: made with other hidden effects or another camera ({record['params']}, "
+            f"this run draws {jsonable(hidden)}); use another output folder for another seed "
+            "or settings"
         )
     return record

@@ -88,8 +88,25 @@ def sampling_weight(light: LightSpec) -> float:
     return max(power * tint / max(d2, 1e-6), 1e-9)
 
 
+def light_transform(light: LightSpec, mi: ModuleType):
+    """The ``to_world`` of an area or spot light placed in the rail frame.
+
+    ``look_at`` its target; an area light's rectangle is scaled to its size.
+    """
+    look = mi.ScalarTransform4f().look_at(
+        origin=list(light.position), target=list(light.target), up=[0, 0, 1]
+    )
+    if light.type == "area":
+        return look @ mi.ScalarTransform4f().scale([light.size[0] / 2, light.size[1] / 2, 1])
+    return look
+
+
 def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
-    """The Mitsuba dictionary of a light (an emitter, or an emitting rectangle for ``area``)."""
+    """The Mitsuba dictionary of a light (an emitter, or an emitting rectangle for ``area``).
+
+    ``light`` is placed in the rail frame (:meth:`~simgap.scene.lights.LightSpec.placed`); a
+    light on the camera is moved with it by :class:`simgap.render.scene.FixtureScene`.
+    """
     colour = np.asarray(light.rgb, float)
     weight = sampling_weight(light)
     if light.type == "constant":
@@ -98,14 +115,10 @@ def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
             "radiance": {"type": "rgb", "value": colour * light.radiance},
             "sampling_weight": weight,
         }
-    look = mi.ScalarTransform4f().look_at(
-        origin=list(light.position), target=list(light.target), up=[0, 0, 1]
-    )
     if light.type == "area":
         return {
             "type": "rectangle",
-            "to_world": look
-            @ mi.ScalarTransform4f().scale([light.size[0] / 2, light.size[1] / 2, 1]),
+            "to_world": light_transform(light, mi),
             "emitter": {
                 "type": "area",
                 "radiance": {"type": "rgb", "value": colour * light.radiance},
@@ -122,7 +135,7 @@ def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
         }
     return {
         "type": "spot",
-        "to_world": look,
+        "to_world": light_transform(light, mi),
         "cutoff_angle": light.cutoff_deg,
         "intensity": {"type": "rgb", "value": colour * light.intensity},
         "sampling_weight": weight,

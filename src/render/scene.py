@@ -8,6 +8,7 @@ through ``mi.traverse`` so that every pose reuses the compiled render kernels
 from __future__ import annotations
 
 import copy
+from types import ModuleType
 from typing import Any
 
 import cv2
@@ -19,7 +20,7 @@ from simgap.core.paths import assets_dir
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors, Rig
 from simgap.render.backend import mitsuba
 from simgap.render.camera import PLUGIN_NAME as SENSOR_PLUGIN
-from simgap.render.mitsuba_scene import bsdf, emitter, tag_bsdf
+from simgap.render.mitsuba_scene import bsdf, emitter, light_transform, tag_bsdf
 from simgap.scene.spec import SceneSpec, load_scene_spec
 
 #: Most samples traced in one kernel launch of :meth:`FixtureScene.render_pixels` (bounds memory).
@@ -118,8 +119,9 @@ class FixtureScene:
                 "type": "rectangle",
                 "bsdf": tag_bsdf(spec.tag, texture, mi),
             }
+        rail_from_eyepoint = rig.rail_from_eyepoint(0, errors)
         for name, light in spec.lights.items():
-            scene_dict[f"light_{name}"] = emitter(light, mi)
+            scene_dict[f"light_{name}"] = emitter(light.placed(rail_from_eyepoint), mi)
         try:
             # optimize=False: Mitsuba would merge meshes sharing a BSDF, and we move them apart
             self.scene = mi.load_dict(scene_dict, optimize=False)
@@ -148,6 +150,14 @@ class FixtureScene:
             self.params[f"{name}.vertex_positions"] = mi.Float(moved.ravel().astype(np.float32))
         for face in self.rig.tags.faces:
             self.params[f"tag_{face.id}.to_world"] = mi.ScalarTransform4f(world[f"tag_{face.id}"])
+        for name, light in self.spec.lights.items():
+            if light.frame == "rail" or light.type == "constant":
+                continue
+            placed = light.placed(world[light.frame])
+            if light.type == "point":
+                self.params[f"light_{name}.position"] = mi.ScalarPoint3f(placed.position)
+            else:
+                self.params[f"light_{name}.to_world"] = light_transform(placed, mi)
         self.params.update()
         self.camera.set_pose(world["camera"])
         self.pose = (p, theta)
@@ -168,8 +178,11 @@ class FixtureScene:
     def render_pixels(self, pixels: np.ndarray, seed: int = 0) -> np.ndarray:
         """Render any set of full-image pixels: only these are sampled.
 
-        Each pixel gets :attr:`spp` stratified samples over its square, traced by the scene's
-        integrator and averaged (a box reconstruction filter, as the template's film). The
+        Each pixel gets :attr:`spp` stratified samples, traced by the scene's integrator and
+        averaged; the samples' offsets from the pixel centre are drawn from the scene's
+        reconstruction filter (:func:`filter_offsets`: filter importance sampling), so a ``box``
+        filter samples the pixel's square and a ``tent`` or ``gaussian`` one a softer
+        footprint reaching into the neighbours, as the template's film would weigh them. The
         number of pixels is not part of the compiled kernel: regions of any size and shape reuse
         it (one kernel per scene, launched in chunks of :data:`SAMPLES_PER_LAUNCH` samples).
 
@@ -210,17 +223,47 @@ class FixtureScene:
         pixel = dr.arange(mi.UInt32, lanes) // spp
         u = dr.gather(mi.Float, mi.Float(padded[:, 0]), pixel)
         v = dr.gather(mi.Float, mi.Float(padded[:, 1]), pixel)
-        jitter, aperture = sampler.next_2d(), sampler.next_2d()
-        ray = self.camera.ray_through(u + jitter.x - 0.5, v + jitter.y - 0.5, aperture)
+        offset = filter_offsets(self.spec.rfilter, sampler.next_2d(), mi)
+        aperture = sampler.next_2d()
+        ray = self.camera.ray_through(u + offset.x, v + offset.y, aperture)
         radiance, _, _ = self.scene.integrator().sample(
             self.scene, sampler, mi.RayDifferential3f(ray)
         )
         dr.eval(radiance)
-        # the box filter: the mean of each pixel's consecutive samples; per channel, so that an
-        # evaluated Float converts to numpy without a (size-specific) kernel
+        # the samples were drawn from the reconstruction filter, so each pixel's value is the
+        # plain mean of its consecutive samples; per channel, so that an evaluated Float
+        # converts to numpy without a (size-specific) kernel
         means = [dr.block_sum(c, spp) / spp for c in (radiance.x, radiance.y, radiance.z)]
         dr.eval(means)
         return np.stack([np.asarray(c) for c in means], axis=-1)[:n]
+
+
+def filter_offsets(rfilter: dict[str, Any], sample, mi: ModuleType):
+    """Sample offsets from the pixel centre (px) drawn from a reconstruction filter.
+
+    Filter importance sampling (Ernst et al. 2006): a pixel's value is the plain mean of radiance
+    samples whose offsets follow the filter's (separable, normalised) weight, which equals the
+    weighted mean a film computes, without negative weights or splatting; the sampler's
+    stratification of ``sample`` carries over through the warps. ``box``: uniform over the
+    pixel's square (the offsets ``sample - 0.5`` exactly); ``tent``: Mitsuba's
+    ``square_to_tent`` scaled by the radius; ``gaussian``: ``square_to_std_normal`` scaled by the
+    standard deviation.
+
+    Parameters
+    ----------
+    rfilter : dict
+        The scene's ``rfilter`` (checked: :data:`simgap.scene.spec.RFILTERS`).
+    sample : mitsuba.Point2f
+        Uniform samples in the unit square.
+    mi : module
+        The Mitsuba module (variant set).
+    """
+    kind = rfilter["type"]
+    if kind == "tent":
+        return mi.warp.square_to_tent(sample) * float(rfilter.get("radius", 1.0))
+    if kind == "gaussian":
+        return mi.warp.square_to_std_normal(sample) * float(rfilter.get("stddev", 0.5))
+    return sample - 0.5
 
 
 def pose_transforms(

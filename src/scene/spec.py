@@ -36,6 +36,28 @@ TAG_MATERIAL = "tag"
 _SECTIONS = ("integrator", "rfilter", "objects", "materials", "lights")
 
 
+#: Reconstruction filters the renderer draws pixel samples from
+#: (:func:`simgap.render.scene.filter_offsets`), and their parameters (px): Mitsuba's
+#: ``box`` (the pixel's square), ``tent`` (``radius``, default 1) and ``gaussian`` (``stddev``,
+#: default 0.5; Mitsuba truncates it at 4 standard deviations, a 6e-5 share of its mass).
+RFILTERS = {"box": (), "tent": ("radius",), "gaussian": ("stddev",)}
+
+
+def check_rfilter(rfilter: dict[str, Any]) -> None:
+    """Raise ConfigError unless ``rfilter`` is one of :data:`RFILTERS` with positive parameters."""
+    kind = rfilter.get("type")
+    if kind not in RFILTERS:
+        raise ConfigError(f"rfilter.type: expected one of {', '.join(RFILTERS)}, got {kind!r}")
+    for key, value in rfilter.items():
+        if key == "type":
+            continue
+        if key not in RFILTERS[kind]:
+            allowed = ", ".join(RFILTERS[kind]) or "no parameters"
+            raise ConfigError(f"rfilter.{key}: unknown key for {kind}; expected {allowed}")
+        if not isinstance(value, (int, float)) or not value > 0:
+            raise ConfigError(f"rfilter.{key}: expected a number > 0 (px), got {value!r}")
+
+
 @dataclass(frozen=True)
 class ObjectSpec:
     """A mesh from ``assets/`` attached to one rig frame, with a material name."""
@@ -54,8 +76,9 @@ class SceneSpec:
     integrator : dict
         Renderer integrator settings (``{type: path, max_depth: 3}``).
     rfilter : dict
-        Film reconstruction filter (``box`` keeps edges sharpest and renders bit-identical;
-        ``gaussian`` with ``stddev`` in px is a softer camera).
+        Pixel reconstruction filter (:data:`RFILTERS`): ``box`` keeps edges sharpest and renders
+        bit-identical; ``tent`` (``radius`` px) and ``gaussian`` (``stddev`` px) are softer
+        cameras.
     objects : dict of str to ObjectSpec
         Meshes on rig frames, each naming a material of ``materials``.
     materials : dict of str to Material
@@ -151,6 +174,11 @@ def scene_spec_from_mapping(data: Mapping[str, Any], where: str = "") -> SceneSp
         if key in data:
             settings[key] = copy.deepcopy(dict(_mapping(data[key], f"{where}{key}")))
             check_finite(settings[key], f"{where}{key}")
+    if "rfilter" in settings:
+        try:
+            check_rfilter(settings["rfilter"])
+        except ConfigError as exc:
+            raise ConfigError(f"{where}{exc}") from None
     objects = {
         str(name): _typed(ObjectSpec, obj, f"{where}objects.{name}")
         for name, obj in _mapping(data.get("objects", {}), f"{where}objects").items()

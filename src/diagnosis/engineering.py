@@ -1,0 +1,230 @@
+"""The diagnosis in an engineer's units: per axis, near / mid / far, real vs simulated vs fitted.
+
+What a robotics engineer reads first: how large the real pose error is on each axis, in mm and
+mrad, at the near, middle and far thirds of the carriage; how large the simulated one is; the gap
+between them before and after the fitted effects; which axes get worse; how many poses are planar
+flips (the IPPE ambiguity of a square marker: the two poses whose normals mirror each other about
+the line of sight, a rotation error of tens to hundreds of mrad that no effect explains); and the
+paper's figure, absolute error against distance with the mission thresholds.
+
+Inputs are per comparable item (tag, configuration): real, simulated and fitted errors (m, rad)
+and the camera-to-tag distance (m). Robust statistics throughout: a median is called a median.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from simgap.analysis.gap import distance_thirds
+from simgap.analysis.paper import THRESHOLD_BY_UNIT
+from simgap.core.axes import AXES, ROTATION_AXES, axis_unit, display_unit
+
+#: A pose whose rotation error is larger than the mission threshold (0.0873 rad) while its
+#: translation error on every axis stays within the mission threshold (5 mm) is a planar flip:
+#: the square marker's other IPPE solution, whose rotation is wrong by about twice the angle
+#: between the tag's normal and the line of sight, at the right position.
+FLIP_ROTATION_RAD = THRESHOLD_BY_UNIT["rad"]
+FLIP_TRANSLATION_M = THRESHOLD_BY_UNIT["m"]
+#: A region's gap counts as worse after the fit when its median |gap| grows by more than this
+#: share of the practical floor (a tenth of the mission threshold) and by more than 10 %.
+WORSE_FLOOR_SHARE = 0.5
+WORSE_RELATIVE = 0.1
+
+
+def planar_flips(errors: np.ndarray) -> np.ndarray:
+    """Which poses are planar flips (see :data:`FLIP_ROTATION_RAD`), per item (N,) bool.
+
+    ``errors`` is (N, 6): tx, ty, tz (m), rx, ry, rz (rad); NaN rows are no flips.
+    """
+    e = np.asarray(errors, float)
+    with np.errstate(invalid="ignore"):
+        rotation = np.linalg.norm(e[:, 3:], axis=1)
+        translation = np.max(np.abs(e[:, :3]), axis=1)
+        return (rotation > FLIP_ROTATION_RAD) & (translation <= FLIP_TRANSLATION_M)
+
+
+@dataclass(frozen=True)
+class RegionRow:
+    """One axis in one distance third: median absolute errors and the median signed gap.
+
+    Attributes
+    ----------
+    axis : str
+        Pose axis.
+    region : str
+        ``near``, ``mid`` or ``far`` with its pin holes (``near (p 0-4)``).
+    distance_m : tuple of float
+        Camera-to-tag distance range of the region's items (m).
+    n : int
+        Items (tags detected in both, planar flips left out).
+    real_abs, sim_abs, fitted_abs : float
+        Median absolute error of the real data, the simulation and the simulation with the
+        fitted effects (m or rad; NaN without a fit).
+    gap_before, gap_after : float
+        Median signed gap real - simulated, before and after the fitted effects (m or rad).
+    worse : bool
+        The gap grows after the fit (:data:`WORSE_FLOOR_SHARE`, :data:`WORSE_RELATIVE`).
+    """
+
+    axis: str
+    region: str
+    distance_m: tuple[float, float]
+    n: int
+    real_abs: float
+    sim_abs: float
+    fitted_abs: float
+    gap_before: float
+    gap_after: float
+    worse: bool
+
+
+def _median(values: np.ndarray) -> float:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return float(np.nanmedian(values)) if values.size else float("nan")
+
+
+def region_rows(
+    p: np.ndarray,
+    distance_m: np.ndarray,
+    real: np.ndarray,
+    sim: np.ndarray,
+    fitted: np.ndarray | None = None,
+    practical_floor: dict[str, float] | None = None,
+) -> list[RegionRow]:
+    """Per axis and distance third, the errors and the gap before and after the fit.
+
+    Parameters
+    ----------
+    p : ndarray of int (N,)
+        Pin hole of each item.
+    distance_m : ndarray (N,)
+        Camera-to-tag distance of each item (m).
+    real, sim : ndarray (N, 6)
+        Real and simulated errors (m, rad).
+    fitted : ndarray (N, 6), optional
+        Simulated errors with the fitted effects.
+    practical_floor : dict, optional
+        Smallest gap that matters per unit (m, rad); default a tenth of the mission thresholds.
+    """
+    floor = practical_floor or {u: 0.1 * t for u, t in THRESHOLD_BY_UNIT.items()}
+    fitted = np.full_like(sim, np.nan) if fitted is None else fitted
+    keep = ~(planar_flips(real) | planar_flips(sim) | planar_flips(fitted))
+    rows = []
+    for name, pins in distance_thirds(np.unique(p)).items():
+        member = np.isin(p, pins) & keep
+        d = distance_m[member]
+        span = (float(d.min()), float(d.max())) if d.size else (np.nan, np.nan)
+        for k, axis in enumerate(AXES):
+            r, s, f = real[member, k], sim[member, k], fitted[member, k]
+            before, after = _median(r - s), _median(r - f)
+            grow = abs(after) - abs(before)
+            worse = bool(
+                np.isfinite(grow)
+                and grow > WORSE_FLOOR_SHARE * floor[axis_unit(axis)]
+                and grow > WORSE_RELATIVE * abs(before)
+            )
+            rows.append(
+                RegionRow(
+                    axis,
+                    name,
+                    span,
+                    int(np.isfinite(r - s).sum()),
+                    _median(np.abs(r)),
+                    _median(np.abs(s)),
+                    _median(np.abs(f)),
+                    before,
+                    after,
+                    worse,
+                )
+            )
+    return rows
+
+
+def _show(value: float, axis: str, signed: bool = False) -> str:
+    unit, k = display_unit(axis)
+    if not np.isfinite(value):
+        return "-"
+    return f"{value * k:+.2f} {unit}" if signed else f"{value * k:.2f} {unit}"
+
+
+def region_table(rows: list[RegionRow]) -> list[str]:
+    """Markdown table of :func:`region_rows`: one line per axis and third, worse ones marked."""
+    lines = [
+        "| axis | region | distance | real | simulated | fitted | gap before -> after |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lo, hi = r.distance_m
+        gap = f"{_show(r.gap_before, r.axis, True)} -> {_show(r.gap_after, r.axis, True)}"
+        lines.append(
+            f"| {r.axis} | {r.region} | {lo:.2f}-{hi:.2f} m | {_show(r.real_abs, r.axis)} | "
+            f"{_show(r.sim_abs, r.axis)} | {_show(r.fitted_abs, r.axis)} | "
+            f"{gap}{' **worse**' if r.worse else ''} |"
+        )
+    return lines
+
+
+def flip_sentence(real: np.ndarray, sim: np.ndarray) -> str:
+    """How many poses are planar flips in the real data and in the simulation."""
+    nr, ns = int(planar_flips(real).sum()), int(planar_flips(sim).sum())
+    if nr == ns == 0:
+        return "No planar-pose flips (the square marker's mirrored IPPE solution) in either."
+    return (
+        f"Planar-pose flips (the square marker's mirrored IPPE solution: rotation off by more "
+        f"than {FLIP_ROTATION_RAD * 1e3:.0f} mrad at the right position): real {nr}, simulated "
+        f"{ns} of {len(real)} poses; left out of the table above, and no effect is fitted to them."
+    )
+
+
+def plot_abs_error_vs_distance(
+    distance_m: np.ndarray,
+    real: np.ndarray,
+    sim: np.ndarray,
+    fitted: np.ndarray | None = None,
+) -> Figure:
+    """The paper's figure: absolute error per axis against distance, with the mission thresholds.
+
+    Points per item (real, simulated, fitted), planar flips drawn as crosses (they would stretch
+    the scale; their count is in the legend), the 5 mm / 87.3 mrad thresholds as dashed lines.
+    """
+    fig = Figure(figsize=(13, 7), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 3)
+    series = [("real", real, "tab:red"), ("simulated", sim, "tab:blue")]
+    if fitted is not None:
+        series.append(("simulated + fitted effects", fitted, "tab:green"))
+    for ax, (k, axis) in zip(axes.flat, enumerate(AXES), strict=True):
+        unit, scale = display_unit(axis)
+        threshold = THRESHOLD_BY_UNIT[axis_unit(axis)] * scale
+        for label, errors, colour in series:
+            flip = planar_flips(errors)
+            y = np.abs(errors[:, k]) * scale
+            ax.scatter(distance_m[~flip], y[~flip], s=10, color=colour, alpha=0.7, label=label)
+            if flip.any() and axis in ROTATION_AXES:
+                ax.scatter(
+                    distance_m[flip],
+                    np.minimum(y[flip], 1.5 * threshold),
+                    marker="x",
+                    color=colour,
+                    label=f"{label}: planar flips ({int(flip.sum())}, clipped)",
+                )
+        ax.axhline(threshold, color="k", ls="--", lw=0.8, label="mission threshold")
+        ax.set_title(f"|{axis} error| [{unit}]")
+        ax.set_xlabel("camera to tag distance [m]")
+        ax.set_ylim(0, None)
+        ax.grid(alpha=0.3)
+    handles, labels = [], []
+    for ax in axes.flat:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4))
+    fig.suptitle("Absolute pose error against distance (the paper's figure), mission thresholds")
+    return fig

@@ -1,0 +1,396 @@
+"""The "other camera" of a blind validation trial, drawn anew for every trial.
+
+A real camera differs from simgap's simulation in many small ways at once: other lights, another
+exposure, a softer or sharper pixel, its own sensor noise and transfer curve, vignetting, other
+paint on the fixture, the poses an operator chose, one or two frames a pose. A diagnosis whose
+rules were fitted to one such camera fails on the next, so every trial draws its own from the wide
+ranges below (realistic for a bench camera and lab lighting), and scores are reported per
+nuisance bin (:func:`nuisance_bins`).
+
+The drawn camera is data (:class:`NuisanceCamera`): its image effects, its scene overrides, its
+samples per pixel and its poses. :func:`exposure_truth` and :func:`softness_truth` turn it into
+the exposure and blur a diagnosis should report for it, measured the way a lab would (a light
+meter at the tags, the pixel filter's width), never from the capture itself.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from simgap.core.rig import Rig
+from simgap.effects import make_effect
+from simgap.effects.state import SceneState, VariantState
+from simgap.pose.image_stats import linearise
+from simgap.scene.lights import LightSpec, default_target, irradiance
+from simgap.scene.spec import SceneSpec, default_scene_spec
+
+#: Total exposure of the other camera relative to the simulation, light level included (EV):
+#: auto exposure and lab lighting put a bench camera this far either way; at +1.5 EV the paper
+#: of a near, frontal tag clips.
+EXPOSURE_EV = (-1.5, 1.5)
+#: Share of that total that comes from the light (irradiance at the aim point, EV): the rest is
+#: the camera's exposure setting.
+LIGHT_EV = (-0.75, 0.75)
+#: Key light types, and where the light stands as seen from the aim point (the node): azimuth
+#: about the vertical from the camera side (deg, 0 = straight behind the camera), elevation above
+#: the horizontal (deg) and distance (m). Beyond 70 deg of azimuth the tags are lit grazing.
+LIGHT_TYPES = ("area", "point", "spot")
+LIGHT_AZIMUTH_DEG = (-70.0, 70.0)
+LIGHT_ELEVATION_DEG = (10.0, 70.0)
+LIGHT_DISTANCE_M = (0.35, 1.0)
+#: Side of an area light (m) and the cut-off of a spot (deg; its cone always holds the node).
+AREA_SIZE_M = (0.08, 0.5)
+SPOT_CUTOFF_DEG = (20.0, 45.0)
+#: Correlated colour temperature of the key light and of the ambient (K): tungsten to daylight.
+CCT_K = (2700.0, 6500.0)
+#: Ambient (room) radiance (W m^-2 sr^-1): a dark lab to a bright office; the template's is 0.15.
+AMBIENT_RADIANCE = (0.03, 0.4)
+#: Pixel reconstruction filters (:data:`simgap.scene.spec.RFILTERS`): box, tent of this radius
+#: (px), Gaussian of this standard deviation (px). The simulation's is a box.
+TENT_RADIUS_PX = (0.6, 1.3)
+GAUSSIAN_STDDEV_PX = (0.25, 0.6)
+#: Samples per pixel of the other camera's renders (supersampling; squares, as multijitter takes
+#: them): a real camera has no render noise, so it is rendered with more samples than simgap's.
+SPP_CHOICES = (49, 64, 81)
+#: Sensor: full well (e-, log-uniform) and read noise (e-); linear 1.0 is the full well.
+FULL_WELL_E = (1000.0, 20000.0)
+READ_NOISE_E = (1.0, 10.0)
+#: Transfer curve: sRGB with this probability, else a pure gamma in this range.
+SRGB_SHARE = 0.5
+GAMMA = (1.8, 2.4)
+#: Vignetting strength (fall-off at the image corner).
+VIGNETTING = (0.0, 0.35)
+#: Diffuse albedo of the node's and the table's paint (the template's: 0.45 and 0.35).
+NODE_REFLECTANCE = (0.2, 0.8)
+TABLE_REFLECTANCE = (0.15, 0.7)
+#: Poses: how many pin holes (always one of the three nearest and one of the three farthest, so
+#: that a trend with distance shows) and turntable stops (from those where a tag faces the
+#: camera), and the share of captures with two frames a pose (the others have one).
+PIN_COUNT = (4, 6)
+STOP_COUNT = (6, 8)
+TWO_FRAMES_SHARE = 0.5
+#: Turntable stops (deg) where one of the default rig's tags faces the camera well.
+FACING_STOPS_DEG = tuple(range(0, 61, 10)) + tuple(range(300, 360, 10)) + tuple(range(120, 241, 10))
+#: Effects the simulation never models that every other camera has (always among its effects).
+CAMERA_EFFECTS = ("lighting", "ambient", "exposure", "sensor_noise", "gamma", "vignetting")
+
+
+@dataclass(frozen=True)
+class NuisanceCamera:
+    """One drawn "other camera" (see module docstring).
+
+    Attributes
+    ----------
+    effects : dict
+        Image and scene effects of the camera (:data:`CAMERA_EFFECTS`), in effect-parameter
+        vocabulary (``lighting``, ``ambient``, ``exposure``, ``sensor_noise``, ``gamma``,
+        ``vignetting``).
+    scene : dict
+        Scene-template overrides: pixel filter, texture filtering, node and table paint.
+    spp : int
+        Samples per pixel of its renders.
+    p : tuple of int
+        Pin holes of the capture.
+    theta_deg : tuple of float
+        Turntable stops of the capture (deg).
+    frames_per_pose : int
+        1 or 2.
+    light_ev : float
+        The drawn light level at the aim point relative to the template's key light (EV).
+    """
+
+    effects: dict[str, dict[str, Any]]
+    scene: dict[str, Any]
+    spp: int
+    p: tuple[int, ...]
+    theta_deg: tuple[float, ...]
+    frames_per_pose: int
+    light_ev: float
+
+    def record(self) -> dict[str, Any]:
+        """The camera as ``trial_NNN.json`` keeps it (plain JSON types)."""
+        return {
+            "effects": self.effects,
+            "scene": self.scene,
+            "spp": self.spp,
+            "p": list(self.p),
+            "theta_deg": list(self.theta_deg),
+            "frames_per_pose": self.frames_per_pose,
+            "light_ev": self.light_ev,
+        }
+
+    @classmethod
+    def from_record(cls, data: dict[str, Any]) -> NuisanceCamera:
+        """Inverse of :meth:`record`."""
+        return cls(
+            data["effects"],
+            data["scene"],
+            int(data["spp"]),
+            tuple(int(p) for p in data["p"]),
+            tuple(float(t) for t in data["theta_deg"]),
+            int(data["frames_per_pose"]),
+            float(data["light_ev"]),
+        )
+
+
+def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
+    return float(rng.uniform(*bounds))
+
+
+#: Normal of the surface at which a light's level is set: facing the camera (rail frame).
+FACING_CAMERA = (0.0, -1.0, 0.0)
+
+
+def _key_light(rng: np.random.Generator, light_ev: float) -> dict[str, Any]:
+    """A key light of a drawn type and place giving ``light_ev`` at the aim point.
+
+    The level is the irradiance on a surface at the aim point facing the camera, relative to the
+    template's key light there (:func:`simgap.scene.lights.irradiance`).
+    """
+    target = np.asarray(default_target())
+    azimuth = np.radians(_uniform(rng, LIGHT_AZIMUTH_DEG))
+    elevation = np.radians(_uniform(rng, LIGHT_ELEVATION_DEG))
+    distance = _uniform(rng, LIGHT_DISTANCE_M)
+    # the camera looks along +y: "behind the camera" is -y from the node
+    direction = np.array(
+        [
+            np.sin(azimuth) * np.cos(elevation),
+            -np.cos(azimuth) * np.cos(elevation),
+            np.sin(elevation),
+        ]
+    )
+    position = target + distance * direction
+    kind = str(rng.choice(LIGHT_TYPES))
+    size = (_uniform(rng, AREA_SIZE_M), _uniform(rng, AREA_SIZE_M))
+    cutoff = _uniform(rng, SPOT_CUTOFF_DEG)
+    template = default_scene_spec().lights["key"]
+    here, normal = target[None], np.asarray(FACING_CAMERA)[None]
+    unit = LightSpec(
+        kind, tuple(position), tuple(target), size, radiance=1.0, intensity=1.0, cutoff_deg=cutoff
+    )
+    level = irradiance(template, here, normal)[0] * 2.0**light_ev
+    power = level / irradiance(unit, here, normal)[0]
+    return {
+        "type": kind,
+        "position": [float(v) for v in position],
+        "target": [float(v) for v in target],
+        "size_m": [float(v) for v in size],
+        "power": float(power),
+        "cct_k": _uniform(rng, CCT_K),
+        "cutoff_deg": cutoff,
+    }
+
+
+def _rfilter(rng: np.random.Generator) -> dict[str, Any]:
+    kind = str(rng.choice(("box", "tent", "gaussian")))
+    if kind == "tent":
+        return {"type": "tent", "radius": _uniform(rng, TENT_RADIUS_PX)}
+    if kind == "gaussian":
+        return {"type": "gaussian", "stddev": _uniform(rng, GAUSSIAN_STDDEV_PX)}
+    return {"type": "box"}
+
+
+def _poses(rng: np.random.Generator) -> tuple[tuple[int, ...], tuple[float, ...]]:
+    pins = int(rng.integers(PIN_COUNT[0], PIN_COUNT[1] + 1))
+    near, far = int(rng.integers(0, 3)), int(rng.integers(12, 15))
+    middle = rng.choice(np.arange(3, 12), size=pins - 2, replace=False)
+    p = tuple(sorted({near, far, *map(int, middle)}))
+    stops = int(rng.integers(STOP_COUNT[0], STOP_COUNT[1] + 1))
+    # half the stops for each tag's side of the turntable
+    front = [s for s in FACING_STOPS_DEG if s <= 60 or s >= 300]
+    back = [s for s in FACING_STOPS_DEG if 120 <= s <= 240]
+    k = stops // 2
+    chosen = list(rng.choice(front, size=k, replace=False)) + list(
+        rng.choice(back, size=stops - k, replace=False)
+    )
+    return p, tuple(float(s) for s in sorted(chosen))
+
+
+def draw_nuisance(rng: np.random.Generator, rig: Rig) -> NuisanceCamera:
+    """Draw one other camera from the ranges of this module.
+
+    The camera's exposure setting is chosen so that its total exposure (:func:`exposure_truth`:
+    setting, light meter and transfer curve) is the drawn one, within :data:`EXPOSURE_EV`.
+    """
+    total_ev = _uniform(rng, EXPOSURE_EV)
+    light_ev = _uniform(rng, LIGHT_EV)
+    effects: dict[str, dict[str, Any]] = {
+        "lighting": _key_light(rng, light_ev),
+        "ambient": {"radiance": _uniform(rng, AMBIENT_RADIANCE), "cct_k": _uniform(rng, CCT_K)},
+        "exposure": {"ev": 0.0},
+        "sensor_noise": {
+            "full_well_e": float(np.exp(rng.uniform(*np.log(FULL_WELL_E)))),
+            "read_noise_e": _uniform(rng, READ_NOISE_E),
+        },
+        "gamma": (
+            {"encoding": "srgb"}
+            if rng.uniform() < SRGB_SHARE
+            else {"encoding": "gamma", "gamma": _uniform(rng, GAMMA)}
+        ),
+        "vignetting": {"strength": _uniform(rng, VIGNETTING)},
+    }
+    scene = {
+        "rfilter": _rfilter(rng),
+        "materials": {
+            "tag": {"texture_filter": str(rng.choice(("nearest", "bilinear")))},
+            "node": {"type": "diffuse", "reflectance": _uniform(rng, NODE_REFLECTANCE)},
+            "table": {"type": "diffuse", "reflectance": _uniform(rng, TABLE_REFLECTANCE)},
+        },
+    }
+    spp = int(rng.choice(SPP_CHOICES))
+    p, theta_deg = _poses(rng)
+    frames = 2 if rng.uniform() < TWO_FRAMES_SHARE else 1
+    camera = NuisanceCamera(effects, scene, spp, p, theta_deg, frames, light_ev)
+    return with_exposure(camera, total_ev, rig)
+
+
+def with_exposure(camera: NuisanceCamera, total_ev: float, rig: Rig) -> NuisanceCamera:
+    """``camera`` with its exposure setting chosen so that :func:`exposure_truth` is ``total_ev``.
+
+    The transfer curve's apparent change depends on the level, so the setting is found by a
+    few fixed-point steps (it converges in three to the last 0.001 EV).
+    """
+    meter = light_meter_ev(camera, rig)
+    setting = total_ev - meter
+    for _ in range(4):
+        level = PAPER_LEVEL * 2.0 ** (setting + meter)
+        setting = total_ev - meter - transfer_ev(camera, level)
+    effects = {**camera.effects, "exposure": {"ev": float(setting)}}
+    return dataclasses.replace(camera, effects=effects)
+
+
+# --- what a diagnosis should report for a camera ---------------------------------------------
+
+
+def _tag_points(rig: Rig, p: tuple[int, ...], theta_deg: tuple[float, ...]) -> tuple:
+    """Rail-frame centres and normals of the tags facing the camera at the poses."""
+    points, normals = [], []
+    for pin in p:
+        for t in np.radians(theta_deg):
+            for tag in rig.tags.ids:
+                if not rig.is_visible(tag, pin, t):
+                    continue
+                m = rig.rail_from_turntable(t) @ rig.turntable_from_tag(tag)
+                points.append(m[:3, 3])
+                normals.append(m[:3, 2])
+    return np.array(points), np.array(normals)
+
+
+def _scene_irradiance(spec: SceneSpec, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    return sum(irradiance(light, points, normals) for light in spec.lights.values())
+
+
+def light_meter_ev(camera: NuisanceCamera, rig: Rig) -> float:
+    """How much more light the other camera's scene puts on the tags than the simulation's (EV).
+
+    The median over the capture's facing tags of the log2 ratio of direct irradiance (key and
+    ambient, :func:`simgap.scene.lights.irradiance`; shadows and inter-reflections left out).
+    """
+    base = VariantState(scene=SceneState(spec=default_scene_spec()))
+    state = base
+    for name in ("lighting", "ambient"):
+        state = make_effect(name, camera.effects[name]).apply(state)
+    points, normals = _tag_points(rig, camera.p, camera.theta_deg)
+    ratio = _scene_irradiance(state.scene.spec, points, normals) / _scene_irradiance(
+        base.scene.spec, points, normals
+    )
+    return float(np.median(np.log2(ratio)))
+
+
+def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
+    """Apparent exposure change of the camera's transfer curve at the paper's level (EV).
+
+    The diagnosis linearises every frame with the sRGB curve; a camera encoding with a pure
+    gamma makes the paper look brighter or darker by this much (0 for sRGB).
+    """
+    gamma = camera.effects["gamma"]
+    level = np.clip(paper_linear, 1e-4, 1.0)
+    if gamma.get("encoding", "gamma") == "srgb":
+        return 0.0
+    dn = np.round(255.0 * level ** (1.0 / float(gamma.get("gamma", 2.2))))
+    return float(np.log2(max(float(linearise(dn)), 1e-4) / level))
+
+
+#: Paper level (linear) of the simulation's default scene at a mid-range frontal tag, at which
+#: :func:`transfer_ev` is evaluated (measured: the median over tags of the baseline simulation's
+#: linearised paper level is 0.34-0.35 in the blind trials of seed 28).
+PAPER_LEVEL = 0.34
+
+
+def exposure_truth(camera: NuisanceCamera, rig: Rig) -> float:
+    """The exposure change (EV) that matches the simulation's paper level to this camera's.
+
+    Camera exposure setting + light meter (:func:`light_meter_ev`) + transfer curve
+    (:func:`transfer_ev` at the paper's level): what an exposure finding should read.
+    """
+    setting = float(camera.effects["exposure"]["ev"])
+    meter = light_meter_ev(camera, rig)
+    return setting + meter + transfer_ev(camera, PAPER_LEVEL * 2.0 ** (setting + meter))
+
+
+#: Variance of the simulation's own pixel footprint along one axis (px^2): a box of one pixel.
+BOX_VARIANCE_PX2 = 1.0 / 12.0
+
+
+def filter_variance_px2(rfilter: dict[str, Any]) -> float:
+    """Variance of a reconstruction filter along one axis (px^2).
+
+    Box: 1/12; tent of radius r: r^2 / 6; Gaussian of standard deviation s: s^2.
+    """
+    kind = rfilter.get("type", "box")
+    if kind == "tent":
+        return float(rfilter.get("radius", 1.0)) ** 2 / 6.0
+    if kind == "gaussian":
+        return float(rfilter.get("stddev", 0.5)) ** 2
+    return BOX_VARIANCE_PX2
+
+
+def softness_truth(camera: NuisanceCamera, blur_sigma_px: float = 0.0) -> float:
+    """The Gaussian blur (px) that matches the simulation's edges to this camera's.
+
+    The camera's pixel filter beyond the simulation's box, combined in quadrature with a blur it
+    has (``blur_sigma_px``); 0 when the camera is as sharp as the simulation.
+    """
+    extra = filter_variance_px2(camera.scene["rfilter"]) - BOX_VARIANCE_PX2
+    return float(np.sqrt(max(extra + blur_sigma_px**2, 0.0)))
+
+
+#: Bins of the per-nuisance score table: |exposure| (EV), softness (px), full well (e-).
+EXPOSURE_BINS_EV = (0.5, 1.0)
+SOFTNESS_BINS_PX = (0.2, 0.4)
+FULL_WELL_BINS_E = (3000.0, 8000.0)
+
+
+def _bin(value: float, edges: tuple[float, float], unit: str) -> str:
+    lo, hi = edges
+    if value < lo:
+        return f"< {lo:g} {unit}"
+    if value < hi:
+        return f"{lo:g}-{hi:g} {unit}"
+    return f">= {hi:g} {unit}"
+
+
+def nuisance_bins(camera: NuisanceCamera, rig: Rig) -> dict[str, str]:
+    """The camera's bin in each nuisance dimension: exposure, softness, noise, frames a pose."""
+    return {
+        "exposure": _bin(abs(exposure_truth(camera, rig)), EXPOSURE_BINS_EV, "EV"),
+        "softness": _bin(softness_truth(camera), SOFTNESS_BINS_PX, "px"),
+        "noise": _bin(camera.effects["sensor_noise"]["full_well_e"], FULL_WELL_BINS_E, "e-"),
+        "frames": f"{camera.frames_per_pose} a pose",
+    }
+
+
+__all__ = [
+    "CAMERA_EFFECTS",
+    "NuisanceCamera",
+    "draw_nuisance",
+    "exposure_truth",
+    "filter_variance_px2",
+    "light_meter_ev",
+    "nuisance_bins",
+    "softness_truth",
+]
