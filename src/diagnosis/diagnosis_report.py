@@ -136,7 +136,8 @@ def evidence_markdown(where: Where) -> list[str]:
             ]
             for t in where.detection_tests
         ]
-        lines += ["Detection (Boschloo's exact test; the overall one planned, regions by Holm):", ""]
+        title = "Detection (Boschloo's exact test; the overall one planned, regions by Holm):"
+        lines += [title, ""]
         lines += markdown_table(header, rows) + [""]
     if where.image_tests:
         header = ["statistic", "real median", "simulation median", "median difference"]
