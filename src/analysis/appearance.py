@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from simgap.analysis.evidence import ImageTest, compare_stat
-from simgap.analysis.fitting import Fit, Items, SimulationCandidate
+from simgap.analysis.fitting import Fit, Items, SimulationCandidate, on_bound
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import (
     IMAGE_FLOORS,
@@ -195,6 +195,7 @@ class AppearanceCandidate(SimulationCandidate):
                 "train_misfit": float(fun),
                 "train_misfit_before": float(before),
                 "supported": signature_supported(rms_before, float(np.sqrt(fun))),
+                "at_bound": (self.param,) if on_bound(x, *self.bounds) else (),
             },
         )
 

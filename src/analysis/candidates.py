@@ -33,7 +33,9 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
         for c in (
             ProjectionCandidate("focal_length", [("scale", 0.01, 0.25)]),
             ProjectionCandidate("principal_point", [("dx_px", 5.0, 150.0), ("dy_px", 5.0, 150.0)]),
-            ProjectionCandidate("lens_distortion", [("k1", 0.05, 1.5), ("k2", 0.1, 1.5)]),
+            ProjectionCandidate(
+                "lens_distortion", [("k1", 0.05, 1.5), ("k2", 0.1, 1.5)], corner_signature=True
+            ),
             ProjectionCandidate(
                 "camera_mount",
                 [(f"translation_m[{i}]", 0.002, 0.04) for i in range(3)]

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from simgap.analysis.appearance import AppearanceCandidate, capped_rms, signature_supported
-from simgap.analysis.fitting import Fit, Items
+from simgap.analysis.fitting import Fit, Items, on_bound
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import IMAGE_FLOORS, SIGNATURE_MIN_GAIN
 from simgap.effects.state import VariantState
@@ -24,6 +24,10 @@ from simgap.pose.image_stats import STAT_INDEX
 #: 10-90 % width of the edge-spread function of a uniform disk of radius R, in units of R
 #: (the area of a disk left of a chord at -u R is 10 % of the disk for u = 0.68705).
 DISK_10_90_PER_RADIUS = 2 * 0.68705
+#: Searched ranges of the thin lens: aperture radius (mm) and focus (dioptres, 1/m; a focus
+#: distance of 0.1-5 m).
+APERTURE_MM: tuple[float, float] = (0.0, 5.0)
+FOCUS_DIOPTRES: tuple[float, float] = (0.2, 10.0)
 
 
 class DefocusCandidate(AppearanceCandidate):
@@ -77,13 +81,12 @@ class DefocusCandidate(AppearanceCandidate):
         if depth.size < 3:
             return Fit(self.effect, {"aperture_radius_m": 0.0, "focus_distance_m": 1.0}, 0.0, {})
         starts = [(0.5, 1.0 / zf) for zf in (0.15, 0.4, 1.0, 3.0)]
+        lens_bounds = tuple(zip(APERTURE_MM, FOCUS_DIOPTRES, strict=True))  # (lower, upper)
         best = min(
-            (
-                least_squares(residual, x0=x0, bounds=([0.0, 0.2], [5.0, 10.0]), loss="soft_l1")
-                for x0 in starts
-            ),
+            (least_squares(residual, x0=x0, bounds=lens_bounds, loss="soft_l1") for x0 in starts),
             key=lambda s: s.cost,
         )
+        focus_m = (1.0 / FOCUS_DIOPTRES[1], 1.0 / FOCUS_DIOPTRES[0])
         rms_before = capped_rms(residual(np.array([0.0, best.x[1]])))
         rms_after = capped_rms(residual(best.x))
 
@@ -114,6 +117,13 @@ class DefocusCandidate(AppearanceCandidate):
                 # focused at 2 m, tied with a 1 px blur on the choose split's evidence and parsimony
                 # chose the blur)
                 "excludes": ("blur",) if depth_dependent else (),
+                "at_bound": tuple(
+                    name
+                    for name, value, (low, high) in (
+                        ("aperture_radius_m", best.x[0], APERTURE_MM),
+                        ("focus_distance_m", 1.0 / best.x[1], focus_m),
+                    )
+                    if on_bound(value, low, high)
+                ),
             },
         )
-

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+from simgap.analysis.thresholds import AT_BOUND_SHARE
 from simgap.core import transforms as tf
 from simgap.core.rig import Rig
 from simgap.effects import make_effect
@@ -199,6 +200,16 @@ def project_items(rig: Rig, camera, errors, tag_scale: float, items: Items) -> n
     return uv.reshape(len(items), 4, 2)
 
 
+def on_bound(value: float, low: float, high: float) -> bool:
+    """Whether a fitted ``value`` lies on an end of its searched range ``[low, high]``.
+
+    Within :data:`~simgap.analysis.thresholds.AT_BOUND_SHARE` of the range's largest magnitude
+    from either end.
+    """
+    tolerance = AT_BOUND_SHARE * max(abs(low), abs(high))
+    return bool(value <= low + tolerance or value >= high - tolerance)
+
+
 class ProjectionCandidate:
     """An effect that only changes the projection of the tag corners (see module docstring).
 
@@ -210,14 +221,23 @@ class ProjectionCandidate:
         Fitted parameters: effect parameter name (``name[i]`` for an element of a vector
         parameter), typical magnitude (for conditioning) and the largest magnitude searched
         (inside the effect's valid range). Fits start from zero (no effect).
+    corner_signature : bool
+        The effect's pattern in the corners is its own (a lens distortion: a radial shift that
+        grows with the image radius, which no pose, print or mount change makes): it may enter
+        a model on corner evidence that is clearly better item by item
+        (:func:`simgap.analysis.scoring.corners_clearly_lower`) without bringing the pose
+        closer (:meth:`simgap.analysis.selection.ModelSearch.select`).
     """
 
     kind = "projection"
     #: no image statistic of its own: fitted on the corners, always a candidate
     fit_stats: tuple[str, ...] = ()
 
-    def __init__(self, effect: str, params: list[tuple[str, float, float]]) -> None:
+    def __init__(
+        self, effect: str, params: list[tuple[str, float, float]], corner_signature: bool = False
+    ) -> None:
         self.effect = effect
+        self.corner_signature = corner_signature
         self.names = [n for n, _, _ in params]
         self.x_scale = np.array([s for _, s, _ in params], float)
         self.bound = np.array([b for _, _, b in params], float)
@@ -272,11 +292,14 @@ class ProjectionCandidate:
         )
         x = sol.x * self.x_scale
         rms = float(np.sqrt(np.mean(sol.fun**2))) if sol.fun.size else float("nan")
+        at_bound = tuple(
+            n for n, v, b in zip(self.names, x, self.bound, strict=True) if on_bound(v, -b, b)
+        )
         return Fit(
             self.effect,
             self.effect_params(x),
             time.perf_counter() - t0,
-            {"x": x, "corner_rms_px": rms},
+            {"x": x, "corner_rms_px": rms, "at_bound": at_bound},
         )
 
     def delta(self, rig: Rig, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
@@ -315,6 +338,7 @@ class ProjectionSet(ProjectionCandidate):
 
     def __init__(self, members: list[ProjectionCandidate]) -> None:
         self.members = list(members)
+        self.corner_signature = False
         self.effect = "+".join(m.effect for m in self.members)
         self.names = [f"{m.effect}.{n}" for m in self.members for n in m.names]
         self.x_scale = np.concatenate([m.x_scale for m in self.members])
@@ -336,10 +360,15 @@ class ProjectionSet(ProjectionCandidate):
 
     def member_fits(self, fit: Fit) -> list[Fit]:
         """The joint fit split into one :class:`Fit` per member (same order)."""
-        return [
-            Fit(m.effect, m.effect_params(xm), fit.seconds, {"x": xm})
-            for m, xm in zip(self.members, np.split(fit.extra["x"], self._cuts), strict=True)
-        ]
+        out = []
+        for m, xm in zip(self.members, np.split(fit.extra["x"], self._cuts), strict=True):
+            at_bound = tuple(
+                n for n, v, b in zip(m.names, xm, m.bound, strict=True) if on_bound(v, -b, b)
+            )
+            out.append(
+                Fit(m.effect, m.effect_params(xm), fit.seconds, {"x": xm, "at_bound": at_bound})
+            )
+        return out
 
 
 class SimulationCandidate:

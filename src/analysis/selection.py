@@ -24,6 +24,9 @@ from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
     as_good,
+    corner_residuals,
+    corners_clearly_lower,
+    distinguishably_lower,
     improves,
     improves_on_nothing,
     parsimonious,
@@ -70,6 +73,9 @@ class ModelSearch:
     runner: Runner | None = None
     corner_unit_px: float = CORNER_UNIT_PX
     _evaluated: dict[tuple[str, ...], Scored] = field(default_factory=dict, repr=False)
+    #: single-effect models left out of the ranking because a fitted parameter lies on the end
+    #: of its searched range (:func:`at_bound`)
+    on_bound: list[Scored] = field(default_factory=list, repr=False)
 
     def _key(self, model: tuple[Candidate, ...]) -> tuple[str, ...]:
         proj = sorted(c.effect for c in model if isinstance(c, ProjectionCandidate))
@@ -201,7 +207,9 @@ class ModelSearch:
         edges is a lens, not a blur). Ranked on the combined misfit of all evidence on the
         choose split (:attr:`Scored.evidence_after`: detected corners, pose, detections, image
         statistics, each in units of its smallest relevant difference); among indistinguishable
-        ones (:func:`simgap.analysis.scoring.equivalent_models`) the simpler first.
+        ones (:func:`simgap.analysis.scoring.equivalent_models`) the simpler first. A model with
+        a parameter on its search bound is no finding (:func:`at_bound`): it is kept in
+        :attr:`on_bound` for the report.
         """
         rest = [
             scored
@@ -212,6 +220,8 @@ class ModelSearch:
             )
             if scored.fits[0][1].extra.get("supported", True)
         ]
+        self.on_bound = [s for s in rest if at_bound(s)]
+        rest = [s for s in rest if not at_bound(s)]
         excluded = {e for s in rest for e in s.fits[0][1].extra.get("excludes", ())}
         rest = [s for s in rest if s.fits[0][1].effect not in excluded]
         out = []
@@ -223,8 +233,10 @@ class ModelSearch:
     def simplify(self, scored: Scored, pool: list) -> Scored:
         """Simplify a model while it explains the evidence as well.
 
-        Effects are dropped, or projection effects swapped for ones with fewer parameters, while
-        the model stays :func:`as_good` as ``scored`` on every evidence channel.
+        Effects are dropped, or projection effects swapped for ones with fewer parameters that
+        could enter the model in their place (:func:`admissible`: a carriage pitch of -0.2 %
+        that moved no pose replaced a lens distortion whose corners it nearly matched on 13
+        items), while the model stays :func:`as_good` as ``scored`` on every evidence channel.
         """
         reference = scored
         while True:
@@ -242,7 +254,10 @@ class ModelSearch:
                         and alt not in model
                         and alt.n_params < member.n_params
                     ):
-                        options.append(self.evaluate(tuple(rest) + (alt,)))
+                        swapped = self.evaluate(tuple(rest) + (alt,))
+                        # the simpler effect must be one that could enter on its own
+                        if admissible(swapped, self.evaluate(tuple(rest)) if rest else None):
+                            options.append(swapped)
             ok = [o for o in options if as_good(o, reference)]
             if not ok:
                 return scored
@@ -254,7 +269,11 @@ class ModelSearch:
         A geometric effect enters a model (starts the search, or is added to it) only when it
         brings the pose at least
         :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one than
-        the model without it (:func:`worsens_pose`): one that follows the corners without
+        the model without it (:func:`worsens_pose`), or, for an effect with a corner signature
+        of its own (a lens distortion), when the corners single it out (:func:`seen_in_corners`;
+        issue 25: a D435-like lens fitted to k1 0.155 was left out because it moved no pose
+        beyond the floor, and a calibration file's wrong distortion answered with a print
+        scale). One that follows the corners without
         moving the poses closer is a look-alike of an image effect (measured: a tag print scale
         following the corners of a motion blur, pose gap 1-5 % larger on seed 23 and 6 % smaller
         on seed 25, 42 % larger on that trial's report split; every true geometric effect that
@@ -271,14 +290,7 @@ class ModelSearch:
         # the search starts from the best single effect that explains something: a geometric
         # effect that, alone, does not bring the pose closer to the real one explains nothing
         # (it stays in the pool: with another effect it may)
-        starts = [
-            s
-            for s in ranking
-            if not (
-                isinstance(s.fits[0][0], ProjectionCandidate)
-                and worsens_pose(s, tolerance=-MIN_POSE_REDUCTION)
-            )
-        ]
+        starts = [s for s in ranking if admissible(s, None)]
         if not starts or not improves_on_nothing(starts[0]):
             return None
         pool = [s.fits[0][0] for s in ranking]
@@ -289,8 +301,7 @@ class ModelSearch:
             options = []
             for c in (c for c in pool if c not in model):
                 option = self.evaluate(model + (c,))
-                closer = not worsens_pose(option, current, tolerance=-MIN_POSE_REDUCTION)
-                if closer or not isinstance(c, ProjectionCandidate):
+                if admissible(option, current):
                     options.append(option)
             if not options:
                 break
@@ -358,3 +369,59 @@ class ModelSearch:
         a relevant amount.
         """
         return pose_contributions(scored, self.rig, self.base, self.significant_axes)
+
+
+def admissible(scored: Scored, reference: Scored | None) -> bool:
+    """Whether the effect ``scored`` adds to ``reference`` (or to no effect) may enter a model.
+
+    No fitted parameter on its bound (:func:`at_bound`: a joint refit that pushes one there is
+    a proxy too); and a geometric effect must bring the pose
+    :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one
+    (:func:`~simgap.analysis.scoring.worsens_pose`) or have its own pattern in the corners
+    (:func:`seen_in_corners`). Appearance effects are judged on their evidence alone.
+    """
+    if at_bound(scored):
+        return False
+    new = [c for c, _ in scored.fits if reference is None or c.effect not in reference.effects]
+    if not any(isinstance(c, ProjectionCandidate) for c in new):
+        return True
+    return not worsens_pose(scored, reference, tolerance=-MIN_POSE_REDUCTION) or seen_in_corners(
+        scored, reference
+    )
+
+
+def at_bound(scored: Scored) -> bool:
+    """Whether some fitted parameter of a model lies on the end of its searched range.
+
+    (``Fit.extra["at_bound"]``, :func:`simgap.analysis.fitting.on_bound`.) The fit wanted to
+    go further than the effect's plausible range: the model stands in for something it cannot
+    express, so it is not offered as a finding.
+    """
+    return any(fit.extra.get("at_bound") for _, fit in scored.fits)
+
+
+def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
+    """Whether a model's newest effect has a corner signature of its own and the corners show it.
+
+    The effect of ``scored`` that ``reference`` lacks (its only one without a reference) has a
+    corner signature (:attr:`~simgap.analysis.fitting.ProjectionCandidate.corner_signature`);
+    its corners are distinguishably better than ``reference``'s (or than no effect): the corner
+    channel beyond its tolerance (:func:`~simgap.analysis.scoring.distinguishably_lower`) or
+    item by item (:func:`~simgap.analysis.scoring.corners_clearly_lower`); and the pose gap is not
+    distinguishably larger (:func:`~simgap.analysis.scoring.worsens_pose`, its default
+    tolerance: a lens distortion whose poses lie within their noise on both sides scored 0.649
+    -> 0.664, pure noise ~0.67). Such an effect is a finding even when it moves no pose beyond
+    the floor: it is then reported as minor.
+    """
+    new = [c for c, _ in scored.fits if reference is None or c.effect not in reference.effects]
+    if len(new) != 1 or not getattr(new[0], "corner_signature", False):
+        return False
+    if reference is None:
+        before_px, before = scored.corner_gap_before_px, corner_residuals(scored, before=True)
+    else:
+        before_px, before = reference.corner_gap_after_px, corner_residuals(reference)
+    unit = scored.corner_unit_px
+    lower = distinguishably_lower(
+        np.array([scored.corner_gap_after_px / unit]), np.array([before_px / unit])
+    ) or corners_clearly_lower(corner_residuals(scored), before)
+    return lower and not worsens_pose(scored, reference)

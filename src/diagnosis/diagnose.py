@@ -221,6 +221,7 @@ def diagnose(
     result = DiagnosisResult(
         where=where,
         ranking=[RankedEffect.of(s) for s in ranking],
+        on_bound=[RankedEffect.of(s) for s in d.search.on_bound],
         selection=d.selection(chosen) if chosen else None,
         unexplained_evidence=unexplained_evidence(chosen, where, settings)
         if where.significant

@@ -203,6 +203,18 @@ def which_markdown(result: DiagnosisResult) -> list[str]:
         values = " | ".join(f"{a:.2f} -> {b:.2f}" for a, b in cells)
         lines.append(f"| {i} | {r.effect} | {r.n_params} | {params} | {values} |")
     lines.append("")
+    if result.on_bound:
+        lines += [
+            "Fitted with a parameter on the end of its searched range, so left out (the fit "
+            "stands in for something the effect cannot express; softness is blur's, a scale "
+            "beyond its range is another effect's): "
+            + "; ".join(
+                f"{r.effect} ({', '.join(f'{k}={_fmt(v)}' for k, v in r.params.items())})"
+                for r in result.on_bound
+            )
+            + ".",
+            "",
+        ]
     if not result.where.significant:
         lines.append("**No significant gap**: nothing is selected.")
     elif not result.selection:

@@ -203,6 +203,9 @@ class DiagnosisResult:
     where: Where = field(default_factory=Where)
     #: every candidate alone, best first
     ranking: list[RankedEffect] = field(default_factory=list)
+    #: candidates whose fit put a parameter on the end of its searched range: not findings
+    #: (:func:`simgap.analysis.selection.at_bound`), listed for the engineer
+    on_bound: list[RankedEffect] = field(default_factory=list)
     #: None when nothing is selected
     selection: Selection | None = None
     #: significant evidence the chosen model leaves unexplained: "pose", "detection",
