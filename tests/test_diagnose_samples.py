@@ -63,11 +63,18 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
         "gap_heatmap.png",
         "gap_by_distance.png",
         "image_stats_vs_distance.png",
+        "abs_error_vs_distance.png",
     ):
         assert (out / name).is_file()
     # 9 configurations: simulated at 4 render seeds, and the report says so
     assert result.render_seeds == 4
-    assert "rendered at 4 seeds per configuration" in (out / "diagnosis.md").read_text()
+    report = (out / "diagnosis.md").read_text()
+    assert "rendered at 4 seeds per configuration" in report
+    # the verdict comes first, in mm: ty far is the largest gap (measured -9.36 mm; the sample's
+    # 2 % focal length moves the far tags' ty most), and what the fit leaves there (+1.73 mm)
+    verdict = report.split("## Where")[0]
+    assert "Largest gap: **ty far**" in verdict and " mm" in verdict
+    assert "| ty | near (p 0-0) |" in verdict
 
 
 def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sample_null):

@@ -66,3 +66,18 @@ def test_a_frontal_flip_is_named_and_left_out_of_the_medians():
     assert near.n == 4 * 5 - 1 and near.real_abs == 0.0
     fig = plot_abs_error_vs_distance(distance, real, sim, sim)
     assert len(fig.axes) == 6
+
+
+def test_the_verdict_names_the_largest_gap_in_mm_and_what_gets_worse():
+    from simgap.diagnosis.engineering import verdict
+
+    p, distance, real, sim = _items()
+    fitted = real.copy()
+    fitted[:, 3] = 0.01  # rx 10 mrad off everywhere after the fit
+    rows = region_rows(p, distance, real, sim, fitted)
+    text = "\n".join(verdict(rows, "focal_length", "re-rendered"))
+    # far third: median ty gap -0.004 * 12 / 14 = -3.43 mm, the largest over the 0.5 mm floor
+    assert "Largest gap: **ty far**" in text and "-3.43 mm" in text
+    assert "Selected: focal_length. With it the gap there is +0.00 mm (re-rendered)" in text
+    assert "**Worse after the fit**: rx near +0.00 mrad -> -10.00 mrad" in text
+    assert "No effect of the catalogue" in "\n".join(verdict(rows, "-", ""))

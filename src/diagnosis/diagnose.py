@@ -104,6 +104,11 @@ class Diagnosis:
         #: item indices of the fit, choose and report splits
         self.fit_index, self.report_index = fit, report
         self.choose_index = subsample(choose, settings.max_choose_items, settings.seed)
+        #: errors (m, rad) with the chosen effects, per item: the report split's from the fast
+        #: model (:meth:`combined`, NaN elsewhere), or every item re-rendered (:meth:`confirm`)
+        self.fitted_errors: np.ndarray | None = None
+        #: whether :attr:`fitted_errors` were re-rendered
+        self.fitted_confirmed = False
         self.axis_gaps = gapmod.axis_summary(self.field)
         #: axes where the gap is significant: the pose gap is scored on them
         self.significant_axes = np.array([self.axis_gaps[a].significant for a in AXES])
@@ -120,13 +125,18 @@ class Diagnosis:
         )
 
     def confirm(self, chosen: Scored) -> Confirmed:
-        """Re-run the pipeline (re-render) with all selected effects on the report split."""
+        """Re-run the pipeline (re-render) with all selected effects; score the report split.
+
+        Every item is re-rendered (:attr:`fitted_errors`, for the report in mm and mrad); the
+        scores are those of the report split's items, which neither fitted nor chose the model.
+        """
         state = self.base
         for cand, fit in chosen.fits:
             state = cand.apply(state, fit.params)
         h = self.items.subset(self.report_index)
         t0 = time.perf_counter()
-        pred = self.runner.errors(state, h)
+        self.fitted_errors, self.fitted_confirmed = self.runner.errors(state, self.items), True
+        pred = self.fitted_errors[self.report_index]
         before = gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes)
         after = gap_score(h.real_err, pred, h.scale, self.significant_axes)
         return Confirmed(
@@ -161,6 +171,8 @@ class Diagnosis:
         """The chosen model on the report split, with bootstrap intervals of its reductions."""
         projection = chosen.projection[:2] if chosen.projection else None
         reported = self.search.score(chosen.fits, projection, self.report_index)
+        self.fitted_errors = np.full_like(self.items.real_err, np.nan)
+        self.fitted_errors[self.report_index] = reported.prediction.error
         interval = bootstrap_reductions(reported, self.significant_axes, seed=self.settings.seed)
         return Combined(
             configurations=len(self.report_index),

@@ -24,6 +24,11 @@ from simgap.analysis.report.tables import markdown_table
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.diagnose import Diagnosis
+from simgap.diagnosis.engineering import (
+    engineering_markdown,
+    item_distances,
+    plot_abs_error_vs_distance,
+)
 from simgap.diagnosis.result import DiagnosisResult, Where
 from simgap.diagnosis.result_json import write_json
 
@@ -367,9 +372,7 @@ def write_diagnosis_report(result: DiagnosisResult, d: Diagnosis, out_dir: Path)
         )
     )
     paths.append(
-        save_figure(
-            plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png"
-        )
+        save_figure(plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png")
     )
     if "image_stats" in d.real and "image_stats" in d.sim:
         real, sim = align(d.real, d.sim)
@@ -377,7 +380,13 @@ def write_diagnosis_report(result: DiagnosisResult, d: Diagnosis, out_dir: Path)
         for against in ("distance", "view_angle"):
             fig = plot_image_stats(images, against, title="Image evidence: real vs simulation")
             paths.append(save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
+    distance = item_distances(d)
+    items = d.items
+    fitted = np.full_like(items.real_err, np.nan) if d.fitted_errors is None else d.fitted_errors
+    figure = plot_abs_error_vs_distance(distance, items.real_err, items.sim_err, fitted)
+    paths.insert(0, save_figure(figure, out_dir / "abs_error_vs_distance.png"))
     lines = ["# Sim-to-real gap diagnosis", ""]
+    lines += engineering_markdown(d, distance, fitted, selected_names(result))
     lines += where_markdown(result.where)
     lines += which_markdown(result)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -22,13 +23,16 @@ from matplotlib.figure import Figure
 
 from simgap.analysis.gap import distance_thirds
 from simgap.analysis.paper import THRESHOLD_BY_UNIT
+from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, ROTATION_AXES, axis_unit, display_unit
 
-#: A pose whose rotation error is larger than the mission threshold (0.0873 rad) while its
-#: translation error on every axis stays within the mission threshold (5 mm) is a planar flip:
-#: the square marker's other IPPE solution, whose rotation is wrong by about twice the angle
-#: between the tag's normal and the line of sight, at the right position.
-FLIP_ROTATION_RAD = THRESHOLD_BY_UNIT["rad"]
+if TYPE_CHECKING:
+    from simgap.diagnosis.diagnose import Diagnosis
+
+#: A pose whose rotation error is larger than :data:`~simgap.analysis.thresholds.FLIP_RAD`
+#: (0.15 rad) while its translation error on every axis stays within the mission threshold
+#: (5 mm) is a planar flip: the square marker's other IPPE solution, whose rotation is wrong by
+#: about twice the angle between the tag's normal and the line of sight, at the right position.
 FLIP_TRANSLATION_M = THRESHOLD_BY_UNIT["m"]
 #: A region's gap counts as worse after the fit when its median |gap| grows by more than this
 #: share of the practical floor (a tenth of the mission threshold) and by more than 10 %.
@@ -37,7 +41,7 @@ WORSE_RELATIVE = 0.1
 
 
 def planar_flips(errors: np.ndarray) -> np.ndarray:
-    """Which poses are planar flips (see :data:`FLIP_ROTATION_RAD`), per item (N,) bool.
+    """Which poses are planar flips (see :data:`FLIP_RAD`), per item (N,) bool.
 
     ``errors`` is (N, 6): tx, ty, tz (m), rx, ry, rz (rad); NaN rows are no flips.
     """
@@ -45,7 +49,7 @@ def planar_flips(errors: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         rotation = np.linalg.norm(e[:, 3:], axis=1)
         translation = np.max(np.abs(e[:, :3]), axis=1)
-        return (rotation > FLIP_ROTATION_RAD) & (translation <= FLIP_TRANSLATION_M)
+        return (rotation > FLIP_RAD) & (translation <= FLIP_TRANSLATION_M)
 
 
 @dataclass(frozen=True)
@@ -110,9 +114,10 @@ def region_rows(
     fitted : ndarray (N, 6), optional
         Simulated errors with the fitted effects.
     practical_floor : dict, optional
-        Smallest gap that matters per unit (m, rad); default a tenth of the mission thresholds.
+        Smallest gap that matters per unit (m, rad); default
+        :data:`~simgap.analysis.thresholds.PRACTICAL_FLOOR` (a tenth of the mission thresholds).
     """
-    floor = practical_floor or {u: 0.1 * t for u, t in THRESHOLD_BY_UNIT.items()}
+    floor = practical_floor or PRACTICAL_FLOOR
     fitted = np.full_like(sim, np.nan) if fitted is None else fitted
     keep = ~(planar_flips(real) | planar_flips(sim) | planar_flips(fitted))
     rows = []
@@ -170,15 +175,19 @@ def region_table(rows: list[RegionRow]) -> list[str]:
     return lines
 
 
-def flip_sentence(real: np.ndarray, sim: np.ndarray) -> str:
-    """How many poses are planar flips in the real data and in the simulation."""
-    nr, ns = int(planar_flips(real).sum()), int(planar_flips(sim).sum())
-    if nr == ns == 0:
-        return "No planar-pose flips (the square marker's mirrored IPPE solution) in either."
+def flip_sentence(real: np.ndarray, sim: np.ndarray, fitted: np.ndarray | None = None) -> str:
+    """How many poses are planar flips: real, simulated and (if given) with the fitted effects."""
+    counts = {"real": real, "simulated": sim}
+    if fitted is not None:
+        counts["with the fitted effects"] = fitted
+    n = {k: int(planar_flips(v).sum()) for k, v in counts.items()}
+    if not any(n.values()):
+        return "No planar-pose flips (the square marker's mirrored IPPE solution)."
     return (
         f"Planar-pose flips (the square marker's mirrored IPPE solution: rotation off by more "
-        f"than {FLIP_ROTATION_RAD * 1e3:.0f} mrad at the right position): real {nr}, simulated "
-        f"{ns} of {len(real)} poses; left out of the table above, and no effect is fitted to them."
+        f"than {FLIP_RAD * 1e3:.0f} mrad at the right position): "
+        + ", ".join(f"{k} {v}" for k, v in n.items())
+        + f" of {len(real)} poses; left out of the table above, and no effect is fitted to them."
     )
 
 
@@ -228,3 +237,93 @@ def plot_abs_error_vs_distance(
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4))
     fig.suptitle("Absolute pose error against distance (the paper's figure), mission thresholds")
     return fig
+
+
+def verdict(rows: list[RegionRow], selected: str, fitted_on: str) -> list[str]:
+    """The diagnosis in three sentences of mm and mrad: the largest gap, the answer, what worsens.
+
+    Parameters
+    ----------
+    rows : list of RegionRow
+        :func:`region_rows` of the diagnosis.
+    selected : str
+        The selected effects in words (``-`` for none).
+    fitted_on : str
+        Which configurations the "after" values come from (e.g. "the report split, re-rendered").
+    """
+    floor = PRACTICAL_FLOOR
+    finite = [r for r in rows if np.isfinite(r.gap_before)]
+    if not finite:
+        return ["No comparable poses."]
+    worst = max(finite, key=lambda r: abs(r.gap_before) / floor[axis_unit(r.axis)])
+    lines = [
+        f"Largest gap: **{worst.axis} {worst.region.split()[0]}** "
+        f"({worst.distance_m[0]:.2f}-{worst.distance_m[1]:.2f} m from the camera): real - "
+        f"simulated {_show(worst.gap_before, worst.axis, True)} (median; real "
+        f"|error| {_show(worst.real_abs, worst.axis)}, simulated "
+        f"{_show(worst.sim_abs, worst.axis)}; practical floor "
+        f"{_show(floor[axis_unit(worst.axis)], worst.axis)})."
+    ]
+    if selected == "-":
+        lines.append("No effect of the catalogue is selected.")
+        return lines
+    lines.append(
+        f"Selected: {selected}. With it the gap there is "
+        f"{_show(worst.gap_after, worst.axis, True)} ({fitted_on})."
+    )
+    worse = [r for r in rows if r.worse]
+    if worse:
+        lines.append(
+            "**Worse after the fit**: "
+            + "; ".join(
+                f"{r.axis} {r.region.split()[0]} {_show(r.gap_before, r.axis, True)} -> "
+                f"{_show(r.gap_after, r.axis, True)}"
+                for r in worse
+            )
+            + "."
+        )
+    else:
+        lines.append("No axis or distance third gets worse with it.")
+    return lines
+
+
+def item_distances(d: Diagnosis) -> np.ndarray:
+    """Camera-to-tag distance of every comparable item of a diagnosis (m)."""
+    items, rig = d.items, d.rig
+    return np.array(
+        [
+            np.linalg.norm(rig.expected_pose(int(t), float(p), float(th))[:3])
+            for t, p, th in zip(items.tag, items.p, items.theta, strict=True)
+        ]
+    )
+
+
+def engineering_markdown(
+    d: Diagnosis, distance_m: np.ndarray, fitted: np.ndarray, selected: str
+) -> list[str]:
+    """The verdict in mm and mrad, the per-axis near / mid / far table and the planar flips.
+
+    ``distance_m``: :func:`item_distances`; ``fitted``: errors with the fitted effects (N, 6)
+    (m, rad; :attr:`Diagnosis.fitted_errors`, NaN where not predicted); ``selected``: the
+    selected effects in words.
+    """
+    items = d.items
+    rows = region_rows(items.p, distance_m, items.real_err, items.sim_err, fitted)
+    fitted_on = (
+        "every configuration re-rendered with the fitted effects; the "
+        f"{len(d.report_index)} of the report split neither fitted nor chose them"
+        if d.fitted_confirmed
+        else f"fast model, the {len(d.report_index)} report-split configurations"
+    )
+    lines = ["## In mm and mrad", ""]
+    lines += verdict(rows, selected, fitted_on)
+    lines += [
+        "",
+        "Median |error| per axis and distance third over every comparable configuration (real, "
+        f"simulated; fitted: {fitted_on}), and the median gap real - simulated before -> after "
+        "the fitted effects. Planar flips are left out.",
+        "",
+    ]
+    lines += region_table(rows)
+    lines += ["", flip_sentence(items.real_err, items.sim_err, fitted), ""]
+    return lines
