@@ -52,7 +52,9 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
             AppearanceCandidate("exposure", ("paper_linear",), "ev", (-4.0, 4.0), 0.02),
             SensorNoiseCandidate(),
             DefocusCandidate(),
-            JpegCandidate("jpeg", ("blockiness",), "quality", (5.0, 100.0), 1.0),
+            JpegCandidate(
+                "jpeg", ("blockiness",), "quality", (5.0, 100.0), 1.0, noise=SensorNoiseCandidate()
+            ),
         )
     }
 )

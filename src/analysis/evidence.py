@@ -323,10 +323,16 @@ def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[DetectionTest]:
 
 
 def compare_stat(stat: str, real: np.ndarray, sim: np.ndarray) -> np.ndarray:
-    """Per-tag difference real - simulated of one statistic in its comparison units."""
+    """Per-tag difference real - simulated of one statistic in its comparison units.
+
+    A log2 ratio of a value at or below ``-LEVEL_EPSILON`` (a level below black, from a dark
+    frame's offset) is NaN: not comparable, left out like an undetected tag.
+    """
     transform, _ = IMAGE_FLOORS.get(stat, ("diff", None))
     if transform == "log2":
-        return np.log2((real + LEVEL_EPSILON) / (sim + LEVEL_EPSILON))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = (real + LEVEL_EPSILON) / (sim + LEVEL_EPSILON)
+            return np.log2(np.where(ratio > 0, ratio, np.nan))
     return real - sim
 
 
