@@ -110,7 +110,8 @@ PAIRED_ALPHA: Final[float] = 0.01
 PAIRED_MIN_SHARE: Final[float] = 0.05
 #: Image-statistic misfits beyond this many floors count as this many (a robust, Huber-like
 #: cap): a difference nothing in the catalogue explains (a print whose ink is blacker than the
-#: simulation's) is neither credited to nor blamed on an effect.
+#: simulation's) is neither credited to nor blamed on an effect. The detection channel is
+#: capped the same way (:func:`simgap.analysis.channels.evidence_channels`).
 RESIDUAL_CAP: Final[float] = 3.0
 #: A significant piece of evidence whose misfit (choose split) with the chosen model is at or above
 #: this many channel units (one: the smallest difference that matters) is *unexplained*.
