@@ -46,7 +46,7 @@ README_CHECK = runpy.run_path(str(REPO / "scripts" / "readme_check.py"))
 
 
 def _command_lines() -> list[tuple[Path, str]]:
-    """Every line of the ``bash`` blocks of the README and docs/, comments and line joins removed."""
+    """Each line of the ``bash`` blocks of the README and docs/, comments and joins removed."""
     lines = []
     for page in DOCS:
         for block in README_CHECK["blocks"](page.read_text()):
