@@ -3,8 +3,8 @@
 Every fenced ``bash`` block of README.md is run in order, each with ``bash -euo pipefail``, in a
 clone of this repository's committed HEAD (so nothing uncommitted is tried and nothing is written
 into this checkout). The clone sits next to this checkout (``../simgap-readme-check`` by default),
-so the relative paths the README's set-up expects (``../shared``) hold there too. Each block's seconds and
-exit status are printed; the exit code is the number of failing blocks.
+so the relative paths the README's set-up expects (``../shared``) hold there too. Each block's
+seconds and exit status are printed; the exit code is the number of failing blocks.
 
     python scripts/readme_check.py                       # every block (the test suite included)
     python scripts/readme_check.py --skip scripts/test.sh   # leave out blocks containing a text
