@@ -4,6 +4,7 @@ what is wrong and where; ``report`` writes the paper-style tables for a result d
 from __future__ import annotations
 
 import itertools
+import re
 from pathlib import Path
 
 import numpy as np
@@ -138,3 +139,202 @@ def test_report_writes_table2(runner, tmp_path, monkeypatch):
     assert str(table) in printed
     for line in printed:
         assert Path(line).is_file(), line
+
+
+# -- command-line conventions (issue 29): --version, -h, completion, plain help, shared options --
+
+#: Markup that must not reach the terminal: reStructuredText literals and roles, typer's type
+#: label against a flag (flags are the only options whose value is never typed).
+MARKUP = re.compile(r"``|:(class|func|mod|meth|data|attr|exc|obj):|<bool>")
+#: Commands that simulate (they take --cache, --scheduler and --progress/--no-progress).
+LONG_COMMANDS = ("run", "study", "diagnose", "validate")
+
+
+def command_paths() -> list[list[str]]:
+    """The app and every command under it, as argument prefixes (``[]`` is the app)."""
+    import typer
+
+    paths, todo = [], [([], typer.main.get_command(app))]
+    while todo:
+        path, command = todo.pop()
+        paths.append(path)
+        for name, sub in getattr(command, "commands", {}).items():
+            todo.append((path + [name], sub))
+    return paths
+
+
+def test_version_prints_the_package_version(runner):
+    from importlib.metadata import version
+
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0, result.output
+    assert result.output == f"simgap {version('simgap')}\n"
+    assert re.fullmatch(r"simgap \d+\.\d+\.\d+\n", result.output)
+
+
+def test_every_command_has_plain_help_under_h_and_help(runner):
+    paths = command_paths()
+    assert len(paths) == 12  # the app and its 11 commands (see simgap.cli)
+    for path in paths:
+        short = runner.invoke(app, path + ["-h"], prog_name="simgap")
+        assert short.exit_code == 0, (path, short.output)
+        assert runner.invoke(app, path + ["--help"], prog_name="simgap").output == short.output
+        text = short.output
+        usage = next(line for line in text.splitlines() if "Usage:" in line)
+        assert usage.split()[: 2 + len(path)] == ["Usage:", "simgap", *path], usage
+        assert "{" not in usage and "}" not in usage, usage
+        assert not MARKUP.search(text), (path, MARKUP.search(text)[0], text)
+    # the arguments in capitals, optional ones in brackets
+    usage = runner.invoke(app, ["study", "-h"], prog_name="simgap").output
+    assert "Usage: simgap study [OPTIONS] [EXPERIMENT]" in usage
+    usage = runner.invoke(app, ["run", "-h"], prog_name="simgap").output
+    assert "Usage: simgap run [OPTIONS] EXPERIMENT" in usage
+
+
+def test_plain_help_drops_sections_and_markup():
+    from simgap.cli.app import plain_help
+
+    doc = """Fit a model (:class:`~simgap.x.Model`), written as ``model.nc``.
+
+        A second paragraph
+        over two lines.
+
+        Parameters
+        ----------
+        x : int
+            Not help.
+        """
+    expected = (
+        "Fit a model (simgap.x.Model), written as model.nc.\n\nA second paragraph over two lines."
+    )
+    assert plain_help(doc) == expected
+
+
+def test_show_completion_prints_the_bash_script(runner, monkeypatch):
+    # typer reads the shell from the option instead of detecting the login shell (which a test
+    # runner may not have); the command is built per invocation, after this is set
+    monkeypatch.setenv("_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION", "1")
+    result = runner.invoke(app, ["--show-completion", "bash"], prog_name="simgap")
+    assert result.exit_code == 0, result.output
+    assert "complete -o default -F _simgap_completion simgap" in result.output
+    assert "_SIMGAP_COMPLETE=complete_bash" in result.output
+
+
+def test_completion_completes_commands_and_choices(runner):
+    def complete(words: str) -> list[str]:
+        env = {
+            "_SIMGAP_COMPLETE": "complete_bash",
+            "COMP_WORDS": words,
+            "COMP_CWORD": str(len(words.split()) - (not words.endswith(" "))),
+        }
+        result = runner.invoke(app, [], env=env, prog_name="simgap")
+        assert result.exit_code == 0, result.output
+        return result.output.split()
+
+    assert complete("simgap dia") == ["diagnose"]
+    assert complete("simgap export-bag --format ") == ["ros1", "ros2"]
+
+
+def test_long_commands_share_one_definition_of_cache_scheduler_progress():
+    import typer
+
+    from simgap.cli.options import CACHE_HELP, PROGRESS_HELP, SCHEDULER_HELP
+
+    commands = typer.main.get_command(app).commands
+    for name in LONG_COMMANDS:
+        options = {tuple(p.opts + p.secondary_opts): p.help for p in commands[name].params}
+        assert options[("--cache",)] == CACHE_HELP, name
+        assert options[("--scheduler",)] == SCHEDULER_HELP, name
+        assert options[("--progress", "--no-progress")] == PROGRESS_HELP, name
+
+
+def test_bad_bag_format_names_the_allowed_values(runner, tmp_path):
+    from simgap.cli.options import BagFormat
+    from simgap.pipeline.bag.formats import BAG_FORMATS
+
+    assert tuple(f.value for f in BagFormat) == BAG_FORMATS  # the choice is the writer's
+    out = tmp_path / "x.bag"
+    args = ["export-bag", str(tmp_path), "-o", str(out), "--format", "ros3"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    (error,) = [line for line in result.output.splitlines() if line.startswith("Error:")]
+    assert "'--format'" in error and "'ros3' is not one of 'ros1', 'ros2'" in error, error
+    assert "Traceback" not in result.output and not out.exists()
+
+
+def test_step_bars_draw_each_step_on_a_terminal_only():
+    import io
+
+    from rich.console import Console
+
+    from simgap.cli.progress import StepBars
+
+    def draw(show: bool, terminal: bool) -> str:
+        file = io.StringIO()
+        console = Console(file=file, force_terminal=terminal, width=100, color_system=None)
+        with StepBars(show, console) as bars:
+            bars("fitting candidates", 0, 3)
+            bars("fitting candidates", 3, 3)
+            bars("model search", 0, None)
+            bars("model search", 7, None)
+        return file.getvalue()
+
+    shown = draw(True, terminal=True)
+    assert "fitting candidates" in shown and "3/3" in shown
+    # a search of unknown length is marked done with its count when the display stops
+    assert "model search" in shown and "7/7" in shown
+    assert draw(False, terminal=True) == ""  # --no-progress
+    assert draw(True, terminal=False) == ""  # a pipe, a log file, the test runner
+
+
+class Stop(ValueError):
+    """Raised by a stand-in for the work of a command once its arguments are recorded."""
+
+
+def test_long_commands_pass_progress_and_scheduler_down(runner, tmp_path, monkeypatch):
+    """--no-progress and --scheduler reach the simulation of study, diagnose and validate, and
+    diagnose's step bars (quiet here: --no-progress, and no terminal either way)."""
+    import simgap.diagnosis.diagnose as diagnosis
+    import simgap.diagnosis.validate as validation
+    import simgap.pipeline.sweep as sweep
+
+    seen = {}
+
+    def record(name):
+        def stand_in(*args, **kwargs):
+            seen[name] = (args, kwargs)
+            raise Stop("stopped")
+
+        return stand_in
+
+    monkeypatch.setattr(sweep, "run_experiment", record("study"))
+    monkeypatch.setattr(diagnosis, "diagnose", record("diagnose"))
+    monkeypatch.setattr(validation, "run_validation", record("validate"))
+    real = write_netcdf(small_dataset(), tmp_path / "real.nc")
+    address = "tcp://127.0.0.1:8786"
+    common = ["--no-progress", "--scheduler", address, "--cache", str(tmp_path / "cache")]
+    commands = {
+        "study": ["study", "experiments/smoke.yaml", "-o", str(tmp_path / "s")],
+        "diagnose": ["diagnose", str(real), "--sim", "experiments/smoke.yaml"]
+        + ["-o", str(tmp_path / "d")],
+        "validate": [
+            "validate",
+            "--experiment",
+            "experiments/smoke.yaml",
+            "-o",
+            str(tmp_path / "v"),
+        ],
+    }
+    for name, args in commands.items():
+        result = runner.invoke(app, args + common)
+        assert result.exit_code == 2, (name, result.output)
+        assert result.output.count("error:") == 1 and "stopped" in result.output, result.output
+    args, kwargs = seen["study"]
+    assert args[2:] == (False, address)  # run_experiment(exp, cache, show_progress, scheduler)
+    args, kwargs = seen["diagnose"]
+    simulator = args[2]
+    assert (simulator.scheduler, simulator.show_progress) == (address, False)
+    assert not kwargs["progress"].show
+    args, kwargs = seen["validate"]
+    simulator = args[5]
+    assert (simulator.scheduler, simulator.show_progress) == (address, False)

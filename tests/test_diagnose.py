@@ -344,3 +344,70 @@ def test_the_detection_channel_is_capped_like_an_image_statistic():
     # corners 0.4 px over the 0.2 px unit, pose as given, detection capped, image stats as given
     np.testing.assert_allclose(channels, [2.0, 0.7, RESIDUAL_CAP, 1.0, 4.0])
     assert evidence_channels(0.4, 0.7, 1.5, np.array([0.0]), 0.2)[2] == 1.5
+
+
+def test_the_search_reports_its_progress_once_per_model_fitted():
+    """The steps the command line draws as bars (issue 29): ``fitting candidates`` counts to the
+    number of candidates, ``model search`` (length unknown) one per model fitted; a memoised
+    model is not fitted again and not counted."""
+    from simgap.core.progress import Steps
+
+    rig = load_rig()
+    items, base = _items(rig, {"tag_scale": {"scale": 0.01}}, noise_px=0.1, seed=2)
+    idx = np.arange(len(items))
+    fit, choose = idx[idx % 3 != 0], idx[idx % 3 == 0]
+    seen = []
+    search = ModelSearch(
+        rig,
+        base,
+        items,
+        fit,
+        choose,
+        fit,
+        np.ones(6, bool),
+        steps=Steps(lambda *report: seen.append(report)),
+    )
+    cands = [CANDIDATES["tag_scale"], CANDIDATES["focal_length"]]
+    ranking = search.rank(cands, significant=True)
+    assert seen == [("fitting candidates", n, 2) for n in range(3)]
+    seen.clear()
+    search.rank(cands, significant=True)  # memoised: the bar restarts and nothing is fitted
+    assert seen == [("fitting candidates", 0, 2)]
+    seen.clear()
+    assert search.select(ranking).effects == ["tag_scale"]
+    assert seen == [("model search", n, None) for n in range(len(search.tried) - 1)]
+    assert len(seen) >= 2  # at least the pair tag_scale + focal_length was fitted
+
+
+def test_the_confirmation_counts_every_item():
+    """``SimRunner.errors`` reports one unit per item (the confirmation re-render's bar) and runs
+    each configuration once for all its tags."""
+    from types import SimpleNamespace
+
+    from simgap.diagnosis.sim_runner import SimRunner
+    from simgap.pose.image_stats import STAT_NAMES
+    from simgap.pose.tags import ConfigResult
+
+    rig = load_rig()
+    items, base = _items(rig, {})
+    runs = []
+
+    def run(exp, state, p, theta, repeat=0):
+        runs.append((p, theta))
+        n = 2  # tags 0 and 1, errors p mm on tx
+        return ConfigResult(
+            np.ones(n, bool),
+            np.zeros((n, 6)),
+            np.tile([p * 1e-3, 0, 0, 0, 0, 0], (n, 1)),
+            np.zeros(n),
+            np.zeros((n, 4, 2)),
+            np.zeros((n, len(STAT_NAMES))),
+        )
+
+    simulator = SimpleNamespace(tags=lambda exp: (0, 1), state_key=lambda exp, s: "s", run=run)
+    runner = SimRunner(SimpleNamespace(rig_model=rig, repeats=1), simulator)
+    ticks = []
+    errors = runner.errors(base, items, lambda: ticks.append(1))
+    assert len(ticks) == len(items)
+    assert len(runs) == len(set(zip(items.p, items.theta, strict=True)))
+    np.testing.assert_array_equal(errors[:, 0], items.p * 1e-3)

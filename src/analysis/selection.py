@@ -33,6 +33,7 @@ from simgap.analysis.scoring import (
     worsens_pose,
 )
 from simgap.analysis.thresholds import CORNER_UNIT_PX, MIN_POSE_REDUCTION, MINOR_CONTRIBUTION
+from simgap.core.progress import Steps
 from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState
@@ -61,6 +62,10 @@ class ModelSearch:
         Unit of the corner channel (px): :data:`~simgap.analysis.thresholds.CORNER_UNIT_PX` or
         the capture's own corner noise when larger
         (:func:`simgap.analysis.channels.corner_unit`).
+    steps : Steps
+        Where fits are counted: one unit of work per model fitted (not per memoised one), in
+        the steps ``fitting candidates`` (:meth:`rank`) and ``model search`` (:meth:`select`);
+        default: silent.
     """
 
     rig: Rig
@@ -72,6 +77,7 @@ class ModelSearch:
     significant_axes: np.ndarray
     runner: Runner | None = None
     corner_unit_px: float = CORNER_UNIT_PX
+    steps: Steps = field(default_factory=Steps, repr=False)
     _evaluated: dict[tuple[str, ...], Scored] = field(default_factory=dict, repr=False)
     #: single-effect models left out of the ranking because a fitted parameter lies on the end
     #: of its searched range (:func:`at_bound`)
@@ -117,6 +123,7 @@ class ModelSearch:
             fits = list(zip(proj, members, strict=True)) + fits
         scored = self.score(fits, projection, self.choose_index)
         self._evaluated[key] = scored
+        self.steps.advance()
         return scored
 
     def _simulation_changes(
@@ -211,13 +218,11 @@ class ModelSearch:
         a parameter on its search bound is no finding (:func:`at_bound`): it is kept in
         :attr:`on_bound` for the report.
         """
+        todo = [c for c in candidates if significant or isinstance(c, ProjectionCandidate)]
+        self.steps.start("fitting candidates", len(todo))
         rest = [
             scored
-            for scored in (
-                self.evaluate((c,))
-                for c in candidates
-                if significant or isinstance(c, ProjectionCandidate)
-            )
+            for scored in (self.evaluate((c,)) for c in todo)
             if scored.fits[0][1].extra.get("supported", True)
         ]
         self.on_bound = [s for s in rest if at_bound(s)]
@@ -293,6 +298,7 @@ class ModelSearch:
         starts = [s for s in ranking if admissible(s, None)]
         if not starts or not improves_on_nothing(starts[0]):
             return None
+        self.steps.start("model search")
         pool = [s.fits[0][0] for s in ranking]
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}

@@ -6,9 +6,10 @@ assets.
 Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
 shows the traceback instead).
 
-Modules: :mod:`.app` (the Typer app and its error path), then the commands by job, registered in
-the order ``--help`` lists them: :mod:`.simulate`, :mod:`.real`, :mod:`.diagnose`,
-:mod:`.catalogue`.
+Modules: :mod:`.app` (the Typer app, its error path and plain help), :mod:`.options` (the options
+several commands share, each defined once), :mod:`.progress` (the diagnosis's step bars), then
+the commands by job, registered in the order ``--help`` lists them: :mod:`.simulate`,
+:mod:`.real`, :mod:`.diagnose`, :mod:`.catalogue`.
 """
 
 from __future__ import annotations

@@ -6,13 +6,13 @@ from pathlib import Path
 
 import typer
 
-from simgap.cli.app import CacheOption, SchedulerOption, app, read_experiment
+from simgap.cli.app import app, read_experiment
+from simgap.cli.options import CacheOption, OverwriteOption, ProgressOption, SchedulerOption
 from simgap.cli.outputs import (
     OUTPUT,
     REPORT_FOLDER,
     RESULT_DATASET,
     STUDY_FOLDER,
-    OverwriteOption,
     check_outputs,
     experiment_inputs,
 )
@@ -50,15 +50,16 @@ def study(
     experiment: Path = typer.Argument(Path("experiments/baseline.yaml"), help="Experiment YAML."),
     output: Path = typer.Option(Path("results"), "-o", "--output", help="Output folder."),
     cache: CacheOption = None,
+    progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Run an experiment and write its report: OUTPUT/<name>.nc and OUTPUT/<name>-report/."""
+    """Run an experiment and write its report: OUTPUT/NAME.nc and OUTPUT/NAME-report/."""
     inputs = experiment_inputs(experiment, "EXPERIMENT")
     check_outputs([(OUTPUT, output, STUDY_FOLDER)], inputs, overwrite)
     name = read_experiment(experiment).name
     nc, folder = output / f"{name}.nc", output / f"{name}-report"
     outputs = [(OUTPUT, nc, RESULT_DATASET), (OUTPUT, folder, REPORT_FOLDER)]
     check_outputs(outputs, inputs, overwrite)
-    run(experiment, nc, cache, True, scheduler, overwrite)
+    run(experiment, nc, cache, progress, scheduler, overwrite)
     report(nc, folder, None, overwrite)

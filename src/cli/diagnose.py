@@ -8,15 +8,14 @@ from typing import Annotated
 
 import typer
 
-from simgap.cli.app import (
+from simgap.cli.app import app, read_experiment, read_result_dataset, read_simulation
+from simgap.cli.options import (
     CacheOption,
+    OverwriteOption,
+    ProgressOption,
     SchedulerOption,
     VariantOption,
-    app,
     output_option,
-    read_experiment,
-    read_result_dataset,
-    read_simulation,
 )
 from simgap.cli.outputs import (
     DIAGNOSIS_FOLDER,
@@ -24,7 +23,6 @@ from simgap.cli.outputs import (
     ERROR_MODEL,
     OUTPUT,
     VALIDATION_FOLDER,
-    OverwriteOption,
     check_outputs,
     experiment_inputs,
     simulation_inputs,
@@ -65,16 +63,18 @@ def errormodel(
 
 @app.command()
 def diagnose(
-    real: Annotated[Path, typer.Argument(help="Real dataset (netCDF) from `simgap ingest`.")],
+    real: Annotated[Path, typer.Argument(help="Real dataset (netCDF) from simgap ingest.")],
     sim: Annotated[Path, typer.Option("--sim", help="Simulation: experiment YAML or result .nc.")],
     output: Annotated[Path, output_option("Report folder to write.")],
     json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
     cache: CacheOption = None,
     seed: int = typer.Option(0, "--seed", help="Seed of the fit / choose / report split."),
+    progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
+    from simgap.cli.progress import StepBars
     from simgap.core.outputs import claimed_folder
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.diagnose import diagnose as run_diagnosis
@@ -89,8 +89,9 @@ def diagnose(
     data = read_netcdf(real)
     exp = read_simulation(sim)
     settings = DiagnoseSettings(seed=seed)
-    simulator = Simulator(cache or default_cache_dir(), scheduler=scheduler)
-    result, state = run_diagnosis(data, exp, simulator, settings)
+    simulator = Simulator(cache or default_cache_dir(), scheduler, show_progress=progress)
+    with StepBars(progress) as bars:
+        result, state = run_diagnosis(data, exp, simulator, settings, progress=bars)
     with claimed_folder(output):
         paths = write_diagnosis_report(result, state, output)
     for p in paths:
@@ -115,6 +116,8 @@ def validate(
         Path("experiments/baseline.yaml"), "--experiment", help="Simulation experiment."
     ),
     cache: CacheOption = None,
+    progress: ProgressOption = True,
+    scheduler: SchedulerOption = None,
     shard: str = typer.Option(
         "0/1", "--shard", help="K/N: run only trials K, K+N, ... (several processes, one folder)."
     ),
@@ -136,6 +139,7 @@ def validate(
     from simgap.core.outputs import claimed_folder
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.validate import ValidateSettings, run_validation
+    from simgap.pipeline.simulator import Simulator
 
     inputs = experiment_inputs(experiment, "--experiment")
     check_outputs([(OUTPUT, output, VALIDATION_FOLDER)], inputs, overwrite)
@@ -154,9 +158,9 @@ def validate(
         except ValueError as exc:  # "effects: expected ...": name the option
             raise ValueError(f"--{exc}") from exc
     with claimed_folder(output):  # before the first trial: shards and resumes find it marked
-        summary = run_validation(
-            exp, output, cache or default_cache_dir(), settings, log=typer.echo
-        )
+        cache_dir = cache or default_cache_dir()
+        simulator = Simulator(cache_dir, scheduler, show_progress=progress)
+        summary = run_validation(exp, output, cache_dir, settings, typer.echo, simulator)
     typer.echo((output / "validation.md").read_text())
     typer.echo(
         f"top-1 accuracy {summary['top1_accuracy']}, "

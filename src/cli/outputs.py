@@ -1,4 +1,4 @@
-"""What each command writes, checked before it works (:mod:`simgap.core.outputs`), and --overwrite.
+"""What each command writes, checked before it works (:mod:`simgap.core.outputs`).
 
 Every command that writes calls :func:`check_outputs` first with its output paths, what it
 writes at each (an :class:`~simgap.core.outputs.OutputKind` of this module) and its inputs.
@@ -9,21 +9,12 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Annotated
-
-import typer
 
 from simgap.core.config import ConfigError
 from simgap.core.outputs import OutputKind, OutputPathError, check_output
 
 #: The ``-o/--output`` option in messages.
 OUTPUT = "-o/--output"
-OVERWRITE_HELP = (
-    "Replace an existing file, or write into a folder, that simgap did not write (never an "
-    "input, a device or a folder where a file goes)."
-)
-#: ``--overwrite`` (default ``False``).
-OverwriteOption = Annotated[bool, typer.Option("--overwrite", help=OVERWRITE_HELP)]
 #: A command's input: the argument or option that names it, and its path (None: not given).
 Input = tuple[str, Path | None]
 #: The largest JSON file read to recognise an earlier output (bytes); simgap's are far smaller.

@@ -8,16 +8,14 @@ from typing import Annotated
 
 import typer
 
-from simgap.cli.app import (
+from simgap.cli.app import app, read_experiment, read_result_dataset, read_simulation
+from simgap.cli.options import (
+    BagFormat,
     CacheOption,
+    OverwriteOption,
     ProgressOption,
     VariantOption,
-    app,
-    fail,
     output_option,
-    read_experiment,
-    read_result_dataset,
-    read_simulation,
 )
 from simgap.cli.outputs import (
     CAPTURE_FOLDER,
@@ -25,7 +23,6 @@ from simgap.cli.outputs import (
     RESULT_DATASET,
     ROS1_BAG,
     ROS2_BAG,
-    OverwriteOption,
     check_outputs,
     experiment_inputs,
     simulation_inputs,
@@ -106,8 +103,8 @@ def export_bag(
         typer.Argument(help="Experiment YAML, simulated result dataset (.nc) or capture folder."),
     ],
     output: Annotated[Path, output_option("Bag to write: .bag file or folder.")],
-    fmt: str | None = typer.Option(
-        None, "--format", help="ros1 or ros2 (default: ros1 for a .bag output, else ros2)."
+    fmt: BagFormat | None = typer.Option(
+        None, "--format", help="Bag format (default: ros1 for a .bag output, else ros2)."
     ),
     compressed: bool = typer.Option(
         False, "--compressed/--raw", help="CompressedImage (PNG, or the file's bytes) or raw bgr8."
@@ -118,11 +115,10 @@ def export_bag(
 ) -> None:
     """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
     from simgap.core.paths import default_cache_dir
-    from simgap.pipeline.bag import BAG_FORMATS, capture_to_bag, experiment_to_bag
+    from simgap.pipeline.bag import capture_to_bag, experiment_to_bag
 
-    fmt = fmt or ("ros1" if output.suffix == ".bag" else "ros2")
-    if fmt not in BAG_FORMATS:
-        fail(f"--format: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
+    fmt = fmt or (BagFormat.ros1 if output.suffix == ".bag" else BagFormat.ros2)
+    fmt = fmt.value
     inputs = [("SOURCE", source)] if source.is_dir() else simulation_inputs(source, "SOURCE")
     kind = ROS1_BAG if fmt == "ros1" else ROS2_BAG
     check_outputs([(OUTPUT, output, kind)], inputs, overwrite)

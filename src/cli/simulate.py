@@ -7,21 +7,19 @@ from typing import Annotated
 
 import typer
 
-from simgap.cli.app import (
+from simgap.cli.app import app, read_experiment, read_result_dataset
+from simgap.cli.options import (
     CacheOption,
+    OverwriteOption,
     ProgressOption,
     SchedulerOption,
-    app,
     output_option,
-    read_experiment,
-    read_result_dataset,
 )
 from simgap.cli.outputs import (
     COMPARISON_FOLDER,
     OUTPUT,
     REPORT_FOLDER,
     RESULT_DATASET,
-    OverwriteOption,
     check_outputs,
     experiment_inputs,
 )
@@ -61,7 +59,7 @@ MODEL_HELP = "Error model (.nc or .json): draw its bands over the data."
 
 @app.command()
 def report(
-    result: Annotated[Path, typer.Argument(help="Result dataset (netCDF) from `simgap run`.")],
+    result: Annotated[Path, typer.Argument(help="Result dataset (netCDF) from simgap run.")],
     output: Annotated[Path, output_option("Report folder to write.")],
     model: Annotated[Path | None, typer.Option("--model", help=MODEL_HELP)] = None,
     overwrite: OverwriteOption = False,

@@ -37,6 +37,7 @@ from simgap.analysis.scored import Scored, bootstrap_reductions
 from simgap.analysis.scoring import equivalent_models
 from simgap.analysis.selection import ModelSearch
 from simgap.core.axes import AXES
+from simgap.core.progress import ProgressCallback, Steps
 from simgap.diagnosis.items import (
     build_items,
     repeats_of_simulation,
@@ -80,6 +81,8 @@ class Diagnosis:
         Re-runs variant states of ``exp`` for candidate fits and the confirmation.
     settings : DiagnoseSettings
         Splits, subsample sizes and thresholds.
+    progress : ProgressCallback, optional
+        Told the progress of the fits, the model search and the confirmation (default: silent).
     """
 
     def __init__(
@@ -89,6 +92,7 @@ class Diagnosis:
         exp: Experiment,
         simulator: Simulator,
         settings: DiagnoseSettings,
+        progress: ProgressCallback | None = None,
     ) -> None:
         self.settings = settings
         real = repeats_of_simulation(real, sim)
@@ -122,6 +126,7 @@ class Diagnosis:
             significant_axes=self.significant_axes,
             runner=self.runner,
             corner_unit_px=corner_unit(real.reproj_px.isel(variant=0).values),
+            steps=Steps(progress),
         )
 
     def confirm(self, chosen: Scored) -> Confirmed:
@@ -135,7 +140,9 @@ class Diagnosis:
             state = cand.apply(state, fit.params)
         h = self.items.subset(self.report_index)
         t0 = time.perf_counter()
-        self.fitted_errors, self.fitted_confirmed = self.runner.errors(state, self.items), True
+        self.search.steps.start("confirmation re-render", len(self.items))
+        errors = self.runner.errors(state, self.items, self.search.steps.advance)
+        self.fitted_errors, self.fitted_confirmed = errors, True
         pred = self.fitted_errors[self.report_index]
         before = gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes)
         after = gap_score(h.real_err, pred, h.scale, self.significant_axes)
@@ -188,6 +195,7 @@ def diagnose(
     simulator: Simulator | Path,
     settings: DiagnoseSettings | None = None,
     candidates: list[Candidate] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> tuple[DiagnosisResult, Diagnosis]:
     """Run the whole diagnosis; return its result and the diagnosis state.
 
@@ -206,6 +214,11 @@ def diagnose(
         :data:`simgap.analysis.candidates.CANDIDATES`). An appearance effect is kept only where
         one of its own image statistics differs significantly
         (:func:`simgap.analysis.appearance.signature_significant`).
+    progress : ProgressCallback, optional
+        Told the progress of every step after the simulation (whose progress is the
+        simulator's): ``fitting candidates`` (one unit per candidate), ``model search`` (one per
+        model fitted, total unknown) and ``confirmation re-render`` (one per configuration and
+        tag). Default: silent.
 
     Raises
     ------
@@ -220,7 +233,7 @@ def diagnose(
     sim_exp = simulation_experiment(real, exp)
     seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"])
     sim = simulator.dataset(with_render_seeds(sim_exp, seeds))
-    d = Diagnosis(real, sim, sim_exp, simulator, settings)
+    d = Diagnosis(real, sim, sim_exp, simulator, settings, progress)
     where = where_summary(d.real, d.sim, d.field, d.axis_gaps)
     if candidates is None:
         candidates = list(CANDIDATES.values())

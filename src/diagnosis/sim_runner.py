@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 
@@ -39,7 +40,13 @@ class SimRunner:
         self.tags = simulator.tags(exp)
         self._memo: dict[tuple, dict[str, np.ndarray]] = {}
 
-    def _results(self, state: VariantState, items: Items, field: str) -> np.ndarray:
+    def _results(
+        self,
+        state: VariantState,
+        items: Items,
+        field: str,
+        advance: Callable[[], None] | None = None,
+    ) -> np.ndarray:
         reps = self.exp.repeats if state.image.stochastic else 1
         key0 = self.simulator.state_key(self.exp, state)
         out = np.full((len(items),) + _FIELD_SHAPES.get(field, ()), np.nan)
@@ -60,11 +67,18 @@ class SimRunner:
                         "detected": np.mean(np.stack([x.detected for x in runs]), axis=0),
                     }
             out[i] = self._memo[key][field][self.tags.index(int(items.tag[i]))]
+            if advance is not None:
+                advance()
         return out
 
-    def errors(self, state: VariantState, items: Items) -> np.ndarray:
-        """Repeat-mean simulated errors (N, 6) of ``items`` under ``state`` (m, rad)."""
-        return self._results(state, items, "error")
+    def errors(
+        self, state: VariantState, items: Items, advance: Callable[[], None] | None = None
+    ) -> np.ndarray:
+        """Repeat-mean simulated errors (N, 6) of ``items`` under ``state`` (m, rad).
+
+        ``advance`` is called after each item (a progress count), if given.
+        """
+        return self._results(state, items, "error", advance)
 
     def corners(self, state: VariantState, items: Items) -> np.ndarray:
         """Repeat-mean detected corners (N, 4, 2) of ``items`` under ``state`` (px)."""

@@ -1,0 +1,51 @@
+"""Options several commands share, each declared once (typer's ``Annotated`` form).
+
+Defaults stay in the command signatures. Every long command (one that simulates: ``run``,
+``study``, ``diagnose``, ``validate``) takes :data:`CacheOption`, :data:`SchedulerOption` and
+:data:`ProgressOption`; a fixed set of values is an :class:`enum.Enum` (typer's choice: a wrong
+value exits with code 2 and a line naming the option and the allowed values).
+"""
+
+from __future__ import annotations
+
+import enum
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+CACHE_HELP = "Cache folder for renders and results (default: $SIMGAP_CACHE or ~/.cache/simgap)."
+SCHEDULER_HELP = (
+    "Dask scheduler address (tcp://HOST:PORT); default: a LocalCluster on this machine. "
+    "Workers must see the cache folder under the same path."
+)
+PROGRESS_HELP = "Show progress bars (on a terminal) while the command works."
+OVERWRITE_HELP = (
+    "Replace an existing file, or write into a folder, that simgap did not write (never an "
+    "input, a device or a folder where a file goes)."
+)
+
+#: ``--cache FOLDER`` (default ``None``: $SIMGAP_CACHE or ~/.cache/simgap).
+CacheOption = Annotated[Path | None, typer.Option("--cache", help=CACHE_HELP)]
+#: ``--scheduler ADDRESS`` (default ``None``: an in-process cluster).
+SchedulerOption = Annotated[str | None, typer.Option("--scheduler", help=SCHEDULER_HELP)]
+#: ``--progress/--no-progress`` (default ``True``).
+ProgressOption = Annotated[bool, typer.Option("--progress/--no-progress", help=PROGRESS_HELP)]
+#: ``--variant NAME`` of a result dataset (default ``None``: the first).
+VariantOption = Annotated[
+    str | None, typer.Option("--variant", help="Variant of the dataset (default: the first).")
+]
+#: ``--overwrite`` (default ``False``).
+OverwriteOption = Annotated[bool, typer.Option("--overwrite", help=OVERWRITE_HELP)]
+
+
+def output_option(help_text: str) -> Any:
+    """The ``-o/--output PATH`` option, with what the command writes there as its help."""
+    return typer.Option("-o", "--output", help=help_text)
+
+
+class BagFormat(str, enum.Enum):
+    """``export-bag --format``: the bag formats of :data:`simgap.pipeline.bag.BAG_FORMATS`."""
+
+    ros1 = "ros1"
+    ros2 = "ros2"
