@@ -45,7 +45,7 @@ def test_robust_limit_ignores_one_planar_flip_and_marks_it():
     limit = robust_colour_limit(values)
     assert limit == 5.0  # the largest |value| within Q3 + 3 IQR of the |values|
     ax = Figure().subplots()
-    assert mark_beyond_limit(ax, values, limit) == "hatched: 1 beyond ±5, up to 217"
+    assert mark_beyond_limit(ax, values, limit) == "hatched: 1 beyond ±5, largest |value| 217"
     assert len(ax.patches) == 1 and ax.patches[0].get_xy() == (1.5, 1.5)  # row 2, column 2
     assert mark_beyond_limit(Figure().subplots(), values, 300.0) == ""
 

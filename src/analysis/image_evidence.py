@@ -130,5 +130,6 @@ def plot_image_stats(
         ax.set_visible(False)
     if stats:
         axes[0].legend(fontsize=7)
-    fig.suptitle(title or f"Image evidence against {against.replace('_', ' ')}")
+    x_name = "camera-to-tag distance" if against == "distance" else "view angle"
+    fig.suptitle(title or f"Image evidence against {x_name}")
     return fig

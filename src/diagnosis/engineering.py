@@ -243,11 +243,11 @@ def plot_abs_error_vs_distance(
 
 def gap_by_distance_title(has_fit: bool) -> str:
     """Title of ``gap_by_distance.png`` (:func:`plot_gap_by_distance`), naming its sign."""
-    after = "; dashed: after the fitted effects" if has_fit else ""
+    after = " -> after the fitted effects (dashed)" if has_fit else ""
     return (
-        "Signed gap real − simulated error against camera-to-tag distance (positive: the real "
-        f"error is larger in the + direction); lines: median per distance third, as the "
-        f"table{after}"
+        "Signed gap, real − simulated error, against camera-to-tag distance (positive: the real "
+        "error lies further in + than the simulated one)\nlines: median per distance third, "
+        f"the table's gap before{after}"
     )
 
 
@@ -288,7 +288,7 @@ def plot_gap_by_distance(
     for ax, (k, axis) in zip(axes.flat, enumerate(AXES), strict=True):
         unit, scale = display_unit(axis)
         gap = (real[keep, k] - sim[keep, k]) * scale
-        ax.scatter(distance_m[keep], gap, s=10, color="tab:purple", alpha=0.5, label="item")
+        ax.scatter(distance_m[keep], gap, s=14, color="tab:purple", alpha=0.7, label="item")
         for r in (r for r in rows if r.axis == axis and np.isfinite(r.gap_before)):
             ax.plot(r.distance_m, [r.gap_before * scale] * 2, color="k", lw=2.5)
             if has_fit:

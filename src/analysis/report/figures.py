@@ -147,8 +147,8 @@ def mark_beyond_limit(ax: Axes, values: np.ndarray, limit: float) -> str:
     Returns
     -------
     str
-        For the panel's title: ``"hatched: n beyond ±limit, up to v"`` (``v`` the largest
-        |value|, in the unit of `values`); empty where no cell is beyond.
+        For the panel's title: ``"hatched: n beyond ±limit, largest |value| v"`` (in the unit
+        of `values`); empty where no cell is beyond.
     """
     with np.errstate(invalid="ignore"):
         rows, cols = np.nonzero(np.abs(values) > limit)
@@ -159,7 +159,7 @@ def mark_beyond_limit(ax: Axes, values: np.ndarray, limit: float) -> str:
     if not rows.size:
         return ""
     top = float(np.max(np.abs(values[rows, cols])))
-    return f"hatched: {rows.size} beyond ±{limit:.3g}, up to {top:.3g}"
+    return f"hatched: {rows.size} beyond ±{limit:.3g}, largest |value| {top:.3g}"
 
 
 def heatmap_legend_handles(
@@ -420,8 +420,8 @@ def plot_change_by_distance(
     change = change_by_p(cmp)
     fig, axes = new_figure_grid(
         title
-        or f"Change of mean |error| vs distance (variant − {cmp.attrs['baseline']!r}, paired "
-        "configurations, both tags, all view angles)"
+        or f"Change of mean |error| vs camera-to-tag distance (variant − "
+        f"{cmp.attrs['baseline']!r}, paired configurations, both tags, all view angles)"
     )
     for ax, axis in zip(axes.flat, AXES, strict=True):
         for variant in change["variant"].values:
@@ -433,7 +433,7 @@ def plot_change_by_distance(
         ax.set_ylabel(f"Δ mean |{axis} error| [{unit}]")
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
-        ax.set_xlabel(f"{DISTANCE_LABEL}, mean of the pin hole's configurations")
+        ax.set_xlabel(f"{DISTANCE_LABEL}, pin-hole mean")
     handles, labels = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=max(1, len(labels)))
     return fig
