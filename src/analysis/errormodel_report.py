@@ -74,7 +74,7 @@ def plot_error_model_bands(model: ErrorModel, ds: xr.Dataset, slices: int = 3) -
                 ax.set_xlabel("obliquity (deg)", fontsize=8)
                 ax.set_ylabel(f"error ({unit})", fontsize=8)
                 ax.tick_params(labelsize=7)
-        axes[r, 0].legend(fontsize=7, title="distance", title_fontsize=7)
+        axes[r, 0].legend(fontsize=7, title="camera-to-tag distance", title_fontsize=7)
     fig.suptitle(
         f"error model ({variant}): bias and 90 % band per distance slice, over the detections"
     )

@@ -17,7 +17,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
-from simgap.pose.image_stats import STAT_NAMES
+from simgap.core.distance import DISTANCE_LABEL, camera_to_tag_distance
+from simgap.pose.image_stats import STAT_NAMES, stat_label
 
 #: Statistics shown in the figures (the others are kept in the dataset and result.json).
 PLOTTED_STATS: tuple[str, ...] = (
@@ -36,14 +37,16 @@ PLOTTED_STATS: tuple[str, ...] = (
 
 
 def tag_distance_and_view_angle(ds: xr.Dataset) -> tuple[xr.DataArray, xr.DataArray]:
-    """Distance of each tag from the eyepoint (m) and its view angle (deg), (tag, p, theta).
+    """Camera-to-tag distance (m) and view angle (deg) of each tag, (tag, p, theta).
+
+    The distance is :func:`simgap.core.distance.camera_to_tag_distance` of ``expected``.
 
     The view angle is the angle between the line of sight and the tag plane: 90 deg when the
     tag faces the camera, 0 deg when seen edge-on, negative when it faces away.
     """
     pose = ds.expected.transpose("tag", "p", "theta", "axis").values
     t = pose[..., :3]
-    distance = np.linalg.norm(t, axis=-1)
+    distance = camera_to_tag_distance(t)
     normal = Rotation.from_rotvec(pose[..., 3:].reshape(-1, 3)).as_matrix()[:, :, 2]
     to_camera = -t.reshape(-1, 3) / np.maximum(distance.reshape(-1, 1), 1e-12)
     angle = np.degrees(np.arcsin(np.clip(np.sum(to_camera * normal, axis=1), -1, 1)))
@@ -75,7 +78,9 @@ def plot_image_stats(
     stats: Sequence[str] = PLOTTED_STATS,
     title: str = "",
 ) -> Figure:
-    """Each image statistic against tag distance (m) or view angle (deg), one colour per dataset.
+    """Each image statistic against camera-to-tag distance (m) or view angle (deg), one colour each.
+
+    Panels are named and scaled by :data:`simgap.pose.image_stats.STAT_LABELS`.
 
     Parameters
     ----------
@@ -116,14 +121,15 @@ def plot_image_stats(
                     label=f"{label}, tag {int(tag)}",
                 )
     for ax, stat in zip(axes, stats, strict=False):
-        units = str(next(iter(datasets.values())).stat_units.sel(stat=stat).values)
-        ax.set_title(stat, fontsize=10)
-        ax.set_ylabel(units)
-        ax.set_xlabel("tag distance [m]" if against == "distance" else "view angle [deg]")
+        label = stat_label(stat)
+        ax.set_title(label.name, fontsize=10)
+        ax.set_ylabel(label.unit)
+        ax.set_xlabel(DISTANCE_LABEL if against == "distance" else "view angle [deg]")
         ax.grid(alpha=0.3)
     for ax in axes[len(stats) :]:
         ax.set_visible(False)
     if stats:
         axes[0].legend(fontsize=7)
-    fig.suptitle(title or f"Image evidence against {against.replace('_', ' ')}")
+    x_name = "camera-to-tag distance" if against == "distance" else "view angle"
+    fig.suptitle(title or f"Image evidence against {x_name}")
     return fig

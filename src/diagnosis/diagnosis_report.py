@@ -1,9 +1,10 @@
 """The diagnosis report: where the gap lies, the effect ranking, before/after, figures, JSON.
 
-The gap figures reuse the comparison figures (:mod:`simgap.analysis.report.figures`): the
+The gap heatmap reuses the comparison figure (:mod:`simgap.analysis.report.figures`): the
 simulation and the real data are put into one dataset as two variants, so the signed shift of
-``real`` against ``simulation`` is the gap, and the change of mean ``|error|`` is
-``mean |real error| - mean |simulated error|`` (not the gap; ``gap_by_distance.png`` says so).
+``real`` against ``simulation`` is the gap. ``gap_by_distance.png``
+(:func:`simgap.diagnosis.engineering.plot_gap_by_distance`) draws the same signed gap,
+real - simulated, as the report's region table.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from matplotlib.figure import Figure
 
 from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
-from simgap.analysis.report.figures import plot_change_by_distance, plot_change_heatmap
+from simgap.analysis.report.figures import plot_change_heatmap
 from simgap.analysis.report.output import save_figure, save_text
 from simgap.analysis.report.tables import markdown_table
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL
@@ -28,15 +29,10 @@ from simgap.diagnosis.engineering import (
     engineering_markdown,
     item_distances,
     plot_abs_error_vs_distance,
+    plot_gap_by_distance,
 )
 from simgap.diagnosis.result import DiagnosisResult, Where
 from simgap.diagnosis.result_json import write_json
-
-#: Title of ``gap_by_distance.png``: what it plots is a difference of absolute errors.
-GAP_BY_DISTANCE_TITLE = (
-    "mean |real error| − mean |simulated error| vs distance (a change of error size, not the "
-    "signed gap; paired configurations, both tags, all view angles)"
-)
 
 
 def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
@@ -366,12 +362,6 @@ def write_diagnosis_report(result: DiagnosisResult, d: Diagnosis, out_dir: Path)
     both = gap_dataset(d.real, d.sim)
     paths = [save_figure(plot_ranking(result), out_dir / "ranking.png")]
     paths.append(
-        save_figure(
-            plot_change_by_distance(both, "simulation", title=GAP_BY_DISTANCE_TITLE),
-            out_dir / "gap_by_distance.png",
-        )
-    )
-    paths.append(
         save_figure(plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png")
     )
     if "image_stats" in d.real and "image_stats" in d.sim:
@@ -385,6 +375,8 @@ def write_diagnosis_report(result: DiagnosisResult, d: Diagnosis, out_dir: Path)
     fitted = np.full_like(items.real_err, np.nan) if d.fitted_errors is None else d.fitted_errors
     figure = plot_abs_error_vs_distance(distance, items.real_err, items.sim_err, fitted)
     paths.insert(0, save_figure(figure, out_dir / "abs_error_vs_distance.png"))
+    figure = plot_gap_by_distance(items.p, distance, items.real_err, items.sim_err, fitted)
+    paths.insert(2, save_figure(figure, out_dir / "gap_by_distance.png"))
     lines = ["# Sim-to-real gap diagnosis", ""]
     lines += engineering_markdown(d, distance, fitted, selected_names(result))
     lines += where_markdown(result.where)

@@ -20,11 +20,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from simgap.analysis.gap import distance_thirds
 from simgap.analysis.paper import THRESHOLD_BY_UNIT
 from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, ROTATION_AXES, axis_unit, display_unit
+from simgap.core.distance import DISTANCE_LABEL, camera_to_tag_distance
 
 if TYPE_CHECKING:
     from simgap.diagnosis.diagnose import Diagnosis
@@ -225,7 +227,7 @@ def plot_abs_error_vs_distance(
                 )
         ax.axhline(threshold, color="k", ls="--", lw=0.8, label="mission threshold")
         ax.set_title(f"|{axis} error| [{unit}]")
-        ax.set_xlabel("camera to tag distance [m]")
+        ax.set_xlabel(DISTANCE_LABEL)
         ax.set_ylim(0, None)
         ax.grid(alpha=0.3)
     handles, labels = [], []
@@ -236,6 +238,75 @@ def plot_abs_error_vs_distance(
                 labels.append(lab)
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4))
     fig.suptitle("Absolute pose error against distance (the paper's figure), mission thresholds")
+    return fig
+
+
+def gap_by_distance_title(has_fit: bool) -> str:
+    """Title of ``gap_by_distance.png`` (:func:`plot_gap_by_distance`), naming its sign."""
+    after = " -> after the fitted effects (dashed)" if has_fit else ""
+    return (
+        "Signed gap, real − simulated error, against camera-to-tag distance (positive: the real "
+        "error lies further in + than the simulated one)\nlines: median per distance third, "
+        f"the table's gap before{after}"
+    )
+
+
+def plot_gap_by_distance(
+    p: np.ndarray,
+    distance_m: np.ndarray,
+    real: np.ndarray,
+    sim: np.ndarray,
+    fitted: np.ndarray | None = None,
+) -> Figure:
+    """The signed gap per axis against camera-to-tag distance, the same gap as the region table.
+
+    Parameters
+    ----------
+    p : ndarray of int (N,)
+        Pin hole of each item (the distance thirds of :func:`region_rows`).
+    distance_m : ndarray (N,)
+        Camera-to-tag distance of each item (m).
+    real, sim : ndarray (N, 6)
+        Real and simulated errors (m, rad).
+    fitted : ndarray (N, 6), optional
+        Simulated errors with the fitted effects (all NaN or None: no fit).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        2x3 panels (tx, ty, tz / rx, ry, rz): per item ``real - sim`` in mm or mrad (points,
+        planar flips left out as in the table), and per distance third the median signed gap
+        before (solid) and after the fit (dashed) over the third's distance span: the
+        ``gap before -> after`` column of :func:`region_table`.
+    """
+    fig = Figure(figsize=(13, 7), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 3)
+    has_fit = fitted is not None and bool(np.isfinite(fitted).any())
+    keep = ~(planar_flips(real) | planar_flips(sim))
+    rows = region_rows(p, distance_m, real, sim, fitted if has_fit else None)
+    for ax, (k, axis) in zip(axes.flat, enumerate(AXES), strict=True):
+        unit, scale = display_unit(axis)
+        gap = (real[keep, k] - sim[keep, k]) * scale
+        ax.scatter(distance_m[keep], gap, s=14, color="tab:purple", alpha=0.7, label="item")
+        for r in (r for r in rows if r.axis == axis and np.isfinite(r.gap_before)):
+            ax.plot(r.distance_m, [r.gap_before * scale] * 2, color="k", lw=2.5)
+            if has_fit:
+                ax.plot(r.distance_m, [r.gap_after * scale] * 2, color="tab:green", lw=2, ls="--")
+        ax.axhline(0.0, color="0.4", lw=0.8)
+        ax.set_title(f"{axis}: real − simulated error [{unit}]")
+        ax.set_xlabel(DISTANCE_LABEL)
+        ax.grid(alpha=0.3)
+    handles = [
+        Line2D([], [], color="tab:purple", marker="o", ls="none", label="one configuration"),
+        Line2D([], [], color="k", lw=2.5, label="median per distance third (the table's gap)"),
+    ]
+    if has_fit:
+        handles.append(
+            Line2D([], [], color="tab:green", lw=2, ls="--", label="median after the fit")
+        )
+    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles))
+    fig.suptitle(gap_by_distance_title(has_fit))
     return fig
 
 
@@ -290,12 +361,8 @@ def verdict(rows: list[RegionRow], selected: str, fitted_on: str) -> list[str]:
 def item_distances(d: Diagnosis) -> np.ndarray:
     """Camera-to-tag distance of every comparable item of a diagnosis (m)."""
     items, rig = d.items, d.rig
-    return np.array(
-        [
-            np.linalg.norm(rig.expected_pose(int(t), float(p), float(th))[:3])
-            for t, p, th in zip(items.tag, items.p, items.theta, strict=True)
-        ]
-    )
+    poses = rig.eyepoints_from_tags(items.tag, items.p, items.theta)
+    return camera_to_tag_distance(poses[:, :3, 3])
 
 
 def engineering_markdown(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from simgap.core.distance import camera_to_tag_distance
 from simgap.core.rig import view_angles
 
 
@@ -22,7 +23,7 @@ def covariates(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance (m) and signed obliquity (rad) of tag poses ``(..., 6)`` in the global frame."""
     m = pose_matrices(poses)
     t, normal = m[..., :3, 3], m[..., :3, 2]
-    distance = np.linalg.norm(t, axis=-1)
+    distance = camera_to_tag_distance(t)
     to_camera = -t / distance[..., None]
     turn = to_camera[..., 0] * normal[..., 1] - to_camera[..., 1] * normal[..., 0]
     side = np.where(turn < 0, -1.0, 1.0)

@@ -29,6 +29,7 @@ import xarray as xr
 from simgap.analysis.report.summaries import (
     as_bool,
     check_report_dataset,
+    dataset_distance_m,
     dataset_rig,
     summarize_variant,
 )
@@ -215,7 +216,9 @@ def compare_variants(
         ``paired`` (variant, tag, p, theta): both have an estimate of every axis. Detection counts
         per ``(variant, tag)``: ``n_detected``, ``n_attempts`` (visible configurations x
         repeats), ``reference_n_detected``, ``reference_n_attempts``. Coordinate
-        ``view_angle_deg`` (tag, theta), see :func:`view_angle_deg`. Attrs ``baseline``,
+        ``view_angle_deg`` (tag, theta), see :func:`view_angle_deg`, and ``distance_m``
+        (tag, p, theta), the camera-to-tag distance
+        (:func:`~simgap.analysis.report.summaries.dataset_distance_m`). Attrs ``baseline``,
         ``n_repeat``, ``pin_holes`` (the rig's, for the distance bins) and
         ``facing_theta_deg`` (tag -> turntable angle facing the camera, deg).
 
@@ -238,7 +241,10 @@ def compare_variants(
         out[name].attrs["units"] = "m (tx, ty, tz); rad (rx, ry, rz)"
     facing = _facing_theta(ds, facing_theta_rad, rig)
     angles = view_angle_deg(ds["theta"].astype(float), facing)
-    out = out.assign_coords(view_angle_deg=angles.sel(tag=out["tag"]))
+    out = out.assign_coords(
+        view_angle_deg=angles.sel(tag=out["tag"]),
+        distance_m=dataset_distance_m(ds).sel(tag=out["tag"], p=out["p"], theta=out["theta"]),
+    )
     out.attrs.update(
         baseline=reference,
         n_repeat=int(ds.sizes["repeat"]),
@@ -276,9 +282,13 @@ def change_by_p(data: xr.Dataset, baseline: str | None = None) -> xr.DataArray:
     xarray.DataArray
         Dims ``(variant, p, axis)``: mean over paired ``(tag, theta)`` of variant - reference
         ``|error|``, mm for ``t*`` and mrad for ``r*``; NaN where no configuration is paired.
+        Coordinate ``distance_m`` (variant, p): mean camera-to-tag distance (m) of the paired
+        configurations averaged, the x of the change-by-distance figure.
     """
     cmp = as_comparison(data, baseline)
     with np.errstate(invalid="ignore"):
         change = to_display(cmp["abs_change"].mean(("tag", "theta")))
+        distance = cmp["distance_m"].where(cmp["paired"]).mean(("tag", "theta"))
     change = change.transpose("variant", "p", "axis")
+    change = change.assign_coords(distance_m=distance.transpose("variant", "p"))
     return change.rename("change_mean_abs").assign_attrs(units="mm (tx, ty, tz); mrad (rx, ry, rz)")

@@ -10,6 +10,7 @@ the comparison figures.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Final
 
 import numpy as np
@@ -21,11 +22,13 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure, SubFigure
 from matplotlib.lines import Line2D
+from matplotlib.patches import Patch, Rectangle
 
 from simgap.analysis.paper import threshold_for
 from simgap.analysis.report.comparisons import as_comparison, change_by_p
 from simgap.analysis.report.summaries import VariantSummary
 from simgap.core.axes import AXES, AXIS_UNITS, display_unit
+from simgap.core.distance import DISTANCE_LABEL
 
 NO_DATA_GREY: Final[str] = "0.75"
 """Colour of cells without data."""
@@ -34,6 +37,19 @@ THETA_CMAP: Final[str] = "cividis"
 SIGNED_CMAP: Final[str] = "RdBu_r"
 """Diverging colour map of signed errors and changes, centred on 0."""
 _MIN_COLOUR_LIMIT: Final[float] = 1e-3  # mm or mrad: an unchanged axis shows white, not noise
+FAR_OUT_IQR: Final[float] = 3.0
+"""Tukey's "far out" fence, Q3 + 3 IQR (J. W. Tukey, Exploratory Data Analysis, 1977, ch. 2):
+|values| beyond it do not set the colour limit of a heatmap; they are hatched and counted."""
+_MIN_FENCE_VALUES: Final[int] = 4  # quartiles of fewer values say nothing: the limit is their max
+SATURATION_RATIO: Final[float] = 2.0
+"""The robust limit is used only where ``max |value|`` exceeds it this many times: below that the
+full range still leaves the bulk of the cells readable, and heavy tails are not marked."""
+BEYOND_HATCH: Final[str] = "////"
+"""Hatch of heatmap cells whose |value| is beyond the colour limit."""
+MAX_TICKS: Final[int] = 8
+"""Most tick labels on a heatmap axis; denser samples label every k-th cell."""
+ROW_DISTANCE_LABEL: Final[str] = f"{DISTANCE_LABEL}, median of the row"
+"""Label of a heatmap's pin-hole rows, ticked with each row's camera-to-tag distance."""
 
 
 # --- shared -----------------------------------------------------------------------------------
@@ -48,12 +64,133 @@ def new_figure_grid(title: str) -> tuple[Figure, np.ndarray]:
     return fig, axes
 
 
-def cell_edges(centres: np.ndarray) -> np.ndarray:
-    """Return cell edges around sorted cell centres (unit width for a single centre)."""
-    if centres.size == 1:
-        return np.array([centres[0] - 0.5, centres[0] + 0.5])
-    mid = 0.5 * (centres[1:] + centres[:-1])
-    return np.concatenate([[2 * centres[0] - mid[0]], mid, [2 * centres[-1] - mid[-1]]])
+@dataclass(frozen=True)
+class SampledAxis:
+    """A heatmap axis drawn on its samples only: one cell of unit width per sampled value.
+
+    Cell ``i`` spans ``i - 0.5 .. i + 0.5`` (axis units are sample indices), so a sparse grid
+    (theta every 30 deg, every seventh pin hole) shows its samples and nothing in between or
+    beyond them; the ticks name the sampled values.
+
+    Attributes
+    ----------
+    edges : numpy.ndarray (n + 1,)
+        Cell edges, ``-0.5, 0.5, ..., n - 0.5``.
+    ticks : numpy.ndarray of int
+        Tick positions (cell centres): every cell, or every k-th for more than
+        :data:`MAX_TICKS` samples.
+    labels : list of str
+        Tick labels, the sampled values at `ticks`.
+    """
+
+    edges: np.ndarray
+    ticks: np.ndarray
+    labels: list[str]
+
+    def apply(self, ax: Axes, which: str) -> None:
+        """Set the ticks of ``ax``'s ``which`` (``"x"`` or ``"y"``) axis to the samples."""
+        if which == "x":
+            ax.set_xticks(self.ticks, self.labels)
+        else:
+            ax.set_yticks(self.ticks, self.labels)
+
+
+def sampled_axis(values: np.ndarray, fmt: str = "{:g}") -> SampledAxis:
+    """The :class:`SampledAxis` of sampled values (in drawing order), labelled with ``fmt``."""
+    values = np.asarray(values)
+    n = values.size
+    step = max(1, int(np.ceil(n / MAX_TICKS)))
+    ticks = np.arange(0, n, step)
+    return SampledAxis(np.arange(n + 1) - 0.5, ticks, [fmt.format(values[i]) for i in ticks])
+
+
+def robust_colour_limit(values: np.ndarray, floor: float = 1e-12) -> float:
+    """Symmetric colour limit of a signed heatmap that one outlier does not set.
+
+    The limit is the largest ``|value|`` within Tukey's far-out fence (:data:`FAR_OUT_IQR`) of
+    the nonzero ``|values|`` (exact zeros, unchanged configurations, carry no scale), where
+    ``max |value|`` is more than :data:`SATURATION_RATIO` times that; else ``max |value|``.
+    Cells beyond it are drawn at the end of the colour map and marked
+    (:func:`mark_beyond_limit`). A percentile (xarray's ``robust`` 2-98 %) would not do on a
+    sparse grid: with 9 cells its 98th percentile is 84 % of the way to the one outlier. With
+    fewer than 4 nonzero values the limit is their maximum.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Signed values (any shape, NaN ignored), in the unit drawn.
+    floor : float
+        Smallest limit returned (an all-zero or empty panel), in the unit of ``values``.
+
+    Returns
+    -------
+    float
+        The limit, in the unit of ``values``: colours span ``-limit .. limit``.
+    """
+    mag = np.abs(np.asarray(values, dtype=float).ravel())
+    mag = mag[np.isfinite(mag) & (mag > 0)]
+    if mag.size == 0:
+        return floor
+    top = float(mag.max())
+    if mag.size >= _MIN_FENCE_VALUES:
+        q1, q3 = np.percentile(mag, [25, 75])
+        inside = float(mag[mag <= q3 + FAR_OUT_IQR * (q3 - q1)].max())
+        top = inside if top > SATURATION_RATIO * inside else top
+    return max(top, floor)
+
+
+def mark_beyond_limit(ax: Axes, values: np.ndarray, limit: float) -> str:
+    """Hatch the cells of a ``(rows, cols)`` heatmap whose ``|value|`` exceeds ``limit``.
+
+    Cells are those of :class:`SampledAxis` (unit squares at index positions).
+
+    Returns
+    -------
+    str
+        For the panel's title: ``"hatched: n beyond ±limit, largest |value| v"`` (in the unit
+        of `values`); empty where no cell is beyond.
+    """
+    with np.errstate(invalid="ignore"):
+        rows, cols = np.nonzero(np.abs(values) > limit)
+    for r, c in zip(rows, cols, strict=True):
+        ax.add_patch(
+            Rectangle((c - 0.5, r - 0.5), 1.0, 1.0, fill=False, hatch=BEYOND_HATCH, lw=0, ec="k")
+        )
+    if not rows.size:
+        return ""
+    top = float(np.max(np.abs(values[rows, cols])))
+    return f"hatched: {rows.size} beyond ±{limit:.3g}, largest |value| {top:.3g}"
+
+
+def heatmap_legend_handles(
+    grey: str = "no estimate", undetected: bool = True
+) -> list[Patch | Line2D]:
+    """Legend entries of the heatmaps: ``grey`` cells, ``x`` (if `undetected`), beyond the limit."""
+    handles: list[Patch | Line2D] = [Patch(fc=NO_DATA_GREY, label=grey)]
+    if undetected:
+        handles.append(
+            Line2D([], [], color="k", marker="x", ls="none", label="visible, not detected")
+        )
+    return handles + [
+        Patch(
+            fc="white",
+            ec="k",
+            hatch=BEYOND_HATCH,
+            label="outlier beyond the colour limit (Tukey's far-out fence); count in the title",
+        ),
+    ]
+
+
+def row_distance_labels(distance_m: xr.DataArray, shown: xr.DataArray) -> SampledAxis:
+    """Pin-hole rows ticked with their median camera-to-tag distance (m).
+
+    ``distance_m`` and ``shown`` are ``(p, theta)`` in drawing order; the median is over the
+    shown (visible) cells of a row, over all of them where none is shown.
+    """
+    d = distance_m.transpose("p", "theta").values
+    seen = shown.transpose("p", "theta").values.astype(bool)
+    rows = np.where(seen.any(axis=1, keepdims=True), np.where(seen, d, np.nan), d)
+    return sampled_axis(np.nanmedian(rows, axis=1), "{:.3f}")
 
 
 # --- report: one variant ---------------------------------------------------------------------
@@ -72,13 +209,13 @@ def _theta_deg_around_view(summary: VariantSummary, tag: int) -> np.ndarray:
 
 
 def plot_error_vs_distance(summary: VariantSummary, tag: int) -> Figure:
-    """Plot absolute error against carriage position for one tag, paper style.
+    """Plot absolute error against camera-to-tag distance for one tag, paper style.
 
     Parameters
     ----------
     summary : VariantSummary
         One variant (:func:`~simgap.analysis.report.summaries.summarize_variant`): its
-        ``abs_error``, ``carriage_m`` and detections are drawn.
+        ``abs_error``, ``distance_m`` and detections are drawn.
     tag : int
         Tag id of the figure.
 
@@ -86,14 +223,14 @@ def plot_error_vs_distance(summary: VariantSummary, tag: int) -> Figure:
     -------
     matplotlib.figure.Figure
         2x3 panels (tx, ty, tz / rx, ry, rz): repeat-averaged absolute error (m or rad) against
-        carriage position (m), one line per turntable angle with a visible configuration (angles
-        unwrapped around the tag's mean viewing angle, so the colour bar may show negative
+        camera-to-tag distance (m), one line per turntable angle with a visible configuration
+        (angles unwrapped around the tag's mean viewing angle, so the colour bar may show negative
         degrees), the high-precision threshold as a dashed line, the largest and smallest
         error circled in red and green, and every visible but undetected configuration as an
         ``x`` at the top of the panel.
     """
     fig, axes = new_figure_grid(
-        f"Tag {tag}: absolute pose error vs carriage position (variant {summary.variant!r}, "
+        f"Tag {tag}: absolute pose error vs camera-to-tag distance (variant {summary.variant!r}, "
         f"mean of {summary.n_repeat} repeat(s))"
     )
     theta_deg = _theta_deg_around_view(summary, tag)
@@ -105,7 +242,7 @@ def plot_error_vs_distance(summary: VariantSummary, tag: int) -> Figure:
     for ax, axis in zip(axes.flat, AXES, strict=True):
         _draw_error_vs_distance(ax, summary, tag, axis, colours)
     for ax in axes[-1]:
-        ax.set_xlabel(f"carriage position {summary.pin_pitch_m:g}·p [m]")
+        ax.set_xlabel(DISTANCE_LABEL)
     fig.colorbar(ScalarMappable(norm, cmap), ax=axes, label="turntable angle θ [deg]")
     fig.legend(handles=_legend_handles(), loc="outside lower center", ncols=4)
     return fig
@@ -124,18 +261,18 @@ def _draw_error_vs_distance(
     ax: Axes, summary: VariantSummary, tag: int, axis: str, colours: np.ndarray
 ) -> None:
     """Draw one panel of :func:`plot_error_vs_distance`; `colours` is RGBA per theta."""
-    x = summary.carriage_m.values
+    x = summary.distance_m.sel(tag=tag).transpose("p", "theta").values
     y = summary.abs_error.sel(tag=tag, axis=axis).transpose("p", "theta").values
     visible = summary.visible.sel(tag=tag).transpose("p", "theta").values
     undetected = visible & ~summary.detected_any.sel(tag=tag).transpose("p", "theta").values
     for j in np.flatnonzero(visible.any(axis=0)):
-        ax.plot(x, y[:, j], marker="o", ms=3, lw=1, color=colours[j])
+        ax.plot(x[:, j], y[:, j], marker="o", ms=3, lw=1, color=colours[j])
     _mark_extremes(ax, x, y)
     threshold = threshold_for(axis)
     ax.axhline(threshold, color="k", ls="--", lw=1)
     rows, cols = np.nonzero(undetected)
     ax.scatter(
-        x[rows],
+        x[rows, cols],
         np.full(rows.size, 0.97),
         c=colours[cols],
         marker="x",
@@ -152,18 +289,16 @@ def _draw_error_vs_distance(
 
 
 def _mark_extremes(ax: Axes, x: np.ndarray, y: np.ndarray) -> None:
-    """Circle the largest (red) and smallest (green) finite value of ``y[p, theta]``."""
+    """Circle the largest (red) and smallest (green) finite value of ``y[p, theta]`` at ``x``."""
     if not np.isfinite(y).any():
         return
     for reducer, colour in ((np.nanargmax, "red"), (np.nanargmin, "green")):
         flat = int(reducer(y))
-        ax.plot(
-            x[flat // y.shape[1]], y.flat[flat], marker="o", ms=9, mfc="none", mec=colour, mew=1.5
-        )
+        ax.plot(x.flat[flat], y.flat[flat], marker="o", ms=9, mfc="none", mec=colour, mew=1.5)
 
 
 def plot_error_heatmap(summary: VariantSummary, tag: int) -> Figure:
-    """Plot the signed error of one tag over pin hole and turntable angle.
+    """Plot the signed error of one tag over turntable angle and pin hole, on the sampled grid.
 
     Parameters
     ----------
@@ -176,17 +311,21 @@ def plot_error_heatmap(summary: VariantSummary, tag: int) -> Figure:
     Returns
     -------
     matplotlib.figure.Figure
-        2x3 panels, repeat-averaged signed error (m or rad) with theta (deg, unwrapped around the
-        tag's mean viewing angle, so it may be negative) across and p up,
-        a diverging colour map centred on 0 with symmetric limits per panel, grey where there is
-        no estimate (not visible or not detected) and ``x`` on visible but undetected cells.
+        2x3 panels, repeat-averaged signed error (m or rad), one cell per sampled configuration
+        (:class:`SampledAxis`): theta (deg, unwrapped around the tag's mean viewing angle, so it
+        may be negative) across, pin-hole rows up, ticked with each row's median camera-to-tag
+        distance (m). A diverging colour map centred on 0 with a robust symmetric limit per
+        panel (:func:`robust_colour_limit`; cells beyond it hatched, counted in the panel's
+        title), grey where there is no estimate (not visible or not detected) and ``x`` on
+        visible but undetected cells.
     """
     fig, axes = new_figure_grid(
         f"Tag {tag}: signed pose error (variant {summary.variant!r}, mean of "
-        f"{summary.n_repeat} repeat(s)); grey: no estimate, x: visible but not detected"
+        f"{summary.n_repeat} repeat(s))"
     )
     for ax, axis in zip(axes.flat, AXES, strict=True):
         _draw_heatmap(fig, ax, summary, tag, axis)
+    fig.legend(handles=heatmap_legend_handles(), loc="outside lower center", ncols=3)
     return fig
 
 
@@ -195,32 +334,63 @@ def _on_view_grid(da: xr.DataArray, theta_deg: xr.DataArray) -> xr.DataArray:
     return da.assign_coords(theta_deg=theta_deg).sortby(["p", "theta_deg"]).transpose("p", "theta")
 
 
+def _signed_mesh(
+    fig: Figure | SubFigure, ax: Axes, values: np.ndarray, limit: float, label: str
+) -> str:
+    """Draw ``values[row, col]`` on unit cells with colours ``-limit .. limit``, mark the rest.
+
+    Returns what :func:`mark_beyond_limit` returns, for the panel's title.
+    """
+    rows, cols = values.shape
+    mesh = ax.pcolormesh(
+        np.arange(cols + 1) - 0.5,
+        np.arange(rows + 1) - 0.5,
+        np.ma.masked_invalid(values),
+        cmap=colormaps[SIGNED_CMAP].with_extremes(bad=NO_DATA_GREY),
+        norm=Normalize(-limit, limit),
+    )
+    beyond = mark_beyond_limit(ax, values, limit)
+    fig.colorbar(mesh, ax=ax, extend="both" if beyond else "neither", label=label)
+    return beyond
+
+
+def _with_note(title: str, note: str) -> str:
+    """``title``, and ``note`` on a second line where there is one."""
+    return f"{title}\n{note}" if note else title
+
+
+def _shown_columns(shown: np.ndarray) -> slice:
+    """Columns of a ``(rows, cols)`` mask with a shown cell, plus one on each side."""
+    columns = np.flatnonzero(shown.any(axis=0))
+    if not columns.size:
+        return slice(None)
+    return slice(max(columns[0] - 1, 0), min(columns[-1] + 1, shown.shape[1] - 1) + 1)
+
+
 def _draw_heatmap(fig: Figure, ax: Axes, summary: VariantSummary, tag: int, axis: str) -> None:
-    """Draw one panel of :func:`plot_error_heatmap`."""
+    """Draw one panel of :func:`plot_error_heatmap`: the visible angles plus one on each side."""
     theta_deg = xr.DataArray(
         _theta_deg_around_view(summary, tag), coords={"theta": summary.visible["theta"]}
     )
-    signed = _on_view_grid(summary.signed_error.sel(tag=tag, axis=axis), theta_deg)
+    shown = _on_view_grid(summary.visible.sel(tag=tag), theta_deg)
+    keep = _shown_columns(shown.values)
+    shown = shown.isel(theta=keep)
+
+    def on_grid(da: xr.DataArray) -> xr.DataArray:
+        return _on_view_grid(da, theta_deg).isel(theta=keep)
+
+    signed = on_grid(summary.signed_error.sel(tag=tag, axis=axis))
     values = signed.values
-    theta = signed["theta_deg"].values
-    p = signed["p"].values.astype(float)
-    limit = float(np.nanmax(np.abs(values), initial=0.0)) or 1e-12
-    cmap = colormaps[SIGNED_CMAP].with_extremes(bad=NO_DATA_GREY)
-    mesh = ax.pcolormesh(
-        cell_edges(theta),
-        cell_edges(p),
-        np.ma.masked_invalid(values),
-        cmap=cmap,
-        norm=Normalize(-limit, limit),
-    )
-    undetected = _on_view_grid((summary.visible & ~summary.detected_any).sel(tag=tag), theta_deg)
-    rows, cols = np.nonzero(undetected.values)
-    ax.plot(theta[cols], p[rows], "kx", ms=6, ls="none")
     unit = AXIS_UNITS[axis]
-    fig.colorbar(mesh, ax=ax, label=f"{axis} error [{unit}]")
-    ax.set_title(f"{axis}: signed error (estimated − expected) [{unit}]")
+    beyond = _signed_mesh(fig, ax, values, robust_colour_limit(values), f"{axis} error [{unit}]")
+    undetected = on_grid((summary.visible & ~summary.detected_any).sel(tag=tag))
+    rows, cols = np.nonzero(undetected.values)
+    ax.plot(cols, rows, "kx", ms=6, ls="none")
+    sampled_axis(signed["theta_deg"].values, "{:.0f}").apply(ax, "x")
+    row_distance_labels(on_grid(summary.distance_m.sel(tag=tag)), shown).apply(ax, "y")
+    ax.set_title(_with_note(f"{axis}: signed error (estimated − expected) [{unit}]", beyond))
     ax.set_xlabel("turntable angle θ [deg]")
-    ax.set_ylabel("pin hole p")
+    ax.set_ylabel(ROW_DISTANCE_LABEL)
 
 
 # --- comparison: variants against the reference --------------------------------------------
@@ -229,7 +399,7 @@ def _draw_heatmap(fig: Figure, ax: Axes, summary: VariantSummary, tag: int, axis
 def plot_change_by_distance(
     data: xr.Dataset, baseline: str | None = None, title: str | None = None
 ) -> Figure:
-    """Plot the change of mean ``|error|`` against pin hole, one line per variant.
+    """Plot the change of mean ``|error|`` against camera-to-tag distance, one line per variant.
 
     Parameters
     ----------
@@ -242,26 +412,28 @@ def plot_change_by_distance(
     -------
     matplotlib.figure.Figure
         2x3 panels (tx, ty, tz / rx, ry, rz): variant - reference mean ``|error|`` (mm or mrad)
-        over paired (tag, theta) against pin hole p, with a zero line.
+        over paired (tag, theta) of each pin hole, against the mean camera-to-tag distance (m)
+        of those configurations (:func:`~simgap.analysis.report.comparisons.change_by_p`), with
+        a zero line.
     """
     cmp = as_comparison(data, baseline)
     change = change_by_p(cmp)
     fig, axes = new_figure_grid(
         title
-        or f"Change of mean |error| vs distance (variant − {cmp.attrs['baseline']!r}, paired "
-        "configurations, both tags, all view angles)"
+        or f"Change of mean |error| vs camera-to-tag distance (variant − "
+        f"{cmp.attrs['baseline']!r}, paired configurations, both tags, all view angles)"
     )
-    p = change["p"].values
     for ax, axis in zip(axes.flat, AXES, strict=True):
         for variant in change["variant"].values:
-            ax.plot(p, change.sel(variant=variant, axis=axis), marker="o", ms=3, label=variant)
+            one = change.sel(variant=variant, axis=axis)
+            ax.plot(one["distance_m"], one, marker="o", ms=3, label=variant)
         ax.axhline(0.0, color="k", lw=0.8)
         unit = display_unit(axis)[0]
         ax.set_title(f"{axis}: change of mean |error| [{unit}]")
         ax.set_ylabel(f"Δ mean |{axis} error| [{unit}]")
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
-        ax.set_xlabel("pin hole p")
+        ax.set_xlabel(f"{DISTANCE_LABEL}, pin-hole mean")
     handles, labels = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=max(1, len(labels)))
     return fig
@@ -270,30 +442,26 @@ def plot_change_by_distance(
 def _draw_change_heatmap(
     fig: Figure | SubFigure, ax: Axes, cmp: xr.Dataset, variant: str, tag: int, axis: str
 ) -> None:
-    """Draw the signed shift of one variant, tag and axis over (view angle, p)."""
+    """Draw the signed shift of one variant, tag and axis over (view angle, pin hole)."""
     unit, scale = display_unit(axis)
-    signed = cmp["signed_shift"].sel(variant=variant, tag=tag, axis=axis) * scale
-    signed = signed.assign_coords(angle=cmp["view_angle_deg"].sel(tag=tag))
-    signed = signed.sortby(["p", "angle"]).transpose("p", "theta")
-    shared = np.abs(cmp["signed_shift"].sel(variant=variant, axis=axis).values) * scale
-    limit = max(float(np.nanmax(shared, initial=0.0)), _MIN_COLOUR_LIMIT)
-    angle_edges = cell_edges(signed["angle"].values)
-    mesh = ax.pcolormesh(
-        angle_edges,
-        cell_edges(signed["p"].values.astype(float)),
-        np.ma.masked_invalid(signed.values),
-        cmap=colormaps[SIGNED_CMAP].with_extremes(bad=NO_DATA_GREY),
-        norm=Normalize(-limit, limit),
-    )
-    columns = np.flatnonzero(np.isfinite(signed.values).any(axis=0))
-    if columns.size:  # show the paired angles plus one grey cell on each side
-        lo, hi = max(columns[0] - 1, 0), min(columns[-1] + 1, angle_edges.size - 2)
-        ax.set_xlim(angle_edges[lo], angle_edges[hi + 1])
-    fig.colorbar(mesh, ax=ax, label=f"Δ {axis} [{unit}]")
-    ax.set_title(f"tag {tag}, {axis}: signed change [{unit}]")
+
+    def on_grid(da: xr.DataArray) -> xr.DataArray:
+        da = da.assign_coords(angle=cmp["view_angle_deg"].sel(tag=tag))
+        return da.sortby(["p", "angle"]).transpose("p", "theta")
+
+    signed = on_grid(cmp["signed_shift"].sel(variant=variant, tag=tag, axis=axis) * scale)
+    paired = on_grid(cmp["paired"].sel(variant=variant, tag=tag))
+    keep = _shown_columns(paired.values)  # the paired angles plus one grey cell on each side
+    signed, paired = signed.isel(theta=keep), paired.isel(theta=keep)
+    shared = cmp["signed_shift"].sel(variant=variant, axis=axis).values * scale
+    limit = robust_colour_limit(shared, floor=_MIN_COLOUR_LIMIT)
+    beyond = _signed_mesh(fig, ax, signed.values, limit, f"Δ {axis} [{unit}]")
+    sampled_axis(signed["angle"].values, "{:.0f}").apply(ax, "x")
+    distance = on_grid(cmp["distance_m"].sel(tag=tag)).sel(theta=signed["theta"])
+    row_distance_labels(distance, paired).apply(ax, "y")
+    ax.set_title(_with_note(f"tag {tag}, {axis}: signed change [{unit}]", beyond))
     ax.set_xlabel("view angle from facing [deg]")
-    ax.set_ylabel("pin hole p")
-    ax.set_yticks(signed["p"].values)
+    ax.set_ylabel(ROW_DISTANCE_LABEL)
 
 
 def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = None) -> Figure:
@@ -313,9 +481,11 @@ def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = N
     -------
     matplotlib.figure.Figure
         One block of 2x3 panels (tx, ty, tz / rx, ry, rz) per tag: repeat-mean signed error,
-        variant - reference, in mm or mrad, over view angle (deg, 0 = facing the camera) and pin
-        hole; diverging colours centred on 0 with limits shared by the tags of an axis; grey
-        where the configuration is not paired.
+        variant - reference, in mm or mrad, one cell per sampled view angle (deg, 0 = facing
+        the camera) and pin hole (rows ticked with their median camera-to-tag distance, m);
+        diverging colours centred on 0 with a robust limit shared by the tags of an axis
+        (:func:`robust_colour_limit`; cells beyond it hatched, counted in the panel's title);
+        grey where the configuration is not paired.
     """
     cmp = as_comparison(data, baseline)
     _check_compared(cmp, variant)
@@ -324,12 +494,14 @@ def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = N
     FigureCanvasAgg(fig)
     fig.suptitle(
         f"Signed error change, {variant!r} − {cmp.attrs['baseline']!r} (mean of "
-        f"{cmp.attrs['n_repeat']} repeat(s)); grey: not paired"
+        f"{cmp.attrs['n_repeat']} repeat(s))"
     )
     for sub, tag in zip(np.atleast_1d(fig.subfigures(len(tags), 1)), tags, strict=True):
         sub.suptitle(f"Tag {tag}")
         for ax, axis in zip(sub.subplots(2, 3).flat, AXES, strict=True):
             _draw_change_heatmap(sub, ax, cmp, variant, tag, axis)
+    legend = heatmap_legend_handles("not paired", undetected=False)
+    fig.legend(handles=legend, loc="outside lower center", ncols=2)
     return fig
 
 
@@ -351,6 +523,8 @@ def plot_axis_change_heatmap(
     fig.suptitle(f"Signed {axis} error change, {variant!r} − {cmp.attrs['baseline']!r}")
     for ax, tag in zip(np.atleast_1d(fig.subplots(1, len(tags))), tags, strict=True):
         _draw_change_heatmap(fig, ax, cmp, variant, tag, axis)
+    legend = heatmap_legend_handles("not paired", undetected=False)
+    fig.legend(handles=legend, loc="outside lower center", ncols=1)
     return fig
 
 

@@ -17,6 +17,7 @@ import yaml
 
 from simgap.analysis.paper import threshold_for
 from simgap.core.axes import AXES, AXIS_UNITS
+from simgap.core.distance import camera_to_tag_distance
 from simgap.core.rig import Rig, load_rig
 
 REQUIRED_VARIABLES: Final[dict[str, tuple[str, ...]]] = {
@@ -28,6 +29,7 @@ REQUIRED_VARIABLES: Final[dict[str, tuple[str, ...]]] = {
 
 REQUIRED_COORDS: Final[tuple[str, ...]] = ("tag", "p", "theta", "axis", "variant", "repeat")
 """Coordinates the report reads."""
+
 
 @dataclass(frozen=True)
 class VariantSummary:
@@ -43,6 +45,8 @@ class VariantSummary:
         Carriage pin-hole pitch in metres.
     carriage_m : xarray.DataArray
         Carriage position ``pin_pitch_m * p`` in metres, dim ``p``.
+    distance_m : xarray.DataArray
+        Camera-to-tag distance in metres, dims ``(tag, p, theta)`` (:func:`dataset_distance_m`).
     abs_error : xarray.DataArray
         Mean over repeats of the absolute error (m for ``t*``, rad for ``r*``), dims
         ``(tag, p, theta, axis)``; NaN where the tag is not visible or was never detected.
@@ -67,6 +71,7 @@ class VariantSummary:
     n_repeat: int
     pin_pitch_m: float
     carriage_m: xr.DataArray
+    distance_m: xr.DataArray
     abs_error: xr.DataArray
     signed_error: xr.DataArray
     visible: xr.DataArray
@@ -121,6 +126,36 @@ def check_report_dataset(ds: xr.Dataset) -> None:
     missing_axes = [a for a in AXES if a not in ds["axis"].values.tolist()]
     if missing_axes:
         raise ValueError(f"coordinate 'axis' lacks values: {', '.join(missing_axes)}")
+
+
+def dataset_distance_m(ds: xr.Dataset) -> xr.DataArray:
+    """Camera-to-tag distance of every configuration of a result dataset (m).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Result dataset: its ``expected`` poses are read (the dataset contract), or, for a dataset
+        without them, the nominal poses of its rig (:func:`dataset_rig`).
+
+    Returns
+    -------
+    xarray.DataArray
+        Dims ``(tag, p, theta)``, :func:`simgap.core.distance.camera_to_tag_distance` in m.
+    """
+    order = ("tag", "p", "theta")
+    if "expected" in ds.data_vars:
+        poses = ds["expected"].transpose(*order, "axis").values
+    else:
+        grid = np.meshgrid(ds["tag"].values, ds["p"].values, ds["theta"].values, indexing="ij")
+        flat = dataset_rig(ds).eyepoints_from_tags(*(g.ravel() for g in grid))
+        poses = flat[:, :3, 3].reshape(grid[0].shape + (3,))
+    return xr.DataArray(
+        camera_to_tag_distance(poses),
+        dims=order,
+        coords={d: ds[d].values for d in order},
+        name="distance_m",
+        attrs={"units": "m", "long_name": "camera-to-tag distance"},
+    )
 
 
 def dataset_rig(ds: xr.Dataset) -> Rig:
@@ -203,6 +238,7 @@ def summarize_variant(ds_variant: xr.Dataset, pin_pitch_m: float | None = None) 
         n_repeat=int(ds_variant.sizes["repeat"]),
         pin_pitch_m=float(pin_pitch_m),
         carriage_m=(pin_pitch_m * ds_variant["p"]).astype(float).rename("carriage_m"),
+        distance_m=dataset_distance_m(ds_variant),
         abs_error=abs_error.rename("abs_error"),
         signed_error=signed_error.rename("signed_error"),
         visible=visible,
