@@ -94,3 +94,11 @@ def test_every_simgap_command_of_the_readme_and_docs_names_a_command_and_its_opt
                 assert word.split("=")[0] in names, f"{page.name}: {word} unknown in {line!r}"
         seen += 1
     assert seen >= 15  # README and docs/ show at least this many simgap calls today
+
+
+def test_every_repository_path_the_experiments_and_scenes_name_exists():
+    for folder in ("experiments", "mitsuba_scenes", "docs/examples"):
+        for path in (REPO / folder).glob("*.yaml"):
+            text = path.read_text()
+            for named in re.findall(r"\b((?:src|mitsuba_scenes|experiments|docs)/[\w/.-]+\.\w+)", text):
+                assert (REPO / named).exists(), f"{path.name} names missing {named}"
