@@ -100,5 +100,6 @@ def test_every_repository_path_the_experiments_and_scenes_name_exists():
     for folder in ("experiments", "mitsuba_scenes", "docs/examples"):
         for path in (REPO / folder).glob("*.yaml"):
             text = path.read_text()
-            for named in re.findall(r"\b((?:src|mitsuba_scenes|experiments|docs)/[\w/.-]+\.\w+)", text):
+            pattern = r"\b((?:src|mitsuba_scenes|experiments|docs)/[\w/.-]+\.\w+)"
+            for named in re.findall(pattern, text):
                 assert (REPO / named).exists(), f"{path.name} names missing {named}"
