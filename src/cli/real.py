@@ -25,6 +25,7 @@ from simgap.cli.outputs import (
     RESULT_DATASET,
     ROS1_BAG,
     ROS2_BAG,
+    ROS2_BAG_FILE,
     OverwriteOption,
     check_outputs,
     experiment_inputs,
@@ -105,9 +106,20 @@ def export_bag(
         Path,
         typer.Argument(help="Experiment YAML, simulated result dataset (.nc) or capture folder."),
     ],
-    output: Annotated[Path, output_option("Bag to write: .bag file or folder.")],
+    output: Annotated[
+        Path,
+        output_option(
+            "Bag to write: NAME.bag (ROS 1), NAME.mcap or NAME.db3 (ROS 2, one file), "
+            "NAME (ROS 2 bag folder)."
+        ),
+    ],
     fmt: str | None = typer.Option(
-        None, "--format", help="ros1 or ros2 (default: ros1 for a .bag output, else ros2)."
+        None, "--format", help="ros1 or ros2 (default: from the output's name; must agree)."
+    ),
+    storage: str | None = typer.Option(
+        None,
+        "--storage",
+        help="ROS 2 bag folder storage: sqlite3 (default) or mcap (a file's extension decides).",
     ),
     compressed: bool = typer.Option(
         False, "--compressed/--raw", help="CompressedImage (PNG, or the file's bytes) or raw bgr8."
@@ -116,23 +128,34 @@ def export_bag(
     cache: CacheOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
+    """Write frames, CameraInfo, fixture joints, /tf_static, /tf and tag poses as a ROS bag."""
+    from simgap.core.config import ConfigError
     from simgap.core.paths import default_cache_dir
-    from simgap.pipeline.bag import BAG_FORMATS, capture_to_bag, experiment_to_bag
+    from simgap.pipeline.bag import capture_to_bag, experiment_to_bag
+    from simgap.pipeline.bag.formats import ROS2_FILE_SUFFIXES, bag_target
 
-    fmt = fmt or ("ros1" if output.suffix == ".bag" else "ros2")
-    if fmt not in BAG_FORMATS:
-        fail(f"--format: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
     inputs = [("SOURCE", source)] if source.is_dir() else simulation_inputs(source, "SOURCE")
-    kind = ROS1_BAG if fmt == "ros1" else ROS2_BAG
+    # what the name would be written as: checked before its form, which the name must agree with
+    suffix = output.suffix.lower()
+    kind = ROS2_BAG_FILE if suffix in ROS2_FILE_SUFFIXES else ROS2_BAG
+    kind = ROS1_BAG if fmt == "ros1" or suffix == ".bag" else kind
     check_outputs([(OUTPUT, output, kind)], inputs, overwrite)
+    try:
+        target = bag_target(output, fmt, storage)
+    except ConfigError as exc:
+        fail(str(exc))
+    opts = {
+        "compressed": compressed,
+        "storage": target.storage if target.format == "ros2" else None,
+    }
     if source.is_dir():
-        path = capture_to_bag(source, output, fmt, compressed=compressed)
+        path = capture_to_bag(source, output, target.format, **opts)
     else:
         dataset = None
         if source.suffix == ".nc":
             dataset = read_result_dataset(source)
         exp = read_simulation(source)
         cache_dir = cache or default_cache_dir()
-        path = experiment_to_bag(exp, cache_dir, output, fmt, dataset, variant, compressed)
-    typer.echo(f"wrote {path} ({fmt})")
+        path = experiment_to_bag(exp, cache_dir, output, target.format, dataset, variant, **opts)
+    what = target.format if target.storage is None else f"{target.format}, {target.storage}"
+    typer.echo(f"wrote {path} ({what})")
