@@ -61,6 +61,12 @@ def ingest(
     keep_capture: Path | None = typer.Option(
         None, "--keep-capture", help="Bag only: keep the intermediate capture folder here."
     ),
+    calibration: Path | None = typer.Option(
+        None,
+        "--calibration",
+        help="Calibration file under any name (ROS ost.yaml / camera_info YAML or OpenCV YAML); "
+        "wins over camera.yaml and a bag's CameraInfo.",
+    ),
     overwrite: OverwriteOption = False,
 ) -> None:
     """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
@@ -70,15 +76,15 @@ def ingest(
     from simgap.results.dataset import write_netcdf
 
     bag = is_bag(capture)
-    inputs = [("CAPTURE", capture), ("--ranges", ranges)]
+    inputs = [("CAPTURE", capture), ("--ranges", ranges), ("--calibration", calibration)]
     inputs += experiment_inputs(experiment, "--experiment") if experiment is not None else []
     outputs = [(OUTPUT, output, RESULT_DATASET)]
     outputs += [("--keep-capture", keep_capture, CAPTURE_FOLDER)] if bag else []
     check_outputs(outputs, inputs, overwrite)
-    kwargs = {}
+    kwargs: dict = {"calibration_file": calibration}
     if experiment is not None:
         exp = read_experiment(experiment)
-        kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
+        kwargs |= {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
     if bag:
         bag_options = {
             "ranges_csv": ranges,
