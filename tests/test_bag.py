@@ -14,14 +14,18 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag1 import Writer as Writer1
+from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from simgap.cli import app
+from simgap.core import transforms as tf
 from simgap.core.config import ConfigError
 from simgap.pipeline.bag import (
     CAMERA_INFO_TOPIC,
     FIXTURE_TOPIC,
     IMAGE_TOPIC,
+    TF_STATIC_TOPIC,
+    TF_TOPIC,
     bag_to_capture,
     capture_to_bag,
     ingest_bag,
@@ -129,6 +133,83 @@ def test_bag_contents(tmp_path, png_capture, rig):
     pos = msg.pose.position
     np.testing.assert_allclose([pos.x, pos.y, pos.z], [t[0], -t[2], t[1]], atol=1e-12)
     assert msg.header.frame_id == "camera_color_optical_frame"
+
+
+def read_transforms(reader, topic: str) -> list[dict[tuple[str, str], np.ndarray]]:
+    """Each TFMessage of ``topic`` as {(parent, child): parent_from_child 4x4}."""
+    conns = [c for c in reader.connections if c.topic == topic]
+    out = []
+    for conn, _, raw in reader.messages(connections=conns):
+        links = {}
+        for t in reader.deserialize(raw, conn.msgtype).transforms:
+            q, v = t.transform.rotation, t.transform.translation
+            r = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+            links[(t.header.frame_id, t.child_frame_id)] = tf.make(r, (v.x, v.y, v.z))
+        out.append(links)
+    return out
+
+
+@pytest.mark.parametrize(
+    "name,magic", [("c.mcap", b"\x89MCAP0\r\n"), ("c.db3", b"SQLite format 3")]
+)
+def test_single_file_ros2_bags_carry_the_transform_tree(
+    tmp_path, png_capture, png_ds, rig, name, magic
+):
+    out = tmp_path / name
+    res = CliRunner().invoke(app, ["export-bag", str(png_capture), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.is_file() and out.read_bytes().startswith(magic)  # one real file of that storage
+    assert [p.name for p in tmp_path.iterdir()] == [name]
+    with AnyReader([out]) as reader:
+        (static,) = read_transforms(reader, TF_STATIC_TOPIC)
+        moving = read_transforms(reader, TF_TOPIC)
+    # the rig's CAD links, float64 all the way: equal to 1e-9 (m and rotation matrix entries)
+    want = {
+        ("carriage", "eyepoint"): rig.carriage_from_eyepoint(),
+        ("eyepoint", "camera_color_optical_frame"): tf.make(tf.GLOBAL_FROM_CV),
+        ("turntable", "tag0"): rig.turntable_from_tag(0),
+        ("turntable", "tag1"): rig.turntable_from_tag(1),
+    }
+    assert static.keys() == want.keys()
+    for key, m in want.items():
+        np.testing.assert_allclose(static[key], m, atol=1e-9, err_msg=str(key))
+    assert len(moving) == len(CONFIGS)
+    for links, (p, deg, _) in zip(moving, CONFIGS, strict=True):
+        theta = math.radians(deg)
+        np.testing.assert_allclose(
+            links[("rail", "carriage")], rig.rail_from_carriage(p), atol=1e-9
+        )
+        np.testing.assert_allclose(
+            links[("rail", "turntable")], rig.rail_from_turntable(theta), atol=1e-9
+        )
+        # the tree gives the expected pose: rail -> carriage -> eyepoint vs rail -> turntable -> tag
+        rail_from_eye = links[("rail", "carriage")] @ static[("carriage", "eyepoint")]
+        eye_from_tag = (
+            tf.invert(rail_from_eye) @ links[("rail", "turntable")] @ static[("turntable", "tag0")]
+        )
+        np.testing.assert_allclose(eye_from_tag, rig.eyepoint_from_tag(0, p, theta), atol=1e-9)
+    assert_same_data(png_ds, ingest_bag(out))
+
+
+def test_bag_names_decide_the_storage(tmp_path, png_capture):
+    runner = CliRunner()
+    folder = tmp_path / "mcap_folder"
+    res = runner.invoke(
+        app, ["export-bag", str(png_capture), "-o", str(folder), "--storage", "mcap"]
+    )
+    assert res.exit_code == 0, res.output
+    assert "storage_identifier: mcap" in (folder / "metadata.yaml").read_text()
+    assert (folder / "mcap_folder.mcap").is_file()
+    for args, message in (
+        (["-o", str(tmp_path / "x.bag2")], "extension '.bag2': expected NAME.bag (ROS 1)"),
+        (["-o", str(tmp_path / "x.mcap"), "--format", "ros1"], "--format ros1"),
+        (["-o", str(tmp_path / "x.mcap"), "--storage", "sqlite3"], "--storage sqlite3"),
+        (["-o", str(tmp_path / "x"), "--storage", "zip"], "'zip' is not one of 'sqlite3', 'mcap'"),
+    ):
+        bad = runner.invoke(app, ["export-bag", str(png_capture), *args])
+        assert bad.exit_code == 2 and message in bad.output, bad.output
+        assert "Traceback" not in bad.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mcap_folder"]
 
 
 def write_raw_bag(path: Path, rig, frames, stamps_ns, extra_image_topic: bool = False) -> Path:

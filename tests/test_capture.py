@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import math
+import shutil
 from pathlib import Path
 
 import cv2
@@ -17,7 +18,7 @@ from typer.testing import CliRunner
 
 from simgap.cli import app
 from simgap.core.config import ConfigError
-from simgap.core.rig import CameraModel
+from simgap.core.rig import CameraModel, load_rig
 from simgap.pipeline.capture import (
     CaptureWarning,
     calibration_to_yaml,
@@ -502,3 +503,55 @@ def test_cli_ingest_bad_experiment(tmp_path, rig):
     )
     assert res.exit_code == 2, res.output
     assert "nope.yaml: file not found" in res.output
+
+
+def test_calibration_file_under_any_name(tmp_path, sample, sample_ds):
+    """``--calibration FILE`` replaces camera.yaml: a ROS ost.yaml in a folder without one, and
+    an OpenCV file winning over the folder's camera.yaml; both give the same poses (same
+    calibration, same frames), and the dataset names the file it read."""
+    true_cal = CameraModel(fx=TRUE_FOCAL_PX, fy=TRUE_FOCAL_PX)
+    ost = tmp_path / "ost.yaml"
+    ost.write_text(calibration_to_yaml(true_cal, "ros"))
+    opencv = tmp_path / "calib_opencv.yml"
+    opencv.write_text(calibration_to_yaml(true_cal, "opencv"))
+    bare = tmp_path / "bare"
+    shutil.copytree(sample, bare, ignore=shutil.ignore_patterns("camera.yaml"))
+    with pytest.raises(ConfigError, match="camera.yaml: calibration file not found"):
+        read_capture(bare, load_rig())
+    from_ost = ingest(bare, calibration_file=ost)
+    out = tmp_path / "real.nc"
+    args = ["ingest", str(sample), "-o", str(out), "--no-progress", "--calibration", str(opencv)]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    both = read_netcdf(out)
+    for ds, path in ((from_ost, ost), (both, opencv)):
+        assert ds.attrs["calibration_source"] == "--calibration"
+        assert ds.attrs["calibration_path"] == str(path.resolve())
+        assert ds.attrs["calibration_file"] == path.read_text()
+        assert f"fx: {TRUE_FOCAL_PX}" in ds.attrs["calibration_yaml"]
+    np.testing.assert_allclose(both.error.values, from_ost.error.values, rtol=1e-9, equal_nan=True)
+    # the true focal length moves every visible distance error (the camera.yaml one is 2 % short)
+    _, err_file = visible_ty(sample_ds)
+    _, err_opt = visible_ty(both)
+    assert np.all(err_file < err_opt)
+    assert sample_ds.attrs["calibration_source"] == "camera.yaml"
+
+
+@pytest.mark.parametrize(
+    "text,message",
+    [
+        (None, "--calibration {path}: calibration file not found"),
+        ("image_width: 1920\n", "{path}: camera_matrix"),
+    ],
+)
+def test_cli_ingest_bad_calibration_file(tmp_path, rig, text, message):
+    folder = make_capture(tmp_path, rig)
+    path = tmp_path / "ost.yaml"
+    if text is not None:
+        path.write_text(text)
+    out = tmp_path / "r.nc"
+    args = ["ingest", str(folder), "-o", str(out), "--calibration", str(path)]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert message.format(path=path) in res.output and "Traceback" not in res.output
+    assert not out.exists()

@@ -249,10 +249,11 @@ def test_long_commands_share_one_definition_of_cache_scheduler_progress():
 
 
 def test_bad_bag_format_names_the_allowed_values(runner, tmp_path):
-    from simgap.cli.options import BagFormat
-    from simgap.pipeline.bag.formats import BAG_FORMATS
+    from simgap.cli.options import BagFormat, BagStorage
+    from simgap.pipeline.bag.formats import BAG_FORMATS, BAG_STORAGES
 
     assert tuple(f.value for f in BagFormat) == BAG_FORMATS  # the choice is the writer's
+    assert tuple(s.value for s in BagStorage) == BAG_STORAGES
     out = tmp_path / "x.bag"
     args = ["export-bag", str(tmp_path), "-o", str(out), "--format", "ros3"]
     result = runner.invoke(app, args)

@@ -47,10 +47,31 @@ def errormodel(
         outputs.append((f"{OUTPUT} (its .json)", output.with_suffix(".json"), ERROR_MODEL))
     check_outputs(outputs, [("RESULT", result)], overwrite)
     ds = read_result_dataset(result)
+    from simgap.analysis.errormodel import FitSettings
+    from simgap.analysis.errormodel.io import FIT_METHODS
+
     model = fit_error_model(ds, variant=variant, source=str(result))
-    summary = check_error_model(ds, variant=variant) if check else None
+    summary, skipped = None, ""
+    if check:
+        try:
+            summary = check_error_model(ds, variant=variant)
+        except ValueError as exc:  # half of a small dataset: too few detections to fit
+            skipped = str(exc)
     for path in model.save(output):
         typer.echo(str(path))
+    for tag, n, how in zip(
+        model.tags, model.ds.detections.values, model.ds.fit.values, strict=True
+    ):
+        what = {
+            "local": "local fit",
+            "pooled": "pooled: constant bias and spread over its span, wide t(n-1) 90 % "
+            "intervals, no correlation (fewer detections than the local fit's "
+            f"{FitSettings().min_detections})",
+            "none": "not fitted (too few detections)",
+        }[FIT_METHODS[int(how)]]
+        typer.echo(f"tag {tag}: {int(n)} detections, {what}")
+    if skipped:
+        typer.echo(f"held-out check skipped: on half the configurations {skipped}")
     if summary is not None:
         cover = ", ".join(f"{a} {v:.0%}" for a, v in summary["coverage"].items())
         det = summary["detection"]

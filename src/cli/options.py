@@ -49,3 +49,10 @@ class BagFormat(str, enum.Enum):
 
     ros1 = "ros1"
     ros2 = "ros2"
+
+
+class BagStorage(str, enum.Enum):
+    """``export-bag --storage``: the ROS 2 storages of ``bag.formats.BAG_STORAGES``."""
+
+    sqlite3 = "sqlite3"
+    mcap = "mcap"

@@ -82,6 +82,7 @@ DIAGNOSIS_FOLDER = OutputKind("diagnosis folder", folder=True)
 VALIDATION_FOLDER = OutputKind("validation folder", folder=True)
 CAPTURE_FOLDER = OutputKind("capture folder", folder=True)
 ROS1_BAG = OutputKind("ROS 1 bag", is_ours=_is_exported_bag)
+ROS2_BAG_FILE = OutputKind("ROS 2 bag file (.mcap or .db3)", is_ours=_is_exported_bag)
 ROS2_BAG = OutputKind(
     "ROS 2 bag folder", folder=True, is_ours=_is_ros2_bag_or_empty, replaced_whole=True
 )

@@ -8,9 +8,10 @@ from typing import Annotated
 
 import typer
 
-from simgap.cli.app import app, read_experiment, read_result_dataset, read_simulation
+from simgap.cli.app import app, fail, read_experiment, read_result_dataset, read_simulation
 from simgap.cli.options import (
     BagFormat,
+    BagStorage,
     CacheOption,
     OverwriteOption,
     ProgressOption,
@@ -23,6 +24,7 @@ from simgap.cli.outputs import (
     RESULT_DATASET,
     ROS1_BAG,
     ROS2_BAG,
+    ROS2_BAG_FILE,
     check_outputs,
     experiment_inputs,
     simulation_inputs,
@@ -57,6 +59,12 @@ def ingest(
     keep_capture: Path | None = typer.Option(
         None, "--keep-capture", help="Bag only: keep the intermediate capture folder here."
     ),
+    calibration: Path | None = typer.Option(
+        None,
+        "--calibration",
+        help="Calibration file under any name (ROS ost.yaml / camera_info YAML or OpenCV YAML); "
+        "wins over camera.yaml and a bag's CameraInfo.",
+    ),
     overwrite: OverwriteOption = False,
 ) -> None:
     """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
@@ -66,15 +74,15 @@ def ingest(
     from simgap.results.dataset import write_netcdf
 
     bag = is_bag(capture)
-    inputs = [("CAPTURE", capture), ("--ranges", ranges)]
+    inputs = [("CAPTURE", capture), ("--ranges", ranges), ("--calibration", calibration)]
     inputs += experiment_inputs(experiment, "--experiment") if experiment is not None else []
     outputs = [(OUTPUT, output, RESULT_DATASET)]
     outputs += [("--keep-capture", keep_capture, CAPTURE_FOLDER)] if bag else []
     check_outputs(outputs, inputs, overwrite)
-    kwargs = {}
+    kwargs: dict = {"calibration_file": calibration}
     if experiment is not None:
         exp = read_experiment(experiment)
-        kwargs = {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
+        kwargs |= {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
     if bag:
         bag_options = {
             "ranges_csv": ranges,
@@ -102,9 +110,20 @@ def export_bag(
         Path,
         typer.Argument(help="Experiment YAML, simulated result dataset (.nc) or capture folder."),
     ],
-    output: Annotated[Path, output_option("Bag to write: .bag file or folder.")],
+    output: Annotated[
+        Path,
+        output_option(
+            "Bag to write: NAME.bag (ROS 1), NAME.mcap or NAME.db3 (ROS 2, one file), "
+            "NAME (ROS 2 bag folder)."
+        ),
+    ],
     fmt: BagFormat | None = typer.Option(
-        None, "--format", help="Bag format (default: ros1 for a .bag output, else ros2)."
+        None, "--format", help="Bag format (default: from the output's name; must agree)."
+    ),
+    storage: BagStorage | None = typer.Option(
+        None,
+        "--storage",
+        help="ROS 2 bag folder storage (default sqlite3; a file's extension decides).",
     ),
     compressed: bool = typer.Option(
         False, "--compressed/--raw", help="CompressedImage (PNG, or the file's bytes) or raw bgr8."
@@ -113,22 +132,36 @@ def export_bag(
     cache: CacheOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Write frames, CameraInfo, fixture joints and tag poses as a ROS 1 or ROS 2 bag."""
+    """Write frames, CameraInfo, fixture joints, /tf_static, /tf and tag poses as a ROS bag."""
+    from simgap.core.config import ConfigError
     from simgap.core.paths import default_cache_dir
     from simgap.pipeline.bag import capture_to_bag, experiment_to_bag
+    from simgap.pipeline.bag.formats import ROS2_FILE_SUFFIXES, bag_target
 
-    fmt = fmt or (BagFormat.ros1 if output.suffix == ".bag" else BagFormat.ros2)
-    fmt = fmt.value
+    fmt = fmt.value if fmt else None
+    storage = storage.value if storage else None
     inputs = [("SOURCE", source)] if source.is_dir() else simulation_inputs(source, "SOURCE")
-    kind = ROS1_BAG if fmt == "ros1" else ROS2_BAG
+    # what the name would be written as: checked before its form, which the name must agree with
+    suffix = output.suffix.lower()
+    kind = ROS2_BAG_FILE if suffix in ROS2_FILE_SUFFIXES else ROS2_BAG
+    kind = ROS1_BAG if fmt == "ros1" or suffix == ".bag" else kind
     check_outputs([(OUTPUT, output, kind)], inputs, overwrite)
+    try:
+        target = bag_target(output, fmt, storage)
+    except ConfigError as exc:
+        fail(str(exc))
+    opts = {
+        "compressed": compressed,
+        "storage": target.storage if target.format == "ros2" else None,
+    }
     if source.is_dir():
-        path = capture_to_bag(source, output, fmt, compressed=compressed)
+        path = capture_to_bag(source, output, target.format, **opts)
     else:
         dataset = None
         if source.suffix == ".nc":
             dataset = read_result_dataset(source)
         exp = read_simulation(source)
         cache_dir = cache or default_cache_dir()
-        path = experiment_to_bag(exp, cache_dir, output, fmt, dataset, variant, compressed)
-    typer.echo(f"wrote {path} ({fmt})")
+        path = experiment_to_bag(exp, cache_dir, output, target.format, dataset, variant, **opts)
+    what = target.format if target.storage is None else f"{target.format}, {target.storage}"
+    typer.echo(f"wrote {path} ({what})")

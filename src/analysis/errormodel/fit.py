@@ -12,7 +12,7 @@ from scipy import stats
 
 from simgap.analysis.errormodel import smoothing
 from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.errormodel.io import SCHEMA
+from simgap.analysis.errormodel.io import FIT_METHODS, SCHEMA
 from simgap.analysis.errormodel.model import Z90, ErrorModel
 from simgap.core.axes import AXES
 from simgap.core.robust import MAD_TO_SIGMA
@@ -38,7 +38,11 @@ class FitSettings:
         Kernel mass (about the number of configurations within one bandwidth) a node needs to be
         covered.
     min_detections : int
-        Fewest detections of a tag to fit its errors at all.
+        Fewest detections of a tag for the local fit; a tag with fewer is pooled.
+    min_pooled : int
+        Fewest detections of a tag for the pooled fit (:func:`_pooled_tag`); a tag with fewer is
+        not fitted. 3: the pooled spread needs two degrees of freedom to be finite in practice
+        (t(0.95, 1) = 6.31, t(0.95, 2) = 2.92), and a node needs ``min_support`` (3) behind it.
     robust_iterations : int
         Bisquare robustness iterations of the local-linear fit.
     """
@@ -50,6 +54,7 @@ class FitSettings:
     step_obliquity: float = math.radians(5.0)
     min_support: float = 3.0
     min_detections: int = 12
+    min_pooled: int = 3
     robust_iterations: int = 3
 
     def __post_init__(self) -> None:
@@ -58,6 +63,8 @@ class FitSettings:
                 raise ValueError(f"{name}: expected a positive value, got {getattr(self, name)}")
         if self.min_support <= 0 or self.min_detections < 4:
             raise ValueError("min_support: expected > 0; min_detections: expected >= 4")
+        if not 2 <= self.min_pooled <= self.min_detections:
+            raise ValueError("min_pooled: expected 2 <= min_pooled <= min_detections")
 
 
 def _samples(ds: xr.Dataset, tag: int, config_mask: np.ndarray | None):
@@ -79,6 +86,52 @@ def _grid(lo: float, hi: float, step: float) -> np.ndarray:
     return np.linspace(lo, hi, n + 1)
 
 
+def _inside(nodes: np.ndarray, x: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Nodes within the bounding box of ``x`` widened by half a bandwidth on every side."""
+    if not len(x):
+        return np.zeros(len(nodes), bool)
+    lo, hi = x.min(axis=0) - h / 2, x.max(axis=0) + h / 2
+    return np.all((nodes >= lo) & (nodes <= hi), axis=1)
+
+
+def _pooled_tag(x, err, xd, flags, settings: FitSettings, nodes, shape, out: dict) -> dict:
+    """A tag with too few detections for the local fit: one constant per axis, t intervals.
+
+    Bias: the mean of the ``n`` errors; spread and ``bias_se`` are scaled so that the model's
+    90 % interval, ``bias +- Z90 sqrt(spread**2 + bias_se**2)``, is the exact 90 % prediction
+    interval of a new normal error, ``mean +- t(0.95, n-1) s sqrt(1 + 1/n)`` (``s`` the sample
+    standard deviation). No correlation is estimated (identity). The values hold only within the
+    detections' (distance, obliquity) span widened by half a bandwidth: there ``support_error``
+    is ``n``, elsewhere 0 (not covered). Detection: the Jeffreys rate of the facing trials,
+    Beta(hits + 1/2, misses + 1/2), its 5 % and 95 % quantiles, over their widened span.
+    """
+    h = np.array([settings.h_distance, settings.h_obliquity])
+    n = len(x)
+    t90 = float(stats.t.ppf(0.95, n - 1))
+    s = np.std(err, axis=0, ddof=1)
+    inside = _inside(nodes, x, h).reshape(shape)
+    factor = t90 / Z90
+    for key, value in (
+        ("bias", err.mean(axis=0)),
+        ("spread", factor * s),
+        ("bias_se", factor * s / math.sqrt(n)),
+    ):
+        out[key][inside] = value
+    out["calibration"][:] = factor
+    out["support_error"] = np.where(inside, float(n), 0.0)
+    trials = _inside(nodes, xd, h).reshape(shape)
+    a, b = float(flags.sum()) + 0.5, float(len(flags) - flags.sum()) + 0.5
+    for key, value in (
+        ("p_detect", a / (a + b)),
+        ("p_detect_lo", stats.beta.ppf(0.05, a, b)),
+        ("p_detect_hi", stats.beta.ppf(0.95, a, b)),
+    ):
+        out[key] = np.where(trials, value, np.nan)
+    out["support_detection"] = np.where(trials, float(len(flags)), 0.0)
+    out["fit"] = FIT_METHODS.index("pooled")
+    return out
+
+
 def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int):
     h = np.array([settings.h_distance, settings.h_obliquity])
     nodes = np.stack(np.meshgrid(grid_d, grid_o, indexing="ij"), axis=-1).reshape(-1, 2)
@@ -89,7 +142,10 @@ def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int)
         "bias_se": np.full(shape + (6,), np.nan),
         "calibration": np.full(6, np.nan),
         "correlation": np.eye(6),
+        "fit": FIT_METHODS.index("none"),
     }
+    if settings.min_pooled <= len(x) < settings.min_detections:
+        return _pooled_tag(x, err, xd, flags, settings, nodes, shape, out)
     k_det, _ = smoothing.kernel(
         nodes, xd, np.array([settings.h_distance, settings.h_obliquity_det])
     )
@@ -126,6 +182,7 @@ def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int)
         out["bias_se"][..., j] = (calibration * se_nodes).reshape(shape)
         out["calibration"][j] = calibration
     out["correlation"] = smoothing.rank_correlation(z)
+    out["fit"] = FIT_METHODS.index("local")
     return out
 
 
@@ -159,7 +216,7 @@ def fit_error_model(
     ------
     ValueError
         If a required variable is missing, the variant is unknown, or no tag has at least
-        ``settings.min_detections`` detections (naming the counts).
+        ``settings.min_pooled`` detections (naming the counts and both minimums).
     """
     settings = settings or FitSettings()
     missing = [v for v in ("expected", "error", "detected") if v not in ds]
@@ -173,10 +230,12 @@ def fit_error_model(
     tags = [int(t) for t in ds.tag.values]
     samples = {t: _samples(sub, t, config_mask) for t in tags}
     counts = {t: len(s[0]) for t, s in samples.items()}
-    if max(counts.values()) < settings.min_detections:
+    if max(counts.values()) < settings.min_pooled:
+        found = ", ".join(f"tag {t}: {c}" for t, c in counts.items())
         raise ValueError(
-            f"too few detections to fit errors: {counts} per tag, need at least "
-            f"{settings.min_detections} for one tag"
+            f"too few detections to fit errors ({found}): need at least {settings.min_pooled} "
+            f"detections of one tag for a pooled fit (constant bias and spread, t intervals), "
+            f"{settings.min_detections} for the local fit"
         )
     allx = np.concatenate([s[2] for s in samples.values()])
     grid_d = _grid(allx[:, 0].min(), allx[:, 0].max(), settings.step_distance)
@@ -202,6 +261,15 @@ def fit_error_model(
             "support_error": (plane, stack("support_error")),
             "support_detection": (plane, stack("support_detection")),
             "detections": (("tag",), np.array([counts[t] for t in tags])),
+            "fit": (
+                ("tag",),
+                np.array([f["fit"] for f in fits], np.int8),
+                {
+                    "long_name": "how the tag's errors were fitted",
+                    "flag_values": np.arange(len(FIT_METHODS), dtype=np.int8),
+                    "flag_meanings": " ".join(FIT_METHODS),
+                },
+            ),
         },
         coords={
             "tag": ("tag", np.array(tags)),
@@ -218,7 +286,9 @@ def fit_error_model(
             "schema": SCHEMA,
             "title": "simgap error model",
             "method": "robust local-linear bias, local MAD spread (calibrated to 90 %), "
-            "kernel detection rate; bilinear on the grid",
+            "kernel detection rate; bilinear on the grid. Tags with fewer than min_detections "
+            "detections (fit = pooled): constant mean and sample std with t(n-1) 90 % "
+            "prediction intervals, Jeffreys detection rate, within the data's span",
             "settings": json.dumps(settings.__dict__),
             "variant": variant,
             "source": source,

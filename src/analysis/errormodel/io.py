@@ -20,6 +20,11 @@ from simgap.results.dataset import ERROR_UNITS, write_netcdf
 SCHEMA = "simgap-errormodel/1"
 """Schema name of error-model files (netCDF attr ``schema``, JSON key ``schema``)."""
 
+#: How each tag's errors were fitted: the netCDF ``fit`` variable (CF flag values 0, 1, 2) and
+#: the JSON per-tag ``fit`` string. ``none``: too few detections, NaN; ``pooled``: one constant per
+#: axis with t intervals; ``local``: the local-linear fit (files without ``fit`` are ``local``).
+FIT_METHODS = ("none", "pooled", "local")
+
 #: Per-tag variables of the JSON form.
 JSON_VARIABLES = (
     "bias", "spread", "bias_se", "correlation", "p_detect", "p_detect_lo", "p_detect_hi",
@@ -73,6 +78,7 @@ def dataset_to_json(ds: xr.Dataset) -> dict:
     for t in (int(t) for t in ds.tag.values):
         s = ds.sel(tag=t)
         tags[str(t)] = {k: clean(lists(s[k].values)) for k in JSON_VARIABLES}
+        tags[str(t)]["fit"] = FIT_METHODS[int(s["fit"])] if "fit" in s else "local"
     return {
         "schema": SCHEMA,
         "axes": list(AXES),
@@ -107,6 +113,17 @@ def dataset_from_json(data: dict) -> xr.Dataset:
             "p_detect_hi": (plane, arr("p_detect_hi")),
             "support_error": (plane, arr("support_error")),
             "support_detection": (plane, arr("support_detection")),
+            "fit": (
+                ("tag",),
+                np.array(
+                    [FIT_METHODS.index(data["tags"][str(t)].get("fit", "local")) for t in tags],
+                    np.int8,
+                ),
+                {
+                    "flag_values": np.arange(3, dtype=np.int8),
+                    "flag_meanings": " ".join(FIT_METHODS),
+                },
+            ),
         },
         coords={
             "tag": tags,

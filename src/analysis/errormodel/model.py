@@ -113,7 +113,8 @@ class ErrorModel:
     def _interp(self, name: str, loc) -> tuple[np.ndarray, np.ndarray]:
         """Bilinear value of ``name`` and whether the query is covered for it.
 
-        Covered: inside the grid, interpolated support >= ``min_support`` and a finite value.
+        Covered: inside the grid, interpolated support >= ``min_support`` (to a relative 1e-9)
+        and a finite value.
         """
         ti, i, j, fd, fo, inside, *_ = loc
         arr = self.ds[name].values
@@ -132,7 +133,9 @@ class ErrorModel:
         val = bilinear(arr)
         sup = bilinear(self.ds[support].values)
         finite = np.isfinite(val) if val.ndim == 1 else np.all(np.isfinite(val), axis=1)
-        ok = inside & (sup >= float(self.ds.attrs["min_support"])) & finite
+        # relative 1e-9: bilinear weights summing to 1 in floating point (a pooled tag's support
+        # is the same n at every corner and must not fall to n - 1 ulp)
+        ok = inside & (sup >= float(self.ds.attrs["min_support"]) * (1 - 1e-9)) & finite
         return val, ok
 
     def covered(self, q: TagPoses) -> np.ndarray:

@@ -344,7 +344,8 @@ def ingest_bag(
     show_progress : bool
         Show a progress bar.
     **estimator
-        ``detector``, ``pnp`` and ``calibration``, passed on to
+        ``detector``, ``pnp``, ``calibration`` and ``calibration_file`` (wins over the bag's
+        CameraInfo, which still gives the frames' expected size), passed on to
         :func:`simgap.pipeline.capture.ingest` (its defaults where absent).
 
     Returns

@@ -1,4 +1,11 @@
-"""Write ROS bags: frames, camera info, fixture joints and tag poses (aruco_ros style)."""
+"""Write ROS bags: frames, camera info, fixture joints, the fixture's transform tree and tag poses.
+
+The transform tree (:class:`simgap.core.rig.Rig`'s frames, CAD values) goes on ``/tf_static``
+(once, before the first frame; latched / transient local) for the links that never move:
+``carriage -> eyepoint``, ``eyepoint -> camera_color_optical_frame`` and ``turntable -> tag<ID>``;
+and on ``/tf`` at every frame's stamp for the two that move with the fixture configuration:
+``rail -> carriage`` (pin hole p) and ``rail -> turntable`` (theta). ``rail`` is the root.
+"""
 
 from __future__ import annotations
 
@@ -17,7 +24,6 @@ from simgap.core.atomic import staged_path
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel, Rig, load_rig
 from simgap.pipeline.bag.formats import (
-    BAG_FORMATS,
     CAMERA_INFO_TOPIC,
     CAMERA_INFO_TYPE,
     CARRIAGE_JOINT,
@@ -31,8 +37,14 @@ from simgap.pipeline.bag.formats import (
     PERIOD_NS,
     POSE_TYPE,
     START_NS,
+    TF_STATIC_TOPIC,
+    TF_TOPIC,
+    TF_TYPE,
     TURNTABLE_JOINT,
     BagFormat,
+    BagStorage,
+    BagTarget,
+    bag_target,
 )
 from simgap.pipeline.capture.folder import read_capture, read_image
 from simgap.render import imaging
@@ -61,10 +73,43 @@ class BagFrame:
     estimated: Mapping[int, np.ndarray] = field(default_factory=dict)
 
 
-def _typestore(fmt: BagFormat):
-    from rosbags.typesys import Stores, get_typestore
+#: Frame names of the rig's transform tree in exported bags (:mod:`simgap.core.rig`).
+RAIL_FRAME, CARRIAGE_FRAME, EYEPOINT_FRAME, TURNTABLE_FRAME = (
+    "rail", "carriage", "eyepoint", "turntable",
+)  # fmt: skip
 
-    return get_typestore(Stores.ROS1_NOETIC if fmt == "ros1" else Stores.ROS2_HUMBLE)
+
+def tag_frame(tag: int) -> str:
+    """The frame name of tag ``tag``'s marker frame (z out of the marker, y up, x right)."""
+    return f"tag{tag}"
+
+
+def static_transforms(rig: Rig) -> list[tuple[str, str, np.ndarray]]:
+    """The links that never move, as ``(parent, child, parent_from_child)`` (4x4, m)."""
+    links = [
+        (CARRIAGE_FRAME, EYEPOINT_FRAME, rig.carriage_from_eyepoint()),
+        (EYEPOINT_FRAME, OPTICAL_FRAME, tf.make(tf.GLOBAL_FROM_CV)),
+    ]
+    return links + [
+        (TURNTABLE_FRAME, tag_frame(t), rig.turntable_from_tag(t)) for t in rig.tags.ids
+    ]
+
+
+def moving_transforms(rig: Rig, p: int, theta: float) -> list[tuple[str, str, np.ndarray]]:
+    """The links set by the fixture configuration (pin hole ``p``, ``theta`` rad), as above."""
+    return [
+        (RAIL_FRAME, CARRIAGE_FRAME, rig.rail_from_carriage(p)),
+        (RAIL_FRAME, TURNTABLE_FRAME, rig.rail_from_turntable(theta)),
+    ]
+
+
+def _typestore(fmt: BagFormat):
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC if fmt == "ros1" else Stores.ROS2_HUMBLE)
+    if TF_TYPE not in store.types:  # rosbags' noetic store lacks tf2_msgs: its one-line definition
+        store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", TF_TYPE))
+    return store
 
 
 class _Messages:
@@ -131,71 +176,148 @@ class _Messages:
             position=np.array([travel_m, theta]), velocity=np.zeros(0), effort=np.zeros(0),
         )  # fmt: skip
 
+    def _pose_parts(self, m: np.ndarray):
+        """``geometry_msgs`` position values and Quaternion of a 4x4 transform."""
+        x, y, z, w = Rotation.from_matrix(m[:3, :3]).as_quat()
+        quat = self.types["geometry_msgs/msg/Quaternion"](
+            x=float(x), y=float(y), z=float(z), w=float(w)
+        )
+        return [float(v) for v in m[:3, 3]], quat
+
+    def transforms(self, ns: int, links: list[tuple[str, str, np.ndarray]]):
+        """A ``tf2_msgs/TFMessage`` of ``(parent, child, parent_from_child)`` links."""
+        t = self.types
+        out = []
+        for parent, child, m in links:
+            xyz, quat = self._pose_parts(m)
+            out.append(
+                t["geometry_msgs/msg/TransformStamped"](
+                    header=self.header(ns, parent),
+                    child_frame_id=child,
+                    transform=t["geometry_msgs/msg/Transform"](
+                        translation=t["geometry_msgs/msg/Vector3"](*xyz), rotation=quat
+                    ),
+                )
+            )
+        return t[TF_TYPE](transforms=out)
+
     def pose(self, ns: int, pose6: np.ndarray):
         """A PoseStamped in the optical frame from a global-frame pose (m, rotation vector)."""
         eye_from_tag = tf.make(tf.rotvec_to_matrix(pose6[3:]), pose6[:3])
         cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ eye_from_tag
-        x, y, z, w = Rotation.from_matrix(cv_from_tag[:3, :3]).as_quat()
+        xyz, quat = self._pose_parts(cv_from_tag)
         t = self.types
-        point = t["geometry_msgs/msg/Point"](*(float(v) for v in cv_from_tag[:3, 3]))
-        quat = t["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w))
+        point = t["geometry_msgs/msg/Point"](*xyz)
         return t[POSE_TYPE](
             header=self.header(ns),
             pose=t["geometry_msgs/msg/Pose"](position=point, orientation=quat),
         )
 
 
+def _latched_qos():
+    """ROS 2 QoS of ``/tf_static`` (keep last 1, reliable, transient local), as tf2 offers it."""
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    zero = QosTime(0, 0)
+    return Qos(
+        QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
+        zero, zero, QosLiveliness.AUTOMATIC, zero, False,
+    )  # fmt: skip
+
+
+def _open_writer(target: BagTarget, path: Path):
+    """A rosbags writer for ``target`` at the fresh path ``path``."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+
+    if target.format == "ros1":
+        return Writer1(path)
+    plugin = StoragePlugin.MCAP if target.storage == "mcap" else StoragePlugin.SQLITE3
+    return Writer2(path, version=9, storage_plugin=plugin)
+
+
 def write_bag(
     path: Path,
-    fmt: BagFormat,
+    fmt: BagFormat | None,
     calibration: CameraModel,
     frames: Iterable[BagFrame],
     rig: Rig,
     compressed: bool = False,
+    storage: BagStorage | None = None,
 ) -> Path:
-    """Write frames, calibration, fixture joints and poses as a ROS 1 or ROS 2 bag, atomically.
+    """Write frames, calibration, fixture joints, transforms and poses as a bag, atomically.
 
     Parameters
     ----------
     path : Path
-        The ``.bag`` file (ROS 1) or bag folder (ROS 2) to write; replaced if it exists.
-    fmt : {"ros1", "ros2"}
-        Bag format (ROS 1 noetic messages, or ROS 2 humble messages in SQLite 3 storage).
+        What to write (:func:`~simgap.pipeline.bag.formats.bag_target`): ``NAME.bag`` a ROS 1
+        bag, ``NAME.mcap`` / ``NAME.db3`` one ROS 2 MCAP / SQLite 3 storage file (it holds the
+        message definitions, so it is a whole bag), ``NAME`` a ROS 2 bag folder; replaced if it
+        exists.
+    fmt : {"ros1", "ros2"} or None
+        Bag format (ROS 1 noetic or ROS 2 humble messages); None: from the name.
     calibration : CameraModel
         Published as ``sensor_msgs/CameraInfo`` with every frame.
     frames : iterable of BagFrame
         Consumed once, in order; frame ``i`` is stamped ``START_NS + i * PERIOD_NS`` (ns).
     rig : Rig
-        The carriage joint is the travel ``p * pin_pitch`` (m).
+        The carriage joint is the travel ``p * pin_pitch`` (m); its transform tree goes on
+        ``/tf_static`` and ``/tf`` (module docstring).
     compressed : bool
         Frames as ``sensor_msgs/CompressedImage`` on :data:`COMPRESSED_TOPIC` (array frames
         encoded as PNG, file bytes kept) instead of raw ``bgr8`` on :data:`IMAGE_TOPIC`.
+    storage : {"sqlite3", "mcap"}, optional
+        Storage of a ROS 2 bag folder (default SQLite 3); must agree with a file's extension.
 
     Returns
     -------
     Path
         ``path``.
-    """
-    from rosbags.rosbag1 import Writer as Writer1
-    from rosbags.rosbag2 import Writer as Writer2
 
-    if fmt not in BAG_FORMATS:
-        raise ValueError(f"fmt: expected one of {', '.join(BAG_FORMATS)}, got {fmt!r}")
-    build = _Messages(fmt)
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        For a name, ``fmt`` or ``storage`` that do not agree (naming the allowed forms).
+    """
+    target = bag_target(path, fmt, storage)
+    build = _Messages(target.format)
     with staged_path(path) as tmp:
-        writer = Writer1(tmp) if fmt == "ros1" else Writer2(tmp, version=9)
+        # a single storage file is written as a bag folder beside it, then moved out of it
+        folder = tmp.with_name(tmp.name + ".folder") if target.single_file else tmp
+        writer = _open_writer(target, folder)
         conns: dict[str, Any] = {}
 
-        def put(topic: str, msg: Any, ns: int) -> None:
+        def put(topic: str, msg: Any, ns: int, latched: bool = False) -> None:
             if topic not in conns:
-                conns[topic] = writer.add_connection(topic, msg.__msgtype__, typestore=build.ts)
+                extra: dict[str, Any] = {}
+                if latched:
+                    extra = (
+                        {"latching": 1}
+                        if target.format == "ros1"
+                        else {"offered_qos_profiles": [_latched_qos()]}
+                    )
+                conns[topic] = writer.add_connection(
+                    topic, msg.__msgtype__, typestore=build.ts, **extra
+                )
             writer.write(conns[topic], ns, build.serialize(msg))
 
         with writer:
+            put(TF_STATIC_TOPIC, build.transforms(START_NS, static_transforms(rig)), START_NS, True)
             for i, frame in enumerate(frames):
                 ns = START_NS + i * PERIOD_NS
                 travel = frame.p * rig.links.pin_pitch
                 put(FIXTURE_TOPIC, build.joints(ns, travel, float(frame.theta)), ns)
+                put(
+                    TF_TOPIC, build.transforms(ns, moving_transforms(rig, frame.p, frame.theta)), ns
+                )
                 put(CAMERA_INFO_TOPIC, build.camera_info(ns, calibration), ns)
                 topic = COMPRESSED_TOPIC if compressed else IMAGE_TOPIC
                 put(topic, build.image(ns, frame.image, compressed), ns)
@@ -203,6 +325,9 @@ def write_bag(
                     for tag, pose in sorted(poses.items()):
                         if np.all(np.isfinite(pose)):
                             put(f"/simgap/tag{tag}/{kind}", build.pose(ns, np.asarray(pose)), ns)
+        if target.single_file:
+            suffix = ".mcap" if target.storage == "mcap" else ".db3"
+            (folder / f"{folder.name}{suffix}").replace(tmp)
     return Path(path)
 
 
@@ -211,7 +336,12 @@ def _expected(rig: Rig, p: int, theta: float) -> dict[int, np.ndarray]:
 
 
 def capture_to_bag(
-    folder: Path, bag: Path, fmt: BagFormat, rig: Rig | None = None, compressed: bool = False
+    folder: Path,
+    bag: Path,
+    fmt: BagFormat | None,
+    rig: Rig | None = None,
+    compressed: bool = False,
+    storage: BagStorage | None = None,
 ) -> Path:
     """Export a capture folder as a bag (frames in manifest order, ground truth from the rig).
 
@@ -246,17 +376,18 @@ def capture_to_bag(
             )
         return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
-    return write_bag(bag, fmt, cal, frames(), rig, compressed)
+    return write_bag(bag, fmt, cal, frames(), rig, compressed, storage)
 
 
 def experiment_to_bag(
     exp: Any,
     cache_dir: Path,
     bag: Path,
-    fmt: BagFormat,
+    fmt: BagFormat | None,
     dataset: xr.Dataset | None = None,
     variant: str | None = None,
     compressed: bool = False,
+    storage: BagStorage | None = None,
 ) -> Path:
     """Export an experiment's frames (from the render cache, rendered where missing) as a bag.
 
@@ -268,13 +399,13 @@ def experiment_to_bag(
         Render cache.
     bag : Path
         Output bag.
-    fmt : {"ros1", "ros2"}
-        Bag format.
+    fmt : {"ros1", "ros2"} or None
+        Bag format (None: from the name, as :func:`write_bag`).
     dataset : xarray.Dataset, optional
         A result dataset of ``exp``: its configurations and its estimated poses are written too.
     variant : str, optional
         Variant to export (default: the first).
-    compressed : bool
+    compressed, storage
         As :func:`write_bag`.
 
     Raises
@@ -314,4 +445,5 @@ def experiment_to_bag(
                         _expected(rig, int(p), float(theta)), est,
                     )  # fmt: skip
 
-    return write_bag(bag, fmt, pipe.state.estimation.calibration, frames(), rig, compressed)
+    cal = pipe.state.estimation.calibration
+    return write_bag(bag, fmt, cal, frames(), rig, compressed, storage)

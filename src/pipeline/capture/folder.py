@@ -45,14 +45,17 @@ class Capture:
     folder : Path
         The capture folder.
     calibration : CameraModel
-        The calibration of ``camera.yaml`` (what the estimator assumes).
+        The calibration of ``calibration_path`` (what the estimator assumes).
     frames : list of CaptureFrame
         One per manifest row, in manifest order.
+    calibration_path : Path or None
+        The calibration file read: ``camera.yaml`` in the folder, or the one given instead.
     """
 
     folder: Path
     calibration: CameraModel
     frames: list[CaptureFrame] = field(default_factory=list)
+    calibration_path: Path | None = None
 
 
 def frame_size(path: Path) -> tuple[int, int] | None:
@@ -101,7 +104,7 @@ def read_image(path: Path, width: int, height: int) -> np.ndarray | str:
     return img
 
 
-def read_capture(folder: Path, rig: Rig) -> Capture:
+def read_capture(folder: Path, rig: Rig, calibration_file: Path | None = None) -> Capture:
     """Read and validate a capture folder against a rig.
 
     Parameters
@@ -110,6 +113,9 @@ def read_capture(folder: Path, rig: Rig) -> Capture:
         The capture folder (``camera.yaml``, ``manifest.csv``, images).
     rig : Rig
         The rig: its pin holes and turntable stops are the valid ``p`` and ``theta_rad``.
+    calibration_file : Path, optional
+        Read the calibration from this file (any name: ROS ``ost.yaml`` / camera_info YAML or
+        OpenCV YAML) instead of the folder's ``camera.yaml``, which then need not exist.
 
     Returns
     -------
@@ -132,11 +138,18 @@ def read_capture(folder: Path, rig: Rig) -> Capture:
     if not folder.is_dir():
         raise ConfigError(f"{folder}: capture folder not found")
     cal_path, manifest_path = folder / CALIBRATION_FILE, folder / MANIFEST_FILE
+    if calibration_file is not None:
+        cal_path = Path(calibration_file)
+        if not cal_path.is_file():
+            raise ConfigError(
+                f"--calibration {cal_path}: calibration file not found (expected a ROS "
+                "camera_info YAML such as ost.yaml, or an OpenCV FileStorage YAML)"
+            )
     for path, what in ((cal_path, "calibration"), (manifest_path, "manifest")):
         if not path.is_file():
             raise ConfigError(
                 f"{path}: {what} file not found (a capture folder needs {CALIBRATION_FILE}, "
-                f"{MANIFEST_FILE} and the images)"
+                f"{MANIFEST_FILE} and the images; or give the calibration with --calibration)"
             )
     frames = read_manifest(manifest_path, folder, rig)
     first = next(((f, size) for f in frames if (size := frame_size(f.image)) is not None), None)
@@ -161,4 +174,4 @@ def read_capture(folder: Path, rig: Rig) -> Capture:
             f"{cal_path}: image size {cal.width}x{cal.height} differs from the images' "
             f"{w}x{h} ({frame.image})"
         )
-    return Capture(folder, cal, frames)
+    return Capture(folder, cal, frames, cal_path)

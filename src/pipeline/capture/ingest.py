@@ -69,6 +69,7 @@ def ingest(
     pnp: PnPSettings = DEFAULT_PNP,
     calibration: CameraModel | None = None,
     show_progress: bool = False,
+    calibration_file: Path | None = None,
 ) -> xr.Dataset:
     """Detect markers and estimate poses in a capture; return the result dataset.
 
@@ -95,15 +96,20 @@ def ingest(
         calibration on real corners); recorded in the attrs.
     show_progress : bool
         Show a progress bar.
+    calibration_file : Path, optional
+        The calibration file to read instead of the folder's ``camera.yaml`` (any name; see
+        :func:`~simgap.pipeline.capture.folder.read_capture`); ``calibration`` still wins.
 
     Returns
     -------
     xarray.Dataset
         Attrs: ``source = "capture"``, ``capture_dir``, ``calibration_yaml`` (the calibration
-        used, as a CameraModel mapping: px, dimensionless distortion), ``calibration_file`` (the
-        text of ``camera.yaml``), ``detector``, ``pnp``, ``frames``, ``frames_unreadable``
-        (count of frames that could not be decoded or had the wrong size, each recorded as
-        not detected) and ``frames_failed`` (JSON list of their paths), versions.
+        used, as a CameraModel mapping: px, dimensionless distortion), ``calibration_source``
+        (``"override"``: ``calibration``; ``"camera.yaml"``: the folder's; ``"--calibration"``:
+        ``calibration_file``), ``calibration_path`` (the absolute path of the file read),
+        ``calibration_file`` (that file's text), ``detector``, ``pnp``, ``frames``,
+        ``frames_unreadable`` (count of frames that could not be decoded or had the wrong size,
+        each recorded as not detected) and ``frames_failed`` (JSON list of their paths), versions.
 
     Raises
     ------
@@ -116,8 +122,11 @@ def ingest(
         For each frame that cannot be decoded or has the wrong size.
     """
     rig = rig or load_rig()
-    cap = read_capture(folder, rig)
+    cap = read_capture(folder, rig, calibration_file)
     cal = calibration or cap.calibration
+    cal_path = cap.calibration_path or cap.folder / CALIBRATION_FILE
+    source = CALIBRATION_FILE if calibration_file is None else "--calibration"
+    source = "override" if calibration is not None else source
     estimation = Estimation(calibration=cal, detector=detector, pnp=pnp)
     det = Detector(detector)
     tags = rig.tags.ids
@@ -167,8 +176,9 @@ def ingest(
         "source": "capture",
         "capture_dir": str(cap.folder.resolve()),
         "calibration_yaml": yaml.safe_dump(to_mapping(cal), sort_keys=False),
-        "calibration_source": "override" if calibration is not None else CALIBRATION_FILE,
-        "calibration_file": (cap.folder / CALIBRATION_FILE).read_text(),
+        "calibration_source": source,
+        "calibration_path": str(Path(cal_path).resolve()),
+        "calibration_file": Path(cal_path).read_text(),
         "rig_yaml": yaml.safe_dump(to_mapping(rig), sort_keys=False),
         "repeats": str(len(repeats)),
         "frames": len(cap.frames),
