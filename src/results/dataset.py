@@ -51,6 +51,21 @@ COORDS = {
     "theta": "angle",
     "axis": "string",
 }
+#: ``long_name`` and ``units`` attrs of the coordinates (docs/conventions.md §3, "On disk"): ids
+#: and indices are dimensionless numbers, units "1"; labels have none.
+COORD_ATTRS: dict[str, dict[str, str]] = {
+    "variant": {"long_name": "variant: effects applied to the renders, or real"},
+    "repeat": {"long_name": "repeat index (another noise draw or frame)", "units": "1"},
+    "tag": {"long_name": "ArUco tag id", "units": "1"},
+    "p": {"long_name": "carriage pin hole index", "units": "1"},
+    "theta": {"long_name": "turntable angle", "units": "rad"},
+    "axis": {"long_name": AXIS_LONG_NAME},
+    "corner": {"long_name": "marker corner index: 0 TL, 1 TR, 2 BR, 3 BL", "units": "1"},
+    "uv": {"long_name": "image coordinate: u right, v down"},
+    "stat": {"long_name": "image statistic"},
+    "stat_units": {"long_name": "scale of the image statistic (DN, px or 1)"},
+    "stat_long_name": {"long_name": "meaning of the image statistic"},
+}
 #: Variables the analyses read unless they say otherwise.
 REQUIRED = ("error", "detected", "visible")
 #: ``conventions`` attr of every result dataset: the frame the poses are expressed in.
@@ -270,6 +285,16 @@ def build_dataset(
     error = np.asarray(results["error"], float)
     vdims = ("variant", "tag", "p", "theta") if visible.ndim == 4 else ("tag", "p", "theta")
     full = ("variant", "repeat", "tag", "p", "theta")
+    coords = {
+        "variant": np.asarray(variants, dtype=str),
+        "repeat": np.asarray(repeats, dtype=int),
+        "tag": np.asarray(tags, dtype=int),
+        "p": np.asarray(ps, dtype=int),
+        "theta": np.asarray(thetas, dtype=float),
+        "axis": np.asarray(AXES, dtype=str),
+        "corner": np.arange(4),
+        "uv": np.array(["u", "v"]),
+    }
     ds = xr.Dataset(
         {
             "expected": (
@@ -323,40 +348,7 @@ def build_dataset(
                 },
             ),
         },
-        coords={
-            "variant": (
-                "variant",
-                np.asarray(variants, dtype=str),
-                {"long_name": "variant: effects applied to the renders, or real"},
-            ),
-            "repeat": (
-                "repeat",
-                np.asarray(repeats, dtype=int),
-                {"long_name": "repeat index (another noise draw or frame)", "units": "1"},
-            ),
-            "tag": (
-                "tag",
-                np.asarray(tags, dtype=int),
-                {"long_name": "ArUco tag id", "units": "1"},
-            ),
-            "p": (
-                "p",
-                np.asarray(ps, dtype=int),
-                {"long_name": "carriage pin hole index", "units": "1"},
-            ),
-            "theta": (
-                "theta",
-                np.asarray(thetas, dtype=float),
-                {"units": "rad", "long_name": "turntable angle"},
-            ),
-            "axis": ("axis", np.asarray(AXES, dtype=str), {"long_name": AXIS_LONG_NAME}),
-            "corner": (
-                "corner",
-                np.arange(4),
-                {"long_name": "marker corner index: 0 TL, 1 TR, 2 BR, 3 BL", "units": "1"},
-            ),
-            "uv": ("uv", np.array(["u", "v"]), {"long_name": "image coordinate: u right, v down"}),
-        },
+        coords={name: (name, values, COORD_ATTRS[name]) for name, values in coords.items()},
         attrs=dict(attrs or {}),
     )
     if "image_stats" in results:
@@ -369,23 +361,11 @@ def build_dataset(
                 "units": "1",
             },
         )
-        ds = ds.assign_coords(
-            stat=(
-                "stat",
-                np.asarray([s[0] for s in STATS], dtype=str),
-                {"long_name": "image statistic"},
-            ),
-            stat_units=(
-                "stat",
-                np.asarray([s[1] for s in STATS], dtype=str),
-                {"long_name": "scale of the image statistic (DN, px or 1)"},
-            ),
-            stat_long_name=(
-                "stat",
-                np.asarray([s[2] for s in STATS], dtype=str),
-                {"long_name": "meaning of the image statistic"},
-            ),
-        )
+        stats = {
+            name: ("stat", np.asarray([s[i] for s in STATS], dtype=str), COORD_ATTRS[name])
+            for i, name in enumerate(("stat", "stat_units", "stat_long_name"))
+        }
+        ds = ds.assign_coords(stats)
     return ds
 
 

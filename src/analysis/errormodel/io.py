@@ -15,8 +15,8 @@ import xarray as xr
 
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES
-from simgap.results.cf import AXIS_LONG_NAME, decode_cf
-from simgap.results.dataset import ERROR_UNITS, write_netcdf
+from simgap.results.cf import decode_cf
+from simgap.results.dataset import COORD_ATTRS, ERROR_UNITS, write_netcdf
 
 SCHEMA = "simgap-errormodel/1"
 """Schema name of error-model files (netCDF attr ``schema``, JSON key ``schema``)."""
@@ -41,10 +41,10 @@ ATTRS: dict[str, dict[str, str]] = {
     "support_error": {"units": "1", "long_name": "kernel mass of the detected configurations"},
     "support_detection": {"units": "1", "long_name": "kernel mass of the facing configurations"},
     "detections": {"units": "count", "long_name": "detections the model was fitted to"},
-    "tag": {"long_name": "ArUco tag id", "units": "1"},
+    "tag": COORD_ATTRS["tag"],
     "distance": {"units": "m", "long_name": "eyepoint-tag distance"},
     "obliquity": {"units": "rad", "long_name": "signed angle between tag normal and line of sight"},
-    "axis": {"long_name": AXIS_LONG_NAME},
+    "axis": COORD_ATTRS["axis"],
     "axis_b": {"long_name": "second pose axis of a correlation"},
 }
 
