@@ -22,7 +22,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
+
+from simgap.results.dataset import read_netcdf
 
 EXPERIMENT = "name: tiny\nconfigurations: {p: [7], theta_deg: [0, 30, 60, 90]}\nrender: {spp: 4}\n"
 VARIABLES = ("expected", "estimated", "error", "visible", "detected", "reproj_px", "corners")
@@ -38,13 +39,13 @@ def start(exp: Path, out: Path, cache: Path) -> subprocess.Popen:
 
 def differences(a: Path, b: Path) -> list[str]:
     """Coordinates and variables in which two result datasets differ (NaN equal to NaN)."""
-    with xr.open_dataset(a) as x, xr.open_dataset(b) as y:
-        out = [c for c in x.coords if not np.array_equal(x[c].values, y[c].values)]
-        for v in VARIABLES:
-            if not np.array_equal(x[v].values, y[v].values, equal_nan=True):
-                gap = np.nanmax(np.abs(x[v].values.astype(float) - y[v].values.astype(float)))
-                out.append(f"{v} (max |diff| {gap:.3g})")
-        return out
+    x, y = read_netcdf(a), read_netcdf(b)
+    out = [c for c in x.coords if not np.array_equal(x[c].values, y[c].values)]
+    for v in VARIABLES:
+        if not np.array_equal(x[v].values, y[v].values, equal_nan=True):
+            gap = np.nanmax(np.abs(x[v].values.astype(float) - y[v].values.astype(float)))
+            out.append(f"{v} (max |diff| {gap:.3g})")
+    return out
 
 
 def same(a: Path, b: Path) -> bool:

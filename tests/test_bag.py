@@ -34,6 +34,8 @@ from simgap.pipeline.bag.writer import _Messages
 from simgap.pipeline.capture import ingest, write_capture
 from simgap.pose.estimate import project_tag_corners
 from simgap.render.assets import tag_texture
+from simgap.results.dataset import write_netcdf
+from tests.cf_check import assert_cf_valid
 
 #: (p, theta deg, repeat): tag 0 faces the camera at 0/30 deg, tag 1 at 180/200 deg
 CONFIGS = [(0, 0, 0), (7, 30, 0), (3, 180, 0), (14, 200, 0), (0, 0, 1)]
@@ -115,6 +117,7 @@ def test_jpeg_bytes_are_kept(tmp_path, frames, rig):
     for image in sorted((folder / "images").iterdir()):
         assert (kept / "images" / image.name).read_bytes() == image.read_bytes()
     assert_same_data(ingest(folder), ds)
+    assert_cf_valid(write_netcdf(ds, tmp_path / "bag.nc"))  # a bag's dataset is CF-1.10 too
 
 
 def test_bag_contents(tmp_path, png_capture, rig):

@@ -30,7 +30,8 @@ from simgap.pipeline.capture import (
     write_capture,
 )
 from simgap.pose.estimate import project_tag_corners
-from simgap.results.dataset import read_netcdf
+from simgap.results.dataset import read_netcdf, write_netcdf
+from tests.cf_check import assert_cf_valid
 
 TRUE_FOCAL_PX = 1413.72  # the sample's README: the camera's true fx = fy (2 % over camera.yaml)
 #: the sample's configurations (p, theta in deg): the synthetic bad-folder captures use them too
@@ -485,6 +486,13 @@ def test_cli_ingest(tmp_path, sample):
     assert ds.attrs["source"] == "capture" and ds.attrs["capture_dir"] == str(sample.resolve())
     assert ds.detected.dtype == bool and int(ds.detected.sum()) == 9
     assert list(ds.variant.values) == ["real"]
+
+
+def test_ingested_capture_is_cf_valid(tmp_path, sample_ds):
+    """A real capture's dataset (image statistics, calibration attrs) passes cfchecks (CF-1.10)."""
+    nc = write_netcdf(sample_ds, tmp_path / "real.nc")
+    assert_cf_valid(nc)
+    assert read_netcdf(nc).identical(sample_ds)
 
 
 def test_cli_ingest_bad_folder(tmp_path, rig):

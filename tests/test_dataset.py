@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import netCDF4
 import numpy as np
 import pytest
+import xarray as xr
 
 from simgap.core.axes import AXES
 from simgap.results.dataset import build_dataset, read_netcdf, write_netcdf
@@ -25,12 +27,14 @@ CONTRACT = {
     "reproj_px": FULL,
     "corners": FULL + ("corner", "uv"),
 }
+#: units attrs in memory: one string for the pose variables (split on disk, simgap.results.cf),
+#: "1" for pixel quantities (udunits has no pixel; a pixel distance is dimensionless)
 UNITS = {
-    "expected": ("m", "rad"),
-    "estimated": ("m", "rad"),
-    "error": ("m", "rad"),
-    "reproj_px": ("px",),
-    "corners": ("px",),
+    "expected": "m (tx, ty, tz); rad (rx, ry, rz)",
+    "estimated": "m (tx, ty, tz); rad (rx, ry, rz)",
+    "error": "m (tx, ty, tz); rad (rx, ry, rz)",
+    "reproj_px": "1",
+    "corners": "1",
 }
 
 
@@ -94,9 +98,7 @@ def check_contract(ds, visible_dims=CONTRACT["visible"]):
         want = visible_dims if name == "visible" else dims
         assert ds[name].dims == want, (name, ds[name].dims)
     for name, units in UNITS.items():
-        attr = ds[name].attrs.get("units", "")
-        for u in units:
-            assert u in attr, (name, attr)
+        assert ds[name].attrs["units"] == units, name
     assert ds.visible.dtype == bool
     assert ds.detected.dtype == bool
 
@@ -181,3 +183,29 @@ def test_failed_write_leaves_no_temp_file(tmp_path):
     with pytest.raises(ValueError, match="junk"):
         write_netcdf(unwritable(ds), path)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_file_holds_the_cf_form(tmp_path):
+    """On disk (docs/conventions.md §3): translation (m) and rotation (rad) parts, char labels."""
+    ds, *_ = build()
+    path = write_netcdf(ds, tmp_path / "result.nc")
+    with xr.open_dataset(path, engine="netcdf4") as raw:
+        assert raw.attrs["Conventions"] == "CF-1.10"
+        assert "error" not in raw and "axis" not in raw.variables
+        for part, axes, unit in (("translation", AXES[:3], "m"), ("rotation", AXES[3:], "rad")):
+            var = raw[f"error_{part}"]
+            assert var.dims == FULL + (f"{part}_axis",) and var.attrs["units"] == unit
+            assert raw[f"{part}_axis_label"].values.tolist() == list(axes)
+            np.testing.assert_array_equal(var.values, ds.error.sel(axis=list(axes)).values)
+        assert raw["variant_label"].values.tolist() == list(VARIANTS)
+    with netCDF4.Dataset(path) as nc:  # labels are char arrays, not variable-length strings
+        assert nc["variant_label"].dtype == np.dtype("S1")
+        assert "variant" not in nc.variables
+
+
+def test_reads_files_written_before_the_cf_form(tmp_path):
+    """A file with one mixed-units ``error`` and string coordinates (before CF) still reads."""
+    ds, *_ = build()
+    path = tmp_path / "old.nc"
+    ds.to_netcdf(path, engine="netcdf4")
+    assert read_netcdf(path).identical(ds)

@@ -27,6 +27,7 @@ from simgap.analysis.errormodel import (
 from simgap.cli import app
 from simgap.pose.estimate import pose_error
 from simgap.results.dataset import build_dataset, empty_results, write_netcdf
+from tests.cf_check import assert_cf_valid
 
 #: The known truth: error std (m, rad) grows with distance; bias has a distance trend and an
 #: obliquity-odd part (like the lateral and yaw errors of the renders); tx and rz correlated.
@@ -185,6 +186,16 @@ def test_netcdf_and_json_give_the_same_model(model, tmp_path, rig):
     assert np.array(data["tags"]["0"]["bias"], dtype=float).shape == (
         len(data["distance"]), len(data["obliquity"]), 6,
     )  # fmt: skip
+
+
+def test_model_file_is_cf_valid(model, tmp_path):
+    """The error model's netCDF passes cfchecks (CF-1.10) and reads back as saved."""
+    nc, js = model.save(tmp_path / "model.nc")
+    assert_cf_valid(nc)
+    back = ErrorModel.load(nc).ds
+    assert back.identical(model.ds)
+    assert back["bias"].attrs["units"] == "m (tx, ty, tz); rad (rx, ry, rz)"
+    assert ErrorModel.load(js).ds["spread"].attrs == model.ds["spread"].attrs
 
 
 def test_too_few_detections(synthetic):

@@ -226,6 +226,13 @@ def test_smoke_variants_dataset(smoke_variants_nc):
     assert det[0, 0][vis].all()
 
 
+def test_sweep_dataset_is_cf_valid(smoke_variants_nc):
+    """`simgap run`'s dataset (five variants, image statistics) passes cfchecks (CF-1.10)."""
+    from tests.cf_check import assert_cf_valid
+
+    assert_cf_valid(smoke_variants_nc)
+
+
 def test_experiment_round_trips_through_its_dataset_yaml():
     """`diagnose --sim result.nc` rebuilds the experiment from the dataset's experiment_yaml."""
     from simgap.pipeline.experiment import experiment_from_yaml

@@ -20,17 +20,16 @@ import xarray as xr
 
 import simgap
 from simgap.core.atomic import atomic_write
-from simgap.core.axes import AXES, AXIS_UNITS
+from simgap.core.axes import AXES
 from simgap.core.config import ConfigError, from_mapping, parse_yaml
 from simgap.core.rig import CameraModel, Rig
 from simgap.pose.image_stats import STATS
 from simgap.pose.tags import empty_tag_arrays
+from simgap.results.cf import AXIS_LONG_NAME, ERROR_UNITS, decode_cf, encode_cf
 
-#: ``units`` attr of the pose and error variables: ``"m (tx, ty, tz); rad (rx, ry, rz)"``.
-ERROR_UNITS = "; ".join(
-    f"{unit} ({', '.join(a for a in AXES if AXIS_UNITS[a] == unit)})"
-    for unit in dict.fromkeys(AXIS_UNITS.values())
-)
+#: ``units`` attr of pixel quantities: CF has no pixel unit (udunits knows none); a distance in
+#: pixels is a number of pixel pitches, dimensionless (the long_name says "px").
+PIXEL_UNITS = "1"
 FULL_DIMS = ("variant", "repeat", "tag", "p", "theta")
 #: The contract (docs/conventions.md §3): variable -> (dims, kind), kind "number" or "boolean".
 #: ``visible`` may also have a leading ``variant`` dim.
@@ -51,6 +50,21 @@ COORDS = {
     "p": "integer",
     "theta": "angle",
     "axis": "string",
+}
+#: ``long_name`` and ``units`` attrs of the coordinates (docs/conventions.md §3, "On disk"): ids
+#: and indices are dimensionless numbers, units "1"; labels have none.
+COORD_ATTRS: dict[str, dict[str, str]] = {
+    "variant": {"long_name": "variant: effects applied to the renders, or real"},
+    "repeat": {"long_name": "repeat index (another noise draw or frame)", "units": "1"},
+    "tag": {"long_name": "ArUco tag id", "units": "1"},
+    "p": {"long_name": "carriage pin hole index", "units": "1"},
+    "theta": {"long_name": "turntable angle", "units": "rad"},
+    "axis": {"long_name": AXIS_LONG_NAME},
+    "corner": {"long_name": "marker corner index: 0 TL, 1 TR, 2 BR, 3 BL", "units": "1"},
+    "uv": {"long_name": "image coordinate: u right, v down"},
+    "stat": {"long_name": "image statistic"},
+    "stat_units": {"long_name": "scale of the image statistic (DN, px or 1)"},
+    "stat_long_name": {"long_name": "meaning of the image statistic"},
 }
 #: Variables the analyses read unless they say otherwise.
 REQUIRED = ("error", "detected", "visible")
@@ -271,6 +285,16 @@ def build_dataset(
     error = np.asarray(results["error"], float)
     vdims = ("variant", "tag", "p", "theta") if visible.ndim == 4 else ("tag", "p", "theta")
     full = ("variant", "repeat", "tag", "p", "theta")
+    coords = {
+        "variant": np.asarray(variants, dtype=str),
+        "repeat": np.asarray(repeats, dtype=int),
+        "tag": np.asarray(tags, dtype=int),
+        "p": np.asarray(ps, dtype=int),
+        "theta": np.asarray(thetas, dtype=float),
+        "axis": np.asarray(AXES, dtype=str),
+        "corner": np.arange(4),
+        "uv": np.array(["u", "v"]),
+    }
     ds = xr.Dataset(
         {
             "expected": (
@@ -300,41 +324,31 @@ def build_dataset(
             "visible": (
                 vdims,
                 np.asarray(visible, bool),
-                {"long_name": "tag expected to be detectable"},
+                {"long_name": "tag expected to be detectable (1 yes, 0 no)"},
             ),
             "detected": (
                 full,
                 np.asarray(results["detected"], bool),
-                {"long_name": "detector returned this tag id"},
+                {"long_name": "detector returned this tag id (1 yes, 0 no)"},
             ),
             "reproj_px": (
                 full,
                 np.asarray(results["reproj_px"], float),
-                {"units": "px", "long_name": "RMS reprojection error of the PnP solution"},
+                {
+                    "units": PIXEL_UNITS,
+                    "long_name": "RMS reprojection error of the PnP solution (px)",
+                },
             ),
             "corners": (
                 full + ("corner", "uv"),
                 np.asarray(results["corners"], float),
                 {
-                    "units": "px",
-                    "long_name": "detected corners TL, TR, BR, BL (OpenCV pixel convention)",
+                    "units": PIXEL_UNITS,
+                    "long_name": "detected corners TL, TR, BR, BL (px, OpenCV pixel convention)",
                 },
             ),
         },
-        coords={
-            "variant": ("variant", np.asarray(variants, dtype=str)),
-            "repeat": ("repeat", np.asarray(repeats, dtype=int)),
-            "tag": ("tag", np.asarray(tags, dtype=int)),
-            "p": ("p", np.asarray(ps, dtype=int), {"long_name": "carriage pin hole"}),
-            "theta": (
-                "theta",
-                np.asarray(thetas, dtype=float),
-                {"units": "rad", "long_name": "turntable angle"},
-            ),
-            "axis": ("axis", np.asarray(AXES, dtype=str)),
-            "corner": ("corner", np.arange(4)),
-            "uv": ("uv", np.array(["u", "v"])),
-        },
+        coords={name: (name, values, COORD_ATTRS[name]) for name, values in coords.items()},
         attrs=dict(attrs or {}),
     )
     if "image_stats" in results:
@@ -342,28 +356,35 @@ def build_dataset(
             full + ("stat",),
             np.asarray(results["image_stats"], float),
             {
-                "long_name": "image evidence around each tag (see stat_long_name, stat_units)",
-                "units": "per stat: see the stat_units coordinate",
+                "long_name": "image evidence around each tag, a dimensionless number per stat "
+                "in the scale stat_units names (DN: 8-bit level, px: pixels, 1: ratio, count)",
+                "units": "1",
             },
         )
-        ds = ds.assign_coords(
-            stat=("stat", np.asarray([s[0] for s in STATS], dtype=str)),
-            stat_units=("stat", np.asarray([s[1] for s in STATS], dtype=str)),
-            stat_long_name=("stat", np.asarray([s[2] for s in STATS], dtype=str)),
-        )
+        stats = {
+            name: ("stat", np.asarray([s[i] for s in STATS], dtype=str), COORD_ATTRS[name])
+            for i, name in enumerate(("stat", "stat_units", "stat_long_name"))
+        }
+        ds = ds.assign_coords(stats)
     return ds
 
 
 def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write ``ds`` as netCDF4 atomically (temporary file + rename); return the path."""
+    """Write ``ds`` as CF-1.10 netCDF4 atomically (temporary file + rename); return the path.
+
+    The file holds :func:`simgap.results.cf.encode_cf` of ``ds`` (docs/conventions.md §3, "On
+    disk"); :func:`read_netcdf` gives back ``ds``.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4"))
+    cf = encode_cf(ds)
+    return atomic_write(path, lambda tmp: cf.to_netcdf(tmp, engine="netcdf4", format="NETCDF4"))
 
 
 def read_netcdf(path: str | Path) -> xr.Dataset:
     """Read a result dataset fully into memory (the file is closed afterwards).
 
+    The file's CF form is turned back into the contract's (:func:`simgap.results.cf.decode_cf`).
     ``visible`` and ``detected`` are converted to booleans when they are stored as numbers; the
     rest of the contract is checked by :func:`check_dataset`.
 
@@ -379,7 +400,7 @@ def read_netcdf(path: str | Path) -> xr.Dataset:
         raise FileNotFoundError(f"{path}: result dataset not found")
     try:
         with xr.open_dataset(path, engine="netcdf4") as ds:
-            out = ds.load()
+            out = decode_cf(ds.load())
     except (OSError, ValueError, RuntimeError, KeyError) as exc:
         raise DatasetError(
             f"{path}: cannot read result dataset (expected a netCDF4 file written by simgap): "

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from simgap.results.cf import logical_names
 from simgap.results.dataset import REQUIRED
 
 #: First bytes of a netCDF-4 (HDF5) file and of the classic netCDF formats (CDF-1, -2, -5).
@@ -39,4 +40,4 @@ def is_result_dataset_file(path: Path) -> bool:
     if header is None:
         return False
     attrs, variables = header
-    return PROVENANCE_ATTR in attrs and set(REQUIRED) <= variables
+    return PROVENANCE_ATTR in attrs and set(REQUIRED) <= logical_names(variables)

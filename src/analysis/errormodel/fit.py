@@ -12,11 +12,10 @@ from scipy import stats
 
 from simgap.analysis.errormodel import smoothing
 from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.errormodel.io import FIT_METHODS, SCHEMA
+from simgap.analysis.errormodel.io import FIT_METHODS, SCHEMA, with_attrs
 from simgap.analysis.errormodel.model import Z90, ErrorModel
 from simgap.core.axes import AXES
 from simgap.core.robust import MAD_TO_SIGMA
-from simgap.results.dataset import ERROR_UNITS
 
 
 @dataclass(frozen=True)
@@ -243,21 +242,16 @@ def fit_error_model(
     fits = [_fit_tag(*samples[t], settings, grid_d, grid_o, t) for t in tags]
     cube = ("tag", "distance", "obliquity", "axis")
     plane = cube[:3]
-    units = {"units": ERROR_UNITS}
 
     def stack(key: str) -> np.ndarray:
         return np.stack([f[key] for f in fits])
 
     out = xr.Dataset(
         {
-            "bias": (cube, stack("bias"), {**units, "long_name": "location of the signed error"}),
-            "spread": (cube, stack("spread"), {**units, "long_name": "std of the error"}),
-            "bias_se": (cube, stack("bias_se"), {**units, "long_name": "std error of bias"}),
+            **{k: (cube, stack(k)) for k in ("bias", "spread", "bias_se")},
             "correlation": (("tag", "axis", "axis_b"), stack("correlation")),
             "calibration": (("tag", "axis"), stack("calibration")),
-            "p_detect": (plane, stack("p_detect"), {"long_name": "detection probability"}),
-            "p_detect_lo": (plane, stack("p_detect_lo"), {"long_name": "5 % bound"}),
-            "p_detect_hi": (plane, stack("p_detect_hi"), {"long_name": "95 % bound"}),
+            **{k: (plane, stack(k)) for k in ("p_detect", "p_detect_lo", "p_detect_hi")},
             "support_error": (plane, stack("support_error")),
             "support_detection": (plane, stack("support_detection")),
             "detections": (("tag",), np.array([counts[t] for t in tags])),
@@ -273,12 +267,8 @@ def fit_error_model(
         },
         coords={
             "tag": ("tag", np.array(tags)),
-            "distance": ("distance", grid_d, {"units": "m", "long_name": "eyepoint-tag distance"}),
-            "obliquity": (
-                "obliquity",
-                grid_o,
-                {"units": "rad", "long_name": "signed angle between tag normal and line of sight"},
-            ),
+            "distance": ("distance", grid_d),
+            "obliquity": ("obliquity", grid_o),
             "axis": ("axis", np.array(AXES)),
             "axis_b": ("axis_b", np.array(AXES)),
         },
@@ -298,7 +288,7 @@ def fit_error_model(
             "min_support": settings.min_support,
         },
     )
-    return ErrorModel(out)
+    return ErrorModel(with_attrs(out))
 
 
 def _version() -> str:

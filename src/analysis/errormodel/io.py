@@ -15,7 +15,8 @@ import xarray as xr
 
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES
-from simgap.results.dataset import ERROR_UNITS, write_netcdf
+from simgap.results.cf import decode_cf
+from simgap.results.dataset import COORD_ATTRS, ERROR_UNITS, write_netcdf
 
 SCHEMA = "simgap-errormodel/1"
 """Schema name of error-model files (netCDF attr ``schema``, JSON key ``schema``)."""
@@ -30,6 +31,36 @@ JSON_VARIABLES = (
     "bias", "spread", "bias_se", "correlation", "p_detect", "p_detect_lo", "p_detect_hi",
     "support_error", "support_detection",
 )  # fmt: skip
+#: ``units`` and ``long_name`` attrs of the model's variables and coordinates (a variable along
+#: ``axis`` in :data:`ERROR_UNITS` is stored as translation and rotation parts, see
+#: :mod:`simgap.results.cf`); no quantity here has a CF standard name.
+ATTRS: dict[str, dict[str, str]] = {
+    "bias": {"units": ERROR_UNITS, "long_name": "location of the signed error"},
+    "spread": {"units": ERROR_UNITS, "long_name": "std of the error"},
+    "bias_se": {"units": ERROR_UNITS, "long_name": "std error of bias"},
+    "correlation": {"units": "1", "long_name": "rank correlation of two axes' errors"},
+    "calibration": {"units": "1", "long_name": "factor calibrating the spread to 90 % coverage"},
+    "p_detect": {"units": "1", "long_name": "detection probability"},
+    "p_detect_lo": {"units": "1", "long_name": "detection probability, 5 % bound"},
+    "p_detect_hi": {"units": "1", "long_name": "detection probability, 95 % bound"},
+    "support_error": {"units": "1", "long_name": "kernel mass of the detected configurations"},
+    "support_detection": {"units": "1", "long_name": "kernel mass of the facing configurations"},
+    "detections": {"units": "count", "long_name": "detections the model was fitted to"},
+    "fit": {"long_name": "how the tag's errors were fitted"},
+    "tag": COORD_ATTRS["tag"],
+    "distance": {"units": "m", "long_name": "eyepoint-tag distance"},
+    "obliquity": {"units": "rad", "long_name": "signed angle between tag normal and line of sight"},
+    "axis": COORD_ATTRS["axis"],
+    "axis_b": {"long_name": "second pose axis of a correlation"},
+}
+
+
+def with_attrs(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` with the :data:`ATTRS` of each of its variables and coordinates (in place)."""
+    for name, attrs in ATTRS.items():
+        if name in ds.variables:
+            ds[name].attrs.update(attrs)
+    return ds
 
 
 def read_model_dataset(path: str | Path) -> xr.Dataset:
@@ -48,7 +79,7 @@ def read_model_dataset(path: str | Path) -> xr.Dataset:
     if path.suffix == ".json":
         return dataset_from_json(json.loads(path.read_text()))
     with xr.open_dataset(path, engine="netcdf4") as ds:
-        ds = ds.load()
+        ds = decode_cf(ds.load())
     if ds.attrs.get("schema") != SCHEMA:
         raise ValueError(f"{path}: not a simgap error model (schema {SCHEMA!r})")
     return ds
@@ -102,7 +133,7 @@ def dataset_from_json(data: dict) -> xr.Dataset:
         return np.array(values, dtype=object).astype(float)  # null -> NaN
 
     cube, plane = ("tag", "distance", "obliquity", "axis"), ("tag", "distance", "obliquity")
-    return xr.Dataset(
+    ds = xr.Dataset(
         {
             "bias": (cube, arr("bias")),
             "spread": (cube, arr("spread")),
@@ -134,3 +165,4 @@ def dataset_from_json(data: dict) -> xr.Dataset:
         },
         attrs={**data.get("attrs", {}), "min_support": float(data["min_support"])},
     )
+    return with_attrs(ds)

@@ -35,6 +35,7 @@ from simgap.analysis.report.summaries import (
 )
 from simgap.core.axes import display_unit
 from simgap.core.rig import Rig
+from simgap.results.cf import ERROR_UNITS
 
 REFERENCE_NAME: Final[str] = "baseline"
 """Variant used as the reference when none is named (else the first variant)."""
@@ -238,7 +239,7 @@ def compare_variants(
         compat="override",
     )
     for name in _CHANGE_VARIABLES:
-        out[name].attrs["units"] = "m (tx, ty, tz); rad (rx, ry, rz)"
+        out[name].attrs["units"] = ERROR_UNITS
     facing = _facing_theta(ds, facing_theta_rad, rig)
     angles = view_angle_deg(ds["theta"].astype(float), facing)
     out = out.assign_coords(
