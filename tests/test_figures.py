@@ -8,7 +8,7 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.report.figures import (
+from simgap.analysis.report.heatmaps import (
     mark_beyond_limit,
     robust_colour_limit,
     row_distance_labels,
