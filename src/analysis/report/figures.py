@@ -174,12 +174,12 @@ def plot_error_heatmap(summary: VariantSummary, tag: int) -> Figure:
     -------
     matplotlib.figure.Figure
         2x3 panels, repeat-averaged signed error (m or rad), one cell per sampled configuration
-        (:class:`SampledAxis`): theta (deg, unwrapped around the tag's mean viewing angle, so it
-        may be negative) across, pin-hole rows up, ticked with each row's median camera-to-tag
-        distance (m). A diverging colour map centred on 0 with a robust symmetric limit per
-        panel (:func:`robust_colour_limit`; cells beyond it hatched, counted in the panel's
-        title), grey where there is no estimate (not visible or not detected) and ``x`` on
-        visible but undetected cells.
+        (:class:`~simgap.analysis.report.heatmaps.SampledAxis`): theta (deg, unwrapped around
+        the tag's mean viewing angle, so it may be negative) across, pin-hole rows up, ticked
+        with each row's median camera-to-tag distance (m). A diverging colour map centred on 0
+        with a robust symmetric limit per panel (:func:`robust_colour_limit`; cells beyond it
+        hatched, counted in the panel's title), grey where there is no estimate (not visible or
+        not detected) and ``x`` on visible but undetected cells.
     """
     fig, axes = new_figure_grid(
         f"Tag {tag}: signed pose error (variant {summary.variant!r}, mean of "
