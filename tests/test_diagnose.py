@@ -298,8 +298,8 @@ def test_a_lens_distortion_the_corners_single_out_is_reported_as_minor():
 def test_a_model_with_a_parameter_on_its_search_bound_is_no_finding():
     """Issue 25: a fit that runs into the end of its searched range stands in for something
     else (a 28 % print scale, beyond tag_scale's 25 % range): listed, never selected."""
+    from simgap.analysis.admission import at_bound
     from simgap.analysis.fitting import on_bound
-    from simgap.analysis.selection import at_bound
 
     assert on_bound(4.95, 0.1, 5.0) and on_bound(0.1, 0.1, 5.0) and not on_bound(2.5, 0.1, 5.0)
     assert on_bound(-0.246, -0.25, 0.25) and not on_bound(0.2, -0.25, 0.25)

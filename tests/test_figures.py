@@ -8,7 +8,7 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.report.figures import (
+from simgap.analysis.report.heatmaps import (
     mark_beyond_limit,
     robust_colour_limit,
     row_distance_labels,
@@ -17,7 +17,8 @@ from simgap.analysis.report.figures import (
 from simgap.analysis.report.summaries import dataset_distance_m
 from simgap.core.distance import DISTANCE_LABEL, camera_to_tag_distance
 from simgap.diagnosis.engineering import plot_gap_by_distance
-from simgap.pose.image_stats import STAT_LABELS, STAT_NAMES, stat_label
+from simgap.pose.image_stats import STAT_NAMES
+from simgap.pose.stat_labels import STAT_LABELS, stat_label
 
 
 def test_sampled_axis_draws_only_the_samples():

@@ -16,7 +16,8 @@ from simgap.diagnosis.result import DiagnosisResult, Finding, Scores, Selection
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table."""
-    from simgap.diagnosis.validate import CAMERA_NAMED, OUTSIDE, ValidateSettings, run_validation
+    from simgap.diagnosis.hidden_effects import CAMERA_NAMED
+    from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
     from simgap.pipeline.experiment import load_experiment
 
     settings = ValidateSettings(
@@ -111,7 +112,8 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     geometric effect that was not hidden may not; magnitudes read the camera's totals."""
     from simgap.core.rig import load_rig
     from simgap.diagnosis.nuisance import draw_nuisance, exposure_truth, with_exposure
-    from simgap.diagnosis.validate import HIDDEN, REPORTED_AS, Trial
+    from simgap.diagnosis.trial import Trial
+    from simgap.diagnosis.validate import HIDDEN, REPORTED_AS
     from simgap.effects import make_effect
 
     rng = np.random.default_rng(0)

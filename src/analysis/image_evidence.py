@@ -18,7 +18,8 @@ from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
 from simgap.core.distance import DISTANCE_LABEL, camera_to_tag_distance
-from simgap.pose.image_stats import STAT_NAMES, stat_label
+from simgap.pose.image_stats import STAT_NAMES
+from simgap.pose.stat_labels import stat_label
 
 #: Statistics shown in the figures (the others are kept in the dataset and result.json).
 PLOTTED_STATS: tuple[str, ...] = (
@@ -80,7 +81,7 @@ def plot_image_stats(
 ) -> Figure:
     """Each image statistic against camera-to-tag distance (m) or view angle (deg), one colour each.
 
-    Panels are named and scaled by :data:`simgap.pose.image_stats.STAT_LABELS`.
+    Panels are named and scaled by :data:`simgap.pose.stat_labels.STAT_LABELS`.
 
     Parameters
     ----------

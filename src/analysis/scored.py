@@ -20,7 +20,8 @@ from simgap.analysis.channels import (
     detection_groups,
     evidence_channels,
 )
-from simgap.analysis.fitting import Candidate, Fit, Items, gap_score, median_abs_gap
+from simgap.analysis.fitting import Candidate, Fit, Items
+from simgap.analysis.gap_size import gap_score, median_abs_gap
 from simgap.analysis.thresholds import CORNER_UNIT_PX
 
 

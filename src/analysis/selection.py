@@ -8,6 +8,7 @@ some channel improves distinguishably (:mod:`simgap.analysis.scoring`), and afte
 simplifies the model: effects are dropped or swapped for ones with fewer parameters while the
 model stays *as good* (the data cannot tell the models apart, so the simpler explanation is
 reported and the others are listed). The report split is scored only for the chosen model.
+Whether an effect may enter a model at all is :mod:`simgap.analysis.admission`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from simgap.analysis.admission import admissible, at_bound
 from simgap.analysis.channels import NOISE_STATS, Prediction
 from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
@@ -24,15 +26,11 @@ from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
     as_good,
-    corner_residuals,
-    corners_clearly_lower,
-    distinguishably_lower,
     improves,
     improves_on_nothing,
     parsimonious,
-    worsens_pose,
 )
-from simgap.analysis.thresholds import CORNER_UNIT_PX, MIN_POSE_REDUCTION, MINOR_CONTRIBUTION
+from simgap.analysis.thresholds import CORNER_UNIT_PX, MINOR_CONTRIBUTION
 from simgap.core.progress import Steps
 from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
@@ -275,10 +273,10 @@ class ModelSearch:
         brings the pose at least
         :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one than
         the model without it (:func:`worsens_pose`), or, for an effect with a corner signature
-        of its own (a lens distortion), when the corners single it out (:func:`seen_in_corners`;
-        issue 25: a D435-like lens fitted to k1 0.155 was left out because it moved no pose
-        beyond the floor, and a calibration file's wrong distortion answered with a print
-        scale). One that follows the corners without
+        of its own (a lens distortion), when the corners single it out
+        (:func:`~simgap.analysis.admission.seen_in_corners`; issue 25: a D435-like lens fitted
+        to k1 0.155 was left out because it moved no pose beyond the floor, and a calibration
+        file's wrong distortion answered with a print scale). One that follows the corners without
         moving the poses closer is a look-alike of an image effect (measured: a tag print scale
         following the corners of a motion blur, pose gap 1-5 % larger on seed 23 and 6 % smaller
         on seed 25, 42 % larger on that trial's report split; every true geometric effect that
@@ -375,59 +373,3 @@ class ModelSearch:
         a relevant amount.
         """
         return pose_contributions(scored, self.rig, self.base, self.significant_axes)
-
-
-def admissible(scored: Scored, reference: Scored | None) -> bool:
-    """Whether the effect ``scored`` adds to ``reference`` (or to no effect) may enter a model.
-
-    No fitted parameter on its bound (:func:`at_bound`: a joint refit that pushes one there is
-    a proxy too); and a geometric effect must bring the pose
-    :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one
-    (:func:`~simgap.analysis.scoring.worsens_pose`) or have its own pattern in the corners
-    (:func:`seen_in_corners`). Appearance effects are judged on their evidence alone.
-    """
-    if at_bound(scored):
-        return False
-    new = [c for c, _ in scored.fits if reference is None or c.effect not in reference.effects]
-    if not any(isinstance(c, ProjectionCandidate) for c in new):
-        return True
-    return not worsens_pose(scored, reference, tolerance=-MIN_POSE_REDUCTION) or seen_in_corners(
-        scored, reference
-    )
-
-
-def at_bound(scored: Scored) -> bool:
-    """Whether some fitted parameter of a model lies on the end of its searched range.
-
-    (``Fit.extra["at_bound"]``, :func:`simgap.analysis.fitting.on_bound`.) The fit wanted to
-    go further than the effect's plausible range: the model stands in for something it cannot
-    express, so it is not offered as a finding.
-    """
-    return any(fit.extra.get("at_bound") for _, fit in scored.fits)
-
-
-def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
-    """Whether a model's newest effect has a corner signature of its own and the corners show it.
-
-    The effect of ``scored`` that ``reference`` lacks (its only one without a reference) has a
-    corner signature (:attr:`~simgap.analysis.fitting.ProjectionCandidate.corner_signature`);
-    its corners are distinguishably better than ``reference``'s (or than no effect): the corner
-    channel beyond its tolerance (:func:`~simgap.analysis.scoring.distinguishably_lower`) or
-    item by item (:func:`~simgap.analysis.scoring.corners_clearly_lower`); and the pose gap is not
-    distinguishably larger (:func:`~simgap.analysis.scoring.worsens_pose`, its default
-    tolerance: a lens distortion whose poses lie within their noise on both sides scored 0.649
-    -> 0.664, pure noise ~0.67). Such an effect is a finding even when it moves no pose beyond
-    the floor: it is then reported as minor.
-    """
-    new = [c for c, _ in scored.fits if reference is None or c.effect not in reference.effects]
-    if len(new) != 1 or not getattr(new[0], "corner_signature", False):
-        return False
-    if reference is None:
-        before_px, before = scored.corner_gap_before_px, corner_residuals(scored, before=True)
-    else:
-        before_px, before = reference.corner_gap_after_px, corner_residuals(reference)
-    unit = scored.corner_unit_px
-    lower = distinguishably_lower(
-        np.array([scored.corner_gap_after_px / unit]), np.array([before_px / unit])
-    ) or corners_clearly_lower(corner_residuals(scored), before)
-    return lower and not worsens_pose(scored, reference)

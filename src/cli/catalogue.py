@@ -13,8 +13,8 @@ from simgap.cli.outputs import (
     REPORT_FOLDER,
     RESULT_DATASET,
     STUDY_FOLDER,
+    check_experiment_output,
     check_outputs,
-    experiment_inputs,
 )
 from simgap.cli.simulate import report, run
 
@@ -55,8 +55,7 @@ def study(
     overwrite: OverwriteOption = False,
 ) -> None:
     """Run an experiment and write its report: OUTPUT/NAME.nc and OUTPUT/NAME-report/."""
-    inputs = experiment_inputs(experiment, "EXPERIMENT")
-    check_outputs([(OUTPUT, output, STUDY_FOLDER)], inputs, overwrite)
+    inputs = check_experiment_output(experiment, output, STUDY_FOLDER, overwrite)
     name = read_experiment(experiment).name
     nc, folder = output / f"{name}.nc", output / f"{name}-report"
     outputs = [(OUTPUT, nc, RESULT_DATASET), (OUTPUT, folder, REPORT_FOLDER)]

@@ -100,6 +100,24 @@ def experiment_inputs(path: Path, label: str) -> list[Input]:
     return [(label, path)] + [(f"{label} (inherited)", p) for p, _ in chain[:-1]]
 
 
+def check_experiment_output(
+    experiment: Path, output: Path, kind: OutputKind, overwrite: bool
+) -> list[Input]:
+    """Check the ``-o/--output`` of a command that runs the experiment YAML ``EXPERIMENT``.
+
+    Returns the command's inputs (the experiment and the files it inherits from), against
+    which it checks any further outputs.
+
+    Raises
+    ------
+    simgap.core.outputs.OutputPathError
+        As :func:`check_outputs`.
+    """
+    inputs = experiment_inputs(experiment, "EXPERIMENT")
+    check_outputs([(OUTPUT, output, kind)], inputs, overwrite)
+    return inputs
+
+
 def simulation_inputs(path: Path, label: str) -> list[Input]:
     """The inputs of an experiment YAML or result dataset given as the simulation."""
     if Path(path).suffix in (".yaml", ".yml"):

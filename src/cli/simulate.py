@@ -20,8 +20,8 @@ from simgap.cli.outputs import (
     OUTPUT,
     REPORT_FOLDER,
     RESULT_DATASET,
+    check_experiment_output,
     check_outputs,
-    experiment_inputs,
 )
 
 
@@ -41,8 +41,7 @@ def run(
     from simgap.pipeline.sweep import run_experiment
     from simgap.results.dataset import write_netcdf
 
-    inputs = experiment_inputs(experiment, "EXPERIMENT")
-    check_outputs([(OUTPUT, output, RESULT_DATASET)], inputs, overwrite)
+    check_experiment_output(experiment, output, RESULT_DATASET, overwrite)
     exp = read_experiment(experiment)
     ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
     write_netcdf(ds, output)

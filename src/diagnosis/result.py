@@ -204,7 +204,7 @@ class DiagnosisResult:
     #: every candidate alone, best first
     ranking: list[RankedEffect] = field(default_factory=list)
     #: candidates whose fit put a parameter on the end of its searched range: not findings
-    #: (:func:`simgap.analysis.selection.at_bound`), listed for the engineer
+    #: (:func:`simgap.analysis.admission.at_bound`), listed for the engineer
     on_bound: list[RankedEffect] = field(default_factory=list)
     #: None when nothing is selected
     selection: Selection | None = None

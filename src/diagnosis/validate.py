@@ -6,9 +6,9 @@ Each trial draws none, one or two hidden effects with magnitudes, geometric and 
 supersampling, texture filtering, sensor, transfer curve, vignetting, paint, poses, one or two
 frames a pose). It renders a pseudo-real capture folder through that camera with the hidden
 effects, ingests it like hardware data, diagnoses it without being told, and scores the answer
-(:meth:`Trial.score`): correct when every hidden effect is named and nothing is named that the
-capture does not have, magnitudes against the camera's truths, the reduction on the report
-split, and the nuisance bins of the trial's camera.
+(:meth:`simgap.diagnosis.trial.Trial.score`): correct when every hidden effect is named and
+nothing is named that the capture does not have, magnitudes against the camera's truths, the
+reduction on the report split, and the nuisance bins of the trial's camera.
 
 Thresholds of the diagnosis are fixed before a blind run; reports on a seed never used while
 developing are the ones quoted.
@@ -20,20 +20,18 @@ import dataclasses
 import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from simgap.analysis.candidates import geometric_effects
 from simgap.core.atomic import atomic_write
 from simgap.core.config import deep_merge
 from simgap.core.rig import Rig
 from simgap.diagnosis.diagnose import diagnose
 from simgap.diagnosis.hidden_effects import (
     APPEARANCE,
-    CAMERA_NAMED,
     HIDDEN,
     OUTSIDE,
     REPORTED_AS,
@@ -43,13 +41,10 @@ from simgap.diagnosis.hidden_effects import (
 from simgap.diagnosis.nuisance import (
     NuisanceCamera,
     draw_nuisance,
-    exposure_truth,
-    nuisance_bins,
-    softness_truth,
     with_exposure,
 )
-from simgap.diagnosis.result import DiagnosisResult
 from simgap.diagnosis.result_json import jsonable, write_json
+from simgap.diagnosis.trial import Trial
 from simgap.diagnosis.validation_report import confusion, summarize_scores, validation_markdown
 from simgap.pipeline.capture import ingest, write_capture
 from simgap.pipeline.experiment import Configurations, Experiment, VariantSpec
@@ -61,7 +56,6 @@ __all__ = [
     "OUTSIDE",
     "Sampler",
     "ValidateSettings",
-    "Trial",
     "draw_hidden",
     "draw_trials",
     "pseudo_real_experiment",
@@ -137,117 +131,6 @@ class ValidateSettings:
         if self.spp is not None:
             changes["spp"] = int(self.spp)
         return dataclasses.replace(drawn, **changes)
-
-
-def _magnitude(params: dict[str, Any], key: str) -> np.ndarray:
-    return np.atleast_1d(np.asarray(params.get(key, 0.0), float))
-
-
-@dataclass
-class Trial:
-    """One trial: what was hidden, the other camera, and what the diagnosis said."""
-
-    index: int
-    hidden: dict[str, dict[str, Any]]
-    camera: NuisanceCamera | None = None
-    result: DiagnosisResult = field(default_factory=DiagnosisResult)
-    seconds: float = 0.0
-    rig: Rig | None = None
-
-    def record(self) -> dict[str, Any]:
-        """The trial as ``validation.json`` keeps it: its score, draws, result and seconds."""
-        return jsonable(
-            dict(
-                self.score(),
-                index=self.index,
-                params=self.hidden,
-                camera=self.camera.record() if self.camera else None,
-                result=self.result,
-                seconds=self.seconds,
-            )
-        )
-
-    def truth(self) -> dict[str, tuple[dict[str, Any], dict[str, float]]]:
-        """What a diagnosis should find, by the effect that names it: parameters and scales.
-
-        Per effect: the parameters it should read, and per scored parameter the size an error is
-        relative to. The hidden effects' own parameters (relative to themselves), except where
-        the other camera has the same kind of effect (:data:`CAMERA_NAMED`): exposure reads the
-        camera's total exposure and blur its total softness (:func:`exposure_truth`,
-        :func:`softness_truth`); a faulty calibration file is read as the lens it describes
-        wrongly: no distortion, an error relative to the distortion the file claims.
-        """
-        out: dict[str, tuple[dict[str, Any], dict[str, float]]] = {}
-        for name, params in self.hidden.items():
-            if name not in HIDDEN:
-                continue
-            params = dict(params)
-            if name == "faulty_calibration":
-                scale = {"k1": abs(float(params["k1"]))}
-                out[REPORTED_AS[name]] = ({"k1": 0.0}, scale)
-                continue
-            if self.camera is not None and self.rig is not None:
-                if name == "exposure":
-                    params = {"ev": exposure_truth(self.camera, self.rig)}
-                if name == "blur":
-                    params = {"sigma_px": softness_truth(self.camera, params["sigma_px"])}
-            keys = HIDDEN[name][1]
-            out[name] = (params, {k: float(np.linalg.norm(_magnitude(params, k))) for k in keys})
-        return out
-
-    def score(self) -> dict[str, Any]:
-        """Correctness, recall, magnitude errors, reduction and nuisance bins of this trial.
-
-        Correct: every hidden catalogue effect is named (for a pair: at least one, and the
-        recall says how many), and nothing is named that the capture does not have (a geometric
-        or calibration effect that was not hidden; an appearance effect that neither was hidden
-        nor is one every camera has, :data:`CAMERA_NAMED`); for an effect outside the catalogue,
-        "unexplained" and no geometric effect; without a hidden effect, nothing but the camera's
-        own appearance. ``top1`` is the first named effect that is not only the camera's own.
-        Magnitude errors are per scored parameter (``effect.parameter``), relative to
-        :meth:`truth`'s scale.
-        """
-        selected = list(self.result.selected)
-        hidden = list(self.hidden)
-        named = {REPORTED_AS.get(h, h) for h in hidden}
-        geometric = [e for e in selected if e in geometric_effects()]
-        spurious = [e for e in selected if e not in named and e not in CAMERA_NAMED]
-        own = [e for e in selected if e in named or e not in CAMERA_NAMED]
-        out: dict[str, Any] = {
-            "hidden": hidden,
-            "selected": selected,
-            "top1": own[0] if own else (selected[0] if selected else "none"),
-            "unexplained": self.result.unexplained,
-            "geometric_selected": geometric,
-            "spurious": spurious,
-            "bins": nuisance_bins(self.camera, self.rig) if self.camera and self.rig else {},
-        }
-        if not hidden:
-            out["correct"] = not spurious
-            return out
-        if set(hidden) <= set(OUTSIDE):
-            out["correct"] = self.result.unexplained and not geometric
-            return out
-        hits = [found(h, selected) for h in hidden]
-        out["correct"] = (all(hits) if len(hidden) == 1 else any(hits)) and not spurious
-        out["recall"] = sum(hits) / len(hidden)
-        selection = self.result.selection
-        fitted = {f.effect: f.params for f in selection.findings} if selection else {}
-        mags = {}
-        for name, (params, scales) in self.truth().items():
-            if name not in fitted:
-                continue
-            for key, scale in scales.items():
-                error = _magnitude(fitted[name], key) - _magnitude(params, key)
-                mags[f"{name}.{key}"] = float(np.linalg.norm(error) / scale)
-        out["magnitude_error"] = mags
-        combined, confirmed = self.result.combined, self.result.confirmed
-        if confirmed is not None:
-            out["reduction"] = confirmed.pose_gap_reduction
-        else:
-            out["reduction"] = combined.scores.pose_gap_reduction if combined else None
-        out["reduction_interval_90"] = combined.pose_gap_reduction_interval_90 if combined else None
-        return out
 
 
 def draw_hidden(rng: np.random.Generator, settings: ValidateSettings) -> dict[str, dict[str, Any]]:

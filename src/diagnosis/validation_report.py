@@ -1,6 +1,6 @@
 """The blind validation's scores over trials and its report (``validation.md``).
 
-Reads the per-trial scores :meth:`simgap.diagnosis.validate.Trial.score` makes (as
+Reads the per-trial scores :meth:`simgap.diagnosis.trial.Trial.score` makes (as
 ``validation.json`` keeps them): top-1 accuracy overall, per effect and for appearance effects,
 recall for pairs, magnitude errors, reductions, and the confusion table.
 """
