@@ -49,7 +49,8 @@ from simgap.pipeline.capture import (
     write_capture,
 )
 from simgap.pipeline.experiment import load_experiment
-from simgap.results.dataset import build_dataset, check_dataset, read_netcdf, write_netcdf
+from simgap.results.contract import check_dataset
+from simgap.results.dataset import build_dataset, read_netcdf, write_netcdf
 
 from fuzz_outputs import (  # isort: skip  (beside this script)
     BIG_FRAME_TARGET_MB,

@@ -30,7 +30,7 @@ from simgap.pipeline.bag import (
     capture_to_bag,
     ingest_bag,
 )
-from simgap.pipeline.bag.writer import _Messages
+from simgap.pipeline.bag.messages import Messages
 from simgap.pipeline.capture import ingest, write_capture
 from simgap.pose.estimate import project_tag_corners
 from simgap.render.assets import tag_texture
@@ -217,7 +217,7 @@ def test_bag_names_decide_the_storage(tmp_path, png_capture):
 
 def write_raw_bag(path: Path, rig, frames, stamps_ns, extra_image_topic: bool = False) -> Path:
     """A ROS 1 bag written directly with rosbags: raw frames and a CameraInfo, no fixture topic."""
-    build = _Messages("ros1")
+    build = Messages("ros1")
     with Writer1(path) as writer:
         img = writer.add_connection(IMAGE_TOPIC, "sensor_msgs/msg/Image", typestore=build.ts)
         info = writer.add_connection(
@@ -298,7 +298,7 @@ def test_named_errors(tmp_path, frames, rig):
         ingest_bag(tmp_path / "g.csv")
     # a calibration with skew is refused, naming the topic
     skewed = rig.camera.replace(fx=1000.0)
-    build = _Messages("ros1")
+    build = Messages("ros1")
     msg = build.camera_info(10**9, skewed)
     msg.K[1] = 5.0
     path = tmp_path / "skew.bag"

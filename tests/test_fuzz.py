@@ -26,10 +26,9 @@ from simgap.pipeline.capture import (
     write_capture,
 )
 from simgap.pipeline.experiment import load_experiment
+from simgap.results.contract import DatasetError, check_dataset
 from simgap.results.dataset import (
-    DatasetError,
     build_dataset,
-    check_dataset,
     read_netcdf,
     write_netcdf,
 )

@@ -27,7 +27,8 @@ from simgap.pipeline.cache import CacheWarning
 from simgap.pipeline.capture import CaptureWarning, ingest, read_capture, write_capture
 from simgap.pipeline.experiment import load_experiment
 from simgap.pipeline.sweep import experiment_pipelines, run_experiment
-from simgap.results.dataset import DatasetError, read_netcdf, write_netcdf
+from simgap.results.contract import DatasetError
+from simgap.results.dataset import read_netcdf, write_netcdf
 
 TINY = "name: tiny\nconfigurations: {p: [7], theta_deg: [0, 30, 60, 90]}\nrender: {spp: 4}\n"
 CONTRACT = ("expected", "estimated", "error", "visible", "detected", "reproj_px", "corners")

@@ -194,7 +194,8 @@ def main(
 
 def read_result_dataset(path: Path):
     """A result dataset (netCDF), checked against the contract (errors name the file)."""
-    from simgap.results.dataset import check_dataset, read_netcdf
+    from simgap.results.contract import check_dataset
+    from simgap.results.dataset import read_netcdf
 
     return check_dataset(read_netcdf(path), path)
 

@@ -64,7 +64,7 @@ from simgap.diagnosis.sim_runner import SimRunner
 from simgap.diagnosis.where import unexplained_evidence, where_summary
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.simulator import Simulator
-from simgap.results.dataset import check_dataset
+from simgap.results.contract import check_dataset
 
 
 class Diagnosis:
@@ -223,7 +223,7 @@ def diagnose(
 
     Raises
     ------
-    simgap.results.dataset.DatasetError
+    simgap.results.contract.DatasetError
         Before any simulation, when ``real`` does not follow the result dataset contract.
     """
     check_dataset(real, required=("error", "detected", "visible", "corners"))

@@ -41,7 +41,8 @@ from simgap.pipeline.cache import Cache, content_hash
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.variant import VariantPipeline, assets_hash
 from simgap.pose.tags import RESULT_FIELDS
-from simgap.results.dataset import CONVENTIONS, build_dataset, empty_results
+from simgap.results.contract import CONVENTIONS
+from simgap.results.dataset import build_dataset, empty_results
 
 _PIPELINES: dict[str, list[VariantPipeline]] = {}
 

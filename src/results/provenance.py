@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from simgap.results.cf import logical_names
-from simgap.results.dataset import REQUIRED
+from simgap.results.contract import REQUIRED
 
 #: First bytes of a netCDF-4 (HDF5) file and of the classic netCDF formats (CDF-1, -2, -5).
 NETCDF_SIGNATURES = (b"\x89HDF\r\n\x1a\n", b"CDF\x01", b"CDF\x02", b"CDF\x05")

@@ -15,8 +15,9 @@ import xarray as xr
 
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES
-from simgap.results.cf import decode_cf
-from simgap.results.dataset import COORD_ATTRS, ERROR_UNITS, write_netcdf
+from simgap.results.cf import ERROR_UNITS, decode_cf
+from simgap.results.contract import COORD_ATTRS
+from simgap.results.dataset import write_netcdf
 
 SCHEMA = "simgap-errormodel/1"
 """Schema name of error-model files (netCDF attr ``schema``, JSON key ``schema``)."""

@@ -61,12 +61,11 @@ from simgap.pipeline.bag.formats import (
 )
 from simgap.pipeline.bag.ranges import TimeRange, read_time_ranges
 from simgap.pipeline.bag.reader import BagConversion, bag_to_capture, ingest_bag
+from simgap.pipeline.bag.tf_tree import moving_transforms, static_transforms
 from simgap.pipeline.bag.writer import (
     BagFrame,
     capture_to_bag,
     experiment_to_bag,
-    moving_transforms,
-    static_transforms,
     write_bag,
 )
 

@@ -24,8 +24,8 @@ from simgap.pipeline.capture.manifest import CaptureFrame
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.tags import Estimation, add_image_stats, estimate_tags
+from simgap.results.contract import CONVENTIONS
 from simgap.results.dataset import (
-    CONVENTIONS,
     build_dataset,
     empty_results,
     ground_truth,
