@@ -3,7 +3,7 @@
 Each pair starts two ``simgap run`` processes at once on an empty cache folder (so both render,
 write and read the same entries at the same moment), then checks that both exit cleanly and that
 their datasets are identical, value for value (and says whether they also equal the first pair's:
-a render's last bits depend on what the process rendered before, see the README). With
+a render's last bits depend on what the process rendered before, see docs/reliability.md). With
 ``--kill``, each pair is instead one run killed with SIGKILL mid-sweep and rerun on its cache,
 compared with an uninterrupted run.
 

@@ -3,6 +3,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-.venv/bin/ruff check src tests benchmarks
-.venv/bin/lint-imports  # the layers contract of pyproject.toml (README, Architecture)
+.venv/bin/ruff check src tests benchmarks scripts
+.venv/bin/lint-imports  # the layers contract of pyproject.toml (docs/architecture.md)
 exec .venv/bin/python -m pytest "$@"

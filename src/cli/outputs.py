@@ -19,7 +19,7 @@ OUTPUT = "-o/--output"
 Input = tuple[str, Path | None]
 #: The largest JSON file read to recognise an earlier output (bytes); simgap's are far smaller.
 MAX_JSON_BYTES = 64 * 2**20
-#: Keys every diagnosis ``result.json`` has (README, result.json).
+#: Keys every diagnosis ``result.json`` has (docs/diagnosis.md, result.json).
 DIAGNOSIS_KEYS = frozenset({"where", "ranking", "selected", "unexplained"})
 
 

@@ -1,8 +1,9 @@
 """The diagnosis's result as typed records: where, ranking, selection, combined, confirmed.
 
 :class:`DiagnosisResult` is what :func:`simgap.diagnosis.diagnose.diagnose` returns and what
-``result.json`` holds (:meth:`DiagnosisResult.to_json`, :meth:`DiagnosisResult.from_json`; the
-README documents the schema). Three splits of the comparable configurations, one name each:
+``result.json`` holds (:meth:`DiagnosisResult.to_json`, :meth:`DiagnosisResult.from_json`;
+docs/diagnosis.md documents the schema). Three splits of the comparable configurations, one name
+each:
 *fit* (the effects' parameters are fitted), *choose* (models are ranked, combined, simplified and
 pruned: :class:`RankedEffect`, :class:`Selection`) and *report* (the chosen model is measured:
 :class:`Combined`, :class:`Confirmed`).

@@ -42,8 +42,8 @@ interpolated support is at least ``min_support``. Outside, the runtime raises
 :class:`OutOfRangeError` (or returns NaN when asked to). A tag facing away from the camera
 (obliquity beyond +-pi/2) is never detected: that is geometry, not extrapolation.
 
-Files: :meth:`ErrorModel.save` writes netCDF (grid, units, provenance) and JSON (the schema in the
-README, readable by a controller without simgap).
+Files: :meth:`ErrorModel.save` writes netCDF (grid, units, provenance) and JSON (the schema in
+docs/errormodel.md, readable by a controller without simgap).
 
 Modules (in ``simgap.analysis.errormodel``): ``fit`` (fitting), ``model`` (the query API),
 ``io`` (files), ``check`` (the held-out check), ``geometry`` (covariates) and ``smoothing`` (the

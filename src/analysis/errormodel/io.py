@@ -1,7 +1,7 @@
 """Error-model files: the netCDF dataset and its JSON form (readable without simgap).
 
-The JSON schema is in the README: grid coordinates, units, ``min_support``, provenance attrs and
-per tag the nested lists of every tabulated variable, NaN as null.
+The JSON schema is in docs/errormodel.md: grid coordinates, units, ``min_support``, provenance
+attrs and per tag the nested lists of every tabulated variable, NaN as null.
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ def write_model_dataset(ds: xr.Dataset, path: str | Path) -> tuple[Path, Path]:
 
 
 def dataset_to_json(ds: xr.Dataset) -> dict:
-    """The JSON form of a model dataset (schema in the README): nested lists, NaN as null."""
+    """The JSON form of a model dataset (schema: docs/errormodel.md): nested lists, NaN as null."""
 
     def lists(a: np.ndarray):
         a = np.asarray(a)

@@ -89,7 +89,7 @@ class ErrorModel:
         return write_model_dataset(self.ds, path)
 
     def to_json(self) -> dict:
-        """The JSON form (schema in the README): nested lists, NaN as null."""
+        """The JSON form (schema in docs/errormodel.md): nested lists, NaN as null."""
         return dataset_to_json(self.ds)
 
     # --- evaluation -----------------------------------------------------------------------
