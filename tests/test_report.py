@@ -236,3 +236,22 @@ def test_missing_coordinate_is_named(tmp_path: Path) -> None:
     ds = make_dataset().drop_vars("repeat")
     with pytest.raises(ValueError, match="missing required coordinates: repeat"):
         write_report(ds, tmp_path)
+
+
+def test_report_figures_speak_mm_and_mrad() -> None:
+    from simgap.analysis.report.figures import plot_error_heatmap, plot_error_vs_distance
+
+    ds = make_dataset()
+    summary = summarize_variant(ds.isel(variant=0), pin_pitch_m=PITCH_M)
+    for plot in (plot_error_vs_distance, plot_error_heatmap):
+        fig = plot(summary, 0)
+        titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+        assert any("[mm]" in t and t.startswith("ty") for t in titles), titles
+        assert any("[mrad]" in t and t.startswith("rz") for t in titles), titles
+        assert not any("[m]" in t or "[rad]" in t for t in titles), titles
+    fig = plot_error_vs_distance(summary, 0)
+    ty = next(ax for ax in fig.axes if ax.get_title().startswith("ty"))
+    assert "threshold 5 mm" in ty.get_title()  # 0.005 m, the mission threshold, in mm
+    expected_mm = 1e3 * float(summary.abs_error.sel(tag=0, axis="ty").max())
+    drawn = [float(np.nanmax(line.get_ydata())) for line in ty.lines if len(line.get_ydata()) > 2]
+    assert max(drawn) == pytest.approx(expected_mm, rel=1e-12)

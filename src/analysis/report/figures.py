@@ -4,8 +4,8 @@ Report: :func:`plot_error_vs_distance` (paper style) and :func:`plot_error_heatm
 variant's :class:`~simgap.analysis.report.summaries.VariantSummary`. Comparison:
 :func:`plot_change_by_distance`, :func:`plot_change_heatmap` and
 :func:`plot_axis_change_heatmap` of a :func:`~simgap.analysis.report.comparisons.compare_variants`
-dataset. Units are the dataset's (m, rad) in the report figures and display units (mm, mrad) in
-the comparison figures. Their heatmaps' cells, colour limits and legend are
+dataset. Every figure speaks the display units (mm, mrad; :func:`simgap.core.axes.display_unit`)
+of the dataset's m and rad. Their heatmaps' cells, colour limits and legend are
 :mod:`simgap.analysis.report.heatmaps`'.
 """
 
@@ -35,7 +35,7 @@ from simgap.analysis.report.heatmaps import (
     signed_mesh,
 )
 from simgap.analysis.report.summaries import VariantSummary
-from simgap.core.axes import AXES, AXIS_UNITS, display_unit
+from simgap.core.axes import AXES, display_unit
 from simgap.core.distance import DISTANCE_LABEL
 
 THETA_CMAP: Final[str] = "cividis"
@@ -84,7 +84,7 @@ def plot_error_vs_distance(summary: VariantSummary, tag: int) -> Figure:
     Returns
     -------
     matplotlib.figure.Figure
-        2x3 panels (tx, ty, tz / rx, ry, rz): repeat-averaged absolute error (m or rad) against
+        2x3 panels (tx, ty, tz / rx, ry, rz): repeat-averaged absolute error (mm or mrad) against
         camera-to-tag distance (m), one line per turntable angle with a visible configuration
         (angles unwrapped around the tag's mean viewing angle, so the colour bar may show negative
         degrees), the high-precision threshold as a dashed line, the largest and smallest
@@ -124,13 +124,14 @@ def _draw_error_vs_distance(
 ) -> None:
     """Draw one panel of :func:`plot_error_vs_distance`; `colours` is RGBA per theta."""
     x = summary.distance_m.sel(tag=tag).transpose("p", "theta").values
-    y = summary.abs_error.sel(tag=tag, axis=axis).transpose("p", "theta").values
+    unit, scale = display_unit(axis)
+    y = scale * summary.abs_error.sel(tag=tag, axis=axis).transpose("p", "theta").values
     visible = summary.visible.sel(tag=tag).transpose("p", "theta").values
     undetected = visible & ~summary.detected_any.sel(tag=tag).transpose("p", "theta").values
     for j in np.flatnonzero(visible.any(axis=0)):
         ax.plot(x[:, j], y[:, j], marker="o", ms=3, lw=1, color=colours[j])
     _mark_extremes(ax, x, y)
-    threshold = threshold_for(axis)
+    threshold = scale * threshold_for(axis)
     ax.axhline(threshold, color="k", ls="--", lw=1)
     rows, cols = np.nonzero(undetected)
     ax.scatter(
@@ -144,7 +145,6 @@ def _draw_error_vs_distance(
     )
     top = max(threshold, float(np.nanmax(y, initial=0.0)))
     ax.set_ylim(0.0, 1.15 * top)
-    unit = AXIS_UNITS[axis]
     ax.set_title(f"{axis}: |error| [{unit}], threshold {threshold:g} {unit}")
     ax.set_ylabel(f"|{axis} error| [{unit}]")
     ax.grid(alpha=0.3)
@@ -173,7 +173,7 @@ def plot_error_heatmap(summary: VariantSummary, tag: int) -> Figure:
     Returns
     -------
     matplotlib.figure.Figure
-        2x3 panels, repeat-averaged signed error (m or rad), one cell per sampled configuration
+        2x3 panels, repeat-averaged signed error (mm or mrad), one cell per sampled configuration
         (:class:`~simgap.analysis.report.heatmaps.SampledAxis`): theta (deg, unwrapped around
         the tag's mean viewing angle, so it may be negative) across, pin-hole rows up, ticked
         with each row's median camera-to-tag distance (m). A diverging colour map centred on 0
@@ -214,8 +214,8 @@ def _draw_heatmap(fig: Figure, ax: Axes, summary: VariantSummary, tag: int, axis
         return _on_view_grid(da, theta_deg).isel(theta=keep)
 
     signed = on_grid(summary.signed_error.sel(tag=tag, axis=axis))
-    values = signed.values
-    unit = AXIS_UNITS[axis]
+    unit, scale = display_unit(axis)
+    values = scale * signed.values
     beyond = signed_mesh(fig, ax, values, robust_colour_limit(values), f"{axis} error [{unit}]")
     undetected = on_grid((summary.visible & ~summary.detected_any).sel(tag=tag))
     rows, cols = np.nonzero(undetected.values)
