@@ -158,3 +158,22 @@ def test_targeted_validation_draws_only_the_named_effects(tmp_path):
     )
     assert res.exit_code == 2 and "--effects: expected names among" in res.output
     assert "got nope" in res.output and not (tmp_path / "v").exists()
+
+
+def test_strict_accuracy_asks_for_every_hidden_effect_of_a_pair():
+    from simgap.diagnosis.validation_report import summarize_scores
+
+    def score(hidden, selected, correct, recall, spurious=()):
+        return dict(hidden=hidden, selected=selected, correct=correct, recall=recall,
+                    spurious=list(spurious), top1=selected[0], bins={})
+
+    scores = [
+        score(["jpeg", "faulty_calibration"], ["exposure", "jpeg"], True, 0.5),  # seed 31 trial 16
+        score(["tag_scale", "camera_mount"], ["camera_mount", "tag_scale"], True, 1.0),
+        score(["blur"], ["blur"], True, 1.0),
+        score(["defocus"], ["tag_scale", "blur"], False, 0.0, ["tag_scale"]),
+    ]
+    summary = summarize_scores(scores)
+    assert summary["top1_accuracy"] == 0.75
+    assert summary["every_effect_accuracy"] == 0.5
+    assert summary["pair_recall"] == 0.75
