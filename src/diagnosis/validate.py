@@ -6,8 +6,9 @@ Each trial draws none, one or two hidden effects with magnitudes, geometric and 
 supersampling, texture filtering, sensor, transfer curve, vignetting, paint, poses, one or two
 frames a pose). It renders a pseudo-real capture folder through that camera with the hidden
 effects, ingests it like hardware data, diagnoses it without being told, and scores the answer
-(:meth:`simgap.diagnosis.trial.Trial.score`): correct when every hidden effect is named and
-nothing is named that the capture does not have, magnitudes against the camera's truths, the
+(:meth:`simgap.diagnosis.trial.Trial.score`): correct when the hidden effect is named (of a
+pair at least one; the recall and the report's strict row count both) and nothing is named that
+the capture does not have, magnitudes against the camera's truths, the
 reduction on the report split, and the nuisance bins of the trial's camera.
 
 Thresholds of the diagnosis are fixed before a blind run; reports on a seed never used while
