@@ -59,17 +59,17 @@ def errormodel(
             skipped = str(exc)
     for path in model.save(output):
         typer.echo(str(path))
+    described = {
+        "local": "local fit",
+        "pooled": "pooled: constant bias and spread over its span, wide t(n-1) 90 % "
+        "intervals, no correlation (fewer detections than the local fit's "
+        f"{FitSettings().min_detections})",
+        "none": "not fitted (too few detections)",
+    }
     for tag, n, how in zip(
         model.tags, model.ds.detections.values, model.ds.fit.values, strict=True
     ):
-        what = {
-            "local": "local fit",
-            "pooled": "pooled: constant bias and spread over its span, wide t(n-1) 90 % "
-            "intervals, no correlation (fewer detections than the local fit's "
-            f"{FitSettings().min_detections})",
-            "none": "not fitted (too few detections)",
-        }[FIT_METHODS[int(how)]]
-        typer.echo(f"tag {tag}: {int(n)} detections, {what}")
+        typer.echo(f"tag {tag}: {int(n)} detections, {described[FIT_METHODS[int(how)]]}")
     if skipped:
         typer.echo(f"held-out check skipped: on half the configurations {skipped}")
     if summary is not None:

@@ -150,10 +150,7 @@ def export_bag(
         target = bag_target(output, fmt, storage)
     except ConfigError as exc:
         fail(str(exc))
-    opts = {
-        "compressed": compressed,
-        "storage": target.storage if target.format == "ros2" else None,
-    }
+    opts = {"compressed": compressed, "storage": target.storage}
     if source.is_dir():
         path = capture_to_bag(source, output, target.format, **opts)
     else:

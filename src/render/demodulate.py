@@ -86,7 +86,7 @@ RELATIVE_NOISE_FLOOR = 1e-6
 MIN_PIXELS = 3 * (MAX_ORDER + 1) * (MAX_ORDER + 2) // 2
 
 
-class Treatment(enum.StrEnum):
+class Treatment(str, enum.Enum):
     """How a sticker's converged radiance was made."""
 
     #: albedo x one smooth irradiance fitted over the sticker

@@ -255,15 +255,7 @@ def fit_error_model(
             "support_error": (plane, stack("support_error")),
             "support_detection": (plane, stack("support_detection")),
             "detections": (("tag",), np.array([counts[t] for t in tags])),
-            "fit": (
-                ("tag",),
-                np.array([f["fit"] for f in fits], np.int8),
-                {
-                    "long_name": "how the tag's errors were fitted",
-                    "flag_values": np.arange(len(FIT_METHODS), dtype=np.int8),
-                    "flag_meanings": " ".join(FIT_METHODS),
-                },
-            ),
+            "fit": (("tag",), np.array([f["fit"] for f in fits], np.int8)),
         },
         coords={
             "tag": ("tag", np.array(tags)),

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -35,7 +36,7 @@ JSON_VARIABLES = (
 #: ``units`` and ``long_name`` attrs of the model's variables and coordinates (a variable along
 #: ``axis`` in :data:`ERROR_UNITS` is stored as translation and rotation parts, see
 #: :mod:`simgap.results.cf`); no quantity here has a CF standard name.
-ATTRS: dict[str, dict[str, str]] = {
+ATTRS: dict[str, dict[str, Any]] = {
     "bias": {"units": ERROR_UNITS, "long_name": "location of the signed error"},
     "spread": {"units": ERROR_UNITS, "long_name": "std of the error"},
     "bias_se": {"units": ERROR_UNITS, "long_name": "std error of bias"},
@@ -47,7 +48,11 @@ ATTRS: dict[str, dict[str, str]] = {
     "support_error": {"units": "1", "long_name": "kernel mass of the detected configurations"},
     "support_detection": {"units": "1", "long_name": "kernel mass of the facing configurations"},
     "detections": {"units": "count", "long_name": "detections the model was fitted to"},
-    "fit": {"long_name": "how the tag's errors were fitted"},
+    "fit": {
+        "long_name": "how the tag's errors were fitted",
+        "flag_values": np.arange(len(FIT_METHODS), dtype=np.int8),
+        "flag_meanings": " ".join(FIT_METHODS),
+    },
     "tag": COORD_ATTRS["tag"],
     "distance": {"units": "m", "long_name": "eyepoint-tag distance"},
     "obliquity": {"units": "rad", "long_name": "signed angle between tag normal and line of sight"},
@@ -151,10 +156,6 @@ def dataset_from_json(data: dict) -> xr.Dataset:
                     [FIT_METHODS.index(data["tags"][str(t)].get("fit", "local")) for t in tags],
                     np.int8,
                 ),
-                {
-                    "flag_values": np.arange(3, dtype=np.int8),
-                    "flag_meanings": " ".join(FIT_METHODS),
-                },
             ),
         },
         coords={
