@@ -157,8 +157,20 @@ def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path
     assert fit.params["aperture_radius_m"] == pytest.approx(0.9e-3, rel=0.1)
     flat = lens.fit(runner, None, _edge_items(runner, lambda z: np.full_like(z, 2.6)))
     # a 1 px Gaussian blur everywhere: the lens fits it worse than one widening at every depth
-    # (measured RMS 1.34 against 0.24 floors), so the blur stays a candidate
-    assert flat.extra["excludes"] == ()
+    # (measured RMS 1.34 against 0.24 floors), so the blur stays a candidate, and the lens is
+    # none: its signature is a widening that changes with depth
+    assert flat.extra["excludes"] == () and not flat.extra["supported"]
+
+    def far_lens(z):  # a 1.0 mm aperture focused at infinity (a fixed-focus module)
+        radius = focal * 1.0e-3 / z
+        return np.sqrt(SHARP_EDGE_PX**2 + (DISK_10_90_PER_RADIUS * radius) ** 2)
+
+    far = lens.fit(runner, None, _edge_items(runner, far_lens))
+    # a far focus is a value, not a bound (blind seed 31 trial 17 fitted 5 m, then the end of
+    # the range, and was left out); measured: aperture 1.00 mm, focus 100 m (the far end)
+    assert far.extra["supported"] and far.extra["at_bound"] == ()
+    assert far.params["aperture_radius_m"] == pytest.approx(1.0e-3, rel=0.1)
+    assert far.params["focus_distance_m"] > 20.0
 
 
 def _blockiness_test(real_stops: np.ndarray) -> list:
@@ -195,3 +207,18 @@ def test_sensor_noise_is_ranked_only_where_the_noise_differs():
     # no sensor noise: the real camera's render noise is the simulation's
     clean = SensorNoiseCandidate().fit(None, VariantState(), _items(1e6, 0.0, SIM_RELATIVE_NOISE))
     assert not clean.extra["supported"]
+
+
+def test_a_noise_fit_without_shot_noise_is_on_its_bound():
+    """Issue 25: noise that does not grow with the level (no shot noise: a 10^6 e- full well with
+    1000 e- of read noise, 0.1 % of full scale) fits the full well at the end of its range and the
+    read noise at its cap (measured 9.99e5 e-, 992 e-): no finding. Blind seed 32 trial 17 had
+    been named sensor noise with such a fit, its full well 900x off."""
+    from simgap.analysis.sensor_noise import FULL_WELL_BOUNDS_E
+
+    flat = SensorNoiseCandidate().fit(None, VariantState(), _items(1e6, 1000.0, 0.01))
+    assert set(flat.extra["at_bound"]) == {"full_well_e", "read_noise_e"}
+    assert flat.params["full_well_e"] > 0.9 * FULL_WELL_BOUNDS_E[1]
+    # a hardware sensor's fit is inside its range (measured 759 e-, 11.3 e-)
+    shot = SensorNoiseCandidate().fit(None, VariantState(), _items(800.0, 12.0, 0.01))
+    assert shot.extra["at_bound"] == ()

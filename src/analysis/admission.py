@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.fitting import ProjectionCandidate
+from simgap.analysis.fitting import Fit, ProjectionCandidate
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
     corner_residuals,
@@ -12,14 +12,15 @@ from simgap.analysis.scoring import (
     distinguishably_lower,
     worsens_pose,
 )
-from simgap.analysis.thresholds import MIN_POSE_REDUCTION
+from simgap.analysis.thresholds import MIN_POSE_REDUCTION, SIZE_SLOPE_Z, SIZE_ZERO_SHARE
 
 
 def admissible(scored: Scored, reference: Scored | None) -> bool:
     """Whether the effect ``scored`` adds to ``reference`` (or to no effect) may enter a model.
 
     No fitted parameter on its bound (:func:`at_bound`: a joint refit that pushes one there is
-    a proxy too); and a geometric effect must bring the pose
+    a proxy too); a new print-scale-like effect changes the tags' size in proportion to it
+    (:func:`grows_with_size`); and a geometric effect must bring the pose
     :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one
     (:func:`~simgap.analysis.scoring.worsens_pose`) or have its own pattern in the corners
     (:func:`seen_in_corners`). Appearance effects are judged on their evidence alone.
@@ -27,11 +28,30 @@ def admissible(scored: Scored, reference: Scored | None) -> bool:
     if at_bound(scored):
         return False
     new = [c for c, _ in scored.fits if reference is None or c.effect not in reference.effects]
+    if not all(grows_with_size(f) for c, f in scored.fits if c in new):
+        return False
     if not any(isinstance(c, ProjectionCandidate) for c in new):
         return True
     return not worsens_pose(scored, reference, tolerance=-MIN_POSE_REDUCTION) or seen_in_corners(
         scored, reference
     )
+
+
+def grows_with_size(fit: Fit) -> bool:
+    """Whether a print-scale-like effect's corners change in size in proportion to the tag size.
+
+    For a candidate with a size signature (``Fit.extra["size_change"]``, set by
+    :meth:`simgap.analysis.selection.ModelSearch.evaluate` on the fit split): the size change it
+    has to explain grows with the tag's image size by at least
+    :data:`~simgap.analysis.thresholds.SIZE_SLOPE_Z` standard errors, and an edge offset of the
+    other sign does not cancel it before :data:`~simgap.analysis.thresholds.SIZE_ZERO_SHARE` of
+    the smallest tag's size (:mod:`simgap.analysis.size_signature`). Other effects, and fits on
+    too few tags to test, pass.
+    """
+    change = fit.extra.get("size_change")
+    if change is None or not np.isfinite(change.slope_z):
+        return True
+    return abs(change.slope_z) >= SIZE_SLOPE_Z and not change.zero_share >= SIZE_ZERO_SHARE
 
 
 def at_bound(scored: Scored) -> bool:

@@ -43,10 +43,8 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
             ),
             ProjectionCandidate("turntable_offset", [("angle_rad", 0.01, 0.4)]),
             ProjectionCandidate("carriage_pitch", [("scale", 0.01, 0.15)]),
-            ProjectionCandidate("tag_scale", [("scale", 0.01, 0.25)]),
-            ProjectionCandidate(
-                "tag_offset", [(f"offset_m[{i}]", 0.001, 0.015) for i in range(3)]
-            ),
+            ProjectionCandidate("tag_scale", [("scale", 0.01, 0.25)], size_signature=True),
+            ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.001, 0.015) for i in range(3)]),
             AppearanceCandidate("blur", EDGE_WIDTHS, "sigma_px", (0.05, 3.0), 0.02),
             # the paper level: ink near black is flare and print, not exposure
             AppearanceCandidate("exposure", ("paper_linear",), "ev", (-4.0, 4.0), 0.02),

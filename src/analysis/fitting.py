@@ -175,6 +175,10 @@ class ProjectionCandidate:
         a model on corner evidence that is clearly better item by item
         (:func:`simgap.analysis.scoring.corners_clearly_lower`) without bringing the pose
         closer (:meth:`simgap.analysis.selection.ModelSearch.select`).
+    size_signature : bool
+        The effect changes every tag's image size by the same share (a print scale): it may enter
+        a model only where the corners' size change grows with the tag's size
+        (:mod:`simgap.analysis.size_signature`), not where it is an edge offset of an image effect.
     """
 
     kind = "projection"
@@ -182,10 +186,15 @@ class ProjectionCandidate:
     fit_stats: tuple[str, ...] = ()
 
     def __init__(
-        self, effect: str, params: list[tuple[str, float, float]], corner_signature: bool = False
+        self,
+        effect: str,
+        params: list[tuple[str, float, float]],
+        corner_signature: bool = False,
+        size_signature: bool = False,
     ) -> None:
         self.effect = effect
         self.corner_signature = corner_signature
+        self.size_signature = size_signature
         self.names = [n for n, _, _ in params]
         self.x_scale = np.array([s for _, s, _ in params], float)
         self.bound = np.array([b for _, _, b in params], float)
@@ -215,6 +224,10 @@ class ProjectionCandidate:
 
     def _state(self, base: VariantState, x: np.ndarray) -> VariantState:
         return self.apply(base, self.effect_params(x))
+
+    def without(self, x: np.ndarray, effect: str) -> np.ndarray:
+        """The parameter vector ``x`` with ``effect``'s parameters set to no effect (zero)."""
+        return np.zeros_like(x) if effect == self.effect else np.array(x, float)
 
     def corner_shift(self, rig: Rig, base: VariantState, x: np.ndarray, items: Items) -> np.ndarray:
         """Change of the projected corners (N, 4, 2) caused by the effect (px)."""
@@ -305,6 +318,13 @@ class ProjectionSet(ProjectionCandidate):
         for m, xm in zip(self.members, np.split(x, self._cuts), strict=True):
             base = m._state(base, xm)
         return base
+
+    def without(self, x: np.ndarray, effect: str) -> np.ndarray:
+        """The parameter vector ``x`` with member ``effect``'s parameters set to zero."""
+        parts = np.split(np.array(x, float), self._cuts)
+        return np.concatenate(
+            [m.without(xm, effect) for m, xm in zip(self.members, parts, strict=True)]
+        )
 
     def member_fits(self, fit: Fit) -> list[Fit]:
         """The joint fit split into one :class:`Fit` per member (same order)."""

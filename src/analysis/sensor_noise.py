@@ -16,7 +16,7 @@ from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import least_squares
 
 from simgap.analysis.appearance import AppearanceCandidate, misfit_rms, signature_supported
-from simgap.analysis.fitting import Fit, Items
+from simgap.analysis.fitting import Fit, Items, on_bound
 from simgap.analysis.runner import Runner
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX, linearise
@@ -32,6 +32,9 @@ PRNU_MAX = 0.02
 #: Range of full wells fitted (electrons per linear 1.0): from a very noisy sensor to none
 #: (10^6 e is the photon noise of a 20-bit sensor, far below the 8-bit frame's steps).
 FULL_WELL_BOUNDS_E = (10.0, 1e6)
+#: Largest read noise reported (e-): ten times the noisiest machine-vision sensor of EMVA 1288
+#: datasheets (about 100 e-); beyond it the fit has traded shot noise for read noise.
+READ_NOISE_MAX_E = 1e3
 #: (level, spatial noise) and (level, temporal noise) statistics of the ink and paper cells.
 NOISE_PAIRS = (("ink_linear", "noise_ink_linear"), ("paper_linear", "noise_paper_linear"))
 TEMPORAL_NOISE_PAIRS = (
@@ -169,7 +172,18 @@ class SensorNoiseCandidate(AppearanceCandidate):
                 loss="soft_l1",
             ).x
         full_well = float(np.clip(1.0 / x[0], *FULL_WELL_BOUNDS_E))
-        read = float(min(np.sqrt(x[1]) * full_well, 1e3))
+        read = float(min(np.sqrt(x[1]) * full_well, READ_NOISE_MAX_E))
+        # on a bound: no shot noise at all (the full well at 10^6 e) or 10 e-, or read noise at
+        # its cap (none, at zero, is a value, not a bound); the full well's range spans five
+        # decades, so it is judged on a log scale
+        at_bound = tuple(
+            name
+            for name, hit in (
+                ("full_well_e", on_bound(*np.log10([full_well, *FULL_WELL_BOUNDS_E]))),
+                ("read_noise_e", on_bound(read, -READ_NOISE_MAX_E, READ_NOISE_MAX_E)),
+            )
+            if hit
+        )
         # the noise statistics the fitted excess predicts, for the signature gate
         stats = self.fit_stats
         pred = items.sim_stats.copy()
@@ -189,6 +203,7 @@ class SensorNoiseCandidate(AppearanceCandidate):
                 "multiplicative_variance": float(x[2]),
                 "temporal": temporal,
                 "supported": signature_supported(rms_before, rms_after),
+                "at_bound": at_bound,
             },
         )
 

@@ -147,6 +147,19 @@ AT_BOUND_SHARE: Final[float] = 0.02
 #: filled a print scale's model and the calibration file's distortion, which lowered the corner
 #: gap 0.49 -> 0.35 px beside them, was never tried (trial 19).
 MAX_EFFECTS: Final[int] = 4
+#: A print scale (a size signature) enters a model only where the size change it explains grows
+#: with the tag's image size by this many standard errors (:mod:`simgap.analysis.size_signature`):
+#: the significance of :data:`Z_SIGNIFICANT`. On the fit and choose splits of seeds 31 and 32
+#: the true print scales stood 10.6-34.2 standard errors out, the look-alikes 0.6-2.6 (and two
+#: defocused captures 6.0 and 8.9: :data:`SIZE_ZERO_SHARE`).
+SIZE_SLOPE_Z: Final[float] = Z_SIGNIFICANT
+#: ... and only where an edge offset against the slope does not cancel the size change before
+#: this share of the smallest tag's size (:attr:`simgap.analysis.size_signature.SizeChange.
+#: zero_share`). A print scale changes no size at zero size (share 0; the true ones of seeds 31
+#: and 32 at most 0.30); the two defocused look-alikes of seed 31 crossed zero at 0.93 and 1.19,
+#: near and inside the sizes measured. Half: the offset is at most half the print's change on
+#: the smallest tag.
+SIZE_ZERO_SHARE: Final[float] = 0.5
 
 # -- which: the appearance gates ---------------------------------------------------------------
 
