@@ -32,8 +32,10 @@ if TYPE_CHECKING:
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
 #: Primary rays per pixel of the footprint pass (albedo and coverage the product is made with):
-#: intersections only, stratified by the scene's sampler.
-FOOTPRINT_SPP = 256
+#: intersections only, stratified by the scene's sampler. Measured on a baseline configuration
+#: (p 2, 4 spp, against 1024 spp that carry 0.42 DN of their own): 16 rays 0.93 DN RMS, 64 rays
+#: 0.58 DN, 256 rays 0.55 DN at four times the cost of 64.
+FOOTPRINT_SPP = 64
 #: Treatment of a coated print's stickers (no demodulation; path traced).
 COATED = "path (coated print)"
 

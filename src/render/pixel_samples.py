@@ -69,12 +69,11 @@ def _launch(scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, radian
             sticker = dr.select(hit.shape == mi.ShapePtr(shape), tag, sticker)
     albedo = hit.bsdf().eval_diffuse_reflectance(hit, True)
     dr.eval(sticker, albedo) if value is None else dr.eval(value, sticker, albedo)
-    alb = np.stack([np.asarray(c, np.float64) for c in (albedo.x, albedo.y, albedo.z)], -1)
-    if value is None:
-        rgb = np.full_like(alb, np.nan)
-    else:
-        rgb = np.stack([np.asarray(c, np.float64) for c in (value.x, value.y, value.z)], -1)
-    return rgb, np.asarray(sticker, np.int64), alb
+    alb = np.stack([np.asarray(c, np.float32) for c in (albedo.x, albedo.y, albedo.z)], -1)
+    rgb = None
+    if value is not None:
+        rgb = np.stack([np.asarray(c, np.float32) for c in (value.x, value.y, value.z)], -1)
+    return rgb, np.asarray(sticker, np.int32), alb
 
 
 def sample_pixels(
@@ -109,7 +108,8 @@ def sample_pixels(
         raise ValueError(f"spp: expected at least 2 samples per pixel, got {spp}")
     pixels = np.asarray(pixels).reshape(-1, 2)
     n = len(pixels)
-    rad, ids, alb = np.empty((n, spp, 3)), np.empty((n, spp), np.int64), np.empty((n, spp, 3))
+    rad = np.empty((n, spp, 3), np.float32) if radiance else None
+    ids, alb = np.empty((n, spp), np.int32), np.empty((n, spp, 3), np.float32)
     step = max(SAMPLES_PER_LAUNCH // spp, 2)
     for k, start in enumerate(range(0, n, step)):
         chunk = pixels[start : start + step]
@@ -117,31 +117,48 @@ def sample_pixels(
         launch_seed = int(np.random.SeedSequence([int(seed), k, 1]).generate_state(1)[0])
         r, i, a = _launch(scene, padded, launch_seed, spp, radiance)
         m = len(chunk)
-        rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
+        if rad is not None:
+            rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
         ids[start : start + m] = i.reshape(-1, spp)[:m]
         alb[start : start + m] = a.reshape(-1, spp, 3)[:m]
     return reduce_samples(rad, ids, alb)
 
 
-def reduce_samples(radiance: np.ndarray, sticker: np.ndarray, albedo: np.ndarray) -> PixelSamples:
-    """Per-pixel statistics of samples: radiance (N, S, C), sticker ids (N, S), albedo (N, S, C)."""
+def reduce_samples(
+    radiance: np.ndarray | None, sticker: np.ndarray, albedo: np.ndarray
+) -> PixelSamples:
+    """Per-pixel statistics of samples: radiance (N, S, C), sticker ids (N, S), albedo (N, S, C).
+
+    ``radiance`` None: primary rays only (the radiance statistics are NaN).
+    """
     n, spp = sticker.shape
-    ids = np.unique(sticker[sticker >= 0])
-    counts = np.stack([(sticker == t).sum(axis=1) for t in ids], axis=1) if ids.size else None
-    if counts is None:
-        own = np.full(n, -1)
-    else:
-        own = np.where(counts.max(axis=1) > 0, ids[np.argmax(counts, axis=1)], -1)
-    on = (sticker == own[:, None]) & (own[:, None] >= 0)
-    n_on = on.sum(axis=1)
-    w = on[..., None].astype(float)
+    tags = np.flatnonzero(np.bincount(sticker[sticker >= 0].ravel()))
+    own = np.full(n, -1)
+    best = np.zeros(n, int)
+    for tag in tags:
+        count = np.count_nonzero(sticker == tag, axis=1)
+        better = count > best
+        own[better], best[better] = tag, count[better]
+    on = sticker == own[:, None]
+    on &= own[:, None] >= 0
+    n_on = best.astype(np.float64)
+    w = on[..., None]
+    nan3 = np.full((n, 3), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
-        albedo_mean = (albedo * w).sum(axis=1) / n_on[:, None]
-        albedo_var = (albedo**2 * w).sum(axis=1) / n_on[:, None] - albedo_mean**2
-        background = (radiance * (1 - w)).sum(axis=1) / (spp - n_on)[:, None]
+        albedo_mean = np.where(w, albedo, 0.0).sum(axis=1, dtype=np.float64) / n_on[:, None]
+        albedo_sq = np.where(w, albedo * albedo, 0.0).sum(axis=1, dtype=np.float64)
+        albedo_var = albedo_sq / n_on[:, None] - albedo_mean**2
+        if radiance is None:
+            mean = variance = background = nan3
+        else:
+            total = radiance.sum(axis=1, dtype=np.float64)
+            mean = total / spp
+            variance = radiance.var(axis=1, ddof=1, dtype=np.float64)
+            off = total - np.where(w, radiance, 0.0).sum(axis=1, dtype=np.float64)
+            background = off / (spp - n_on)[:, None]
     return PixelSamples(
-        mean=radiance.mean(axis=1),
-        variance=radiance.var(axis=1, ddof=1) if spp > 1 else np.full_like(radiance[:, 0], np.nan),
+        mean=mean,
+        variance=variance,
         sticker=own,
         coverage=n_on / spp,
         albedo=albedo_mean,
