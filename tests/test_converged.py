@@ -37,9 +37,10 @@ def test_per_pixel_statistics_of_samples():
 def test_a_converged_sticker_from_4_spp_is_within_the_noise_of_256_spp():
     """Baseline scene (area key light, ambient, box filter), p 12 and theta 40 deg: the sticker
     demodulated from 4 spp against a 256-spp path-traced reference of its fully covered pixels.
-    Measured: 0.88 DN RMS (64 footprint rays), raw 4 spp 8.9 DN (the reference carries about 8.9 / 8 = 1.1 DN of its
-    own; against 1024 spp of whole regions the converged stickers were within 0.6-0.8 DN on
-    three configurations, raw 4 spp 15-18 DN). Bound: twice the measured."""
+    Measured: 0.88 DN RMS (64 footprint rays), raw 4 spp 8.9 DN; the reference carries about
+    8.9 / 8 = 1.1 DN of its own. Against 1024 spp of whole regions the converged stickers were
+    within 0.6-0.8 DN on three configurations, raw 4 spp 15-18 DN. Bound: about twice the
+    measured."""
     exp = load_experiment("experiments/baseline.yaml")
     state = exp.base_state()
     rig, s = exp.rig_model, state.scene
