@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from simgap.render.demodulate import StickerSamples, Treatment, demodulate
@@ -75,11 +76,22 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     tags = [int(t) for t in np.unique(samples.sticker[samples.sticker >= 0])]
     if scene.spec.tag.coating is not None:
         return ConvergedRender(values.astype(np.float32), dict.fromkeys(tags, COATED))
-    footprint = sample_pixels(scene, pixels, seed + 1, FOOTPRINT_SPP, radiance=False)
+    # the footprint pass where a pixel's samples disagree (a print edge or the sticker's border
+    # in its footprint) and next to such pixels (an edge that cuts a corner of a pixel may miss
+    # all of its few samples); elsewhere every sample saw one cell, whose albedo is exact
+    mixed = (samples.albedo_variance.max(axis=1) > 0) | (
+        (samples.coverage > 0) & (samples.coverage < 1)
+    )
+    near = near_pixels(pixels, mixed)
+    footprint = sample_pixels(scene, pixels[near], seed + 1, FOOTPRINT_SPP, radiance=False)
+    footprint_albedo, footprint_coverage = samples.albedo.copy(), samples.coverage.copy()
+    footprint_sticker = samples.sticker.copy()
+    footprint_albedo[near], footprint_coverage[near] = footprint.albedo, footprint.coverage
+    footprint_sticker[near] = footprint.sticker
     treatments: dict[int, str] = {}
     for tag in tags:
         on = np.flatnonzero(samples.sticker == tag)
-        own = footprint.sticker[on] == tag
+        own = footprint_sticker[on] == tag
         result = demodulate(
             StickerSamples(
                 uv=pixels[on].astype(np.float64),
@@ -90,8 +102,8 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
                 coverage=samples.coverage[on],
                 albedo_variance=samples.albedo_variance[on],
                 background=samples.background[on],
-                footprint_albedo=np.where(own[:, None], footprint.albedo[on], samples.albedo[on]),
-                footprint_coverage=np.where(own, footprint.coverage[on], samples.coverage[on]),
+                footprint_albedo=np.where(own[:, None], footprint_albedo[on], samples.albedo[on]),
+                footprint_coverage=np.where(own, footprint_coverage[on], samples.coverage[on]),
             )
         )
         if result.treatment is Treatment.SMOOTH:
@@ -103,3 +115,13 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
         values[on] = more.mean
         treatments[tag] = f"fallback ({result.reason}): {spp} spp"
     return ConvergedRender(values.astype(np.float32), treatments)
+
+
+def near_pixels(pixels: np.ndarray, marked: np.ndarray) -> np.ndarray:
+    """Pixels that are marked or touch a marked one (8-neighbourhood), as a mask over ``pixels``."""
+    lo = pixels.min(axis=0) - 1
+    u, v = (pixels - lo).T
+    grid = np.zeros((v.max() + 2, u.max() + 2), np.uint8)
+    grid[v[marked], u[marked]] = 1
+    grid = cv2.dilate(grid, np.ones((3, 3), np.uint8))
+    return grid[v, u].astype(bool)
