@@ -235,11 +235,12 @@ class SamplingQuality(Effect, name="render_quality", stage="scene"):
             "multijitter"
         )
         max_depth: int = param(3, ">= 2 or -1", lambda v: v >= 2 or v == -1)
+        mode: Literal["path", "converged"] = "path"
 
     def apply(self, state: VariantState) -> VariantState:
         """Set render quality."""
         p = self.params
-        return _scene(state, quality=RenderQuality(p.spp, p.sampler, p.max_depth))
+        return _scene(state, quality=RenderQuality(p.spp, p.sampler, p.max_depth, p.mode))
 
 
 class LensDistortion(Effect, name="lens_distortion", stage="scene"):

@@ -13,11 +13,16 @@ from simgap.scene.spec import SceneSpec, default_scene_spec
 
 @dataclass(frozen=True)
 class RenderQuality:
-    """Renderer quality: samples per pixel, sampler, path depth."""
+    """Renderer quality: samples per pixel, sampler, path depth, mode.
+
+    ``mode``: ``path`` (every pixel the mean of its path-traced samples) or ``converged``
+    (stickers demodulated by their albedo, :mod:`simgap.render.converged`).
+    """
 
     spp: int = 16
     sampler: str = "multijitter"
     max_depth: int = 3
+    mode: str = "path"
 
 
 @dataclass(frozen=True)

@@ -200,7 +200,7 @@ class Experiment:
             scene=SceneState(
                 spec=self.scene_spec,
                 camera=rig.camera,
-                quality=RenderQuality(r.spp, r.sampler, r.max_depth),
+                quality=RenderQuality(r.spp, r.sampler, r.max_depth, r.mode),
                 render_seed=r.seed,
             ),
             image=ImageState(encoding=self.image.encoding, exposure=self.image.exposure),

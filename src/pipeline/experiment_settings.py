@@ -46,11 +46,19 @@ class RenderSettings:
     #: Render each repeat with its own seed (Monte Carlo over render noise too; costs a render
     #: per repeat). Otherwise repeats differ only in image-stage noise.
     reseed_repeats: bool = False
+    #: ``path``: every pixel the mean of its path-traced samples; ``converged``: each diffuse
+    #: sticker demodulated by its print albedo, with more samples where a shadow or highlight
+    #: edge crosses it (:mod:`simgap.render.converged`; needs spp >= 2).
+    mode: Literal["path", "converged"] = "path"
 
     def __post_init__(self) -> None:
         require(self.spp >= 1, f"spp: expected an integer >= 1, got {self.spp}")
         require(self.max_depth >= 2 or self.max_depth == -1, "max_depth: expected >= 2 or -1")
         require(self.margin_px >= 4, "margin_px: expected an integer >= 4 (px)")
+        require(
+            self.mode == "path" or self.spp >= 2,
+            f"spp: converged mode needs at least 2 samples per pixel, got {self.spp}",
+        )
 
     def render_repeat(self, repeat: int) -> int:
         """The render a repeat's frame is made from: its own with ``reseed_repeats``, else 0."""

@@ -118,6 +118,9 @@ class VariantPipeline:
         self.detector = Detector(state.estimation.detector)
         #: Wall seconds spent in each of :data:`STAGES` by this pipeline, in this process.
         self.seconds: Counter[str] = Counter()
+        #: Stickers rendered per treatment in ``converged`` mode, in this process
+        #: (:class:`simgap.render.converged.ConvergedRender`).
+        self.sticker_treatments: Counter[str] = Counter()
 
     @contextmanager
     def _timed(self, stage: str) -> Iterator[None]:
@@ -178,7 +181,14 @@ class VariantPipeline:
             scene.set_pose(p, theta)
         seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
         with self._timed("sampling"):
-            values = scene.render_pixels(region.pixels(), seed)
+            if self.state.scene.quality.mode == "converged":
+                from simgap.render.converged import converged_pixels
+
+                converged = converged_pixels(scene, region.pixels(), seed)
+                values = converged.values
+                self.sticker_treatments.update(converged.treatments.values())
+            else:
+                values = scene.render_pixels(region.pixels(), seed)
         with self._timed("image pipeline"):
             hdr = imaging.quantise_half(region.crop(values))
         with self._timed("io"):

@@ -123,6 +123,15 @@ class StickerSamples:
         The background part of a mixed pixel: the mean of the pixel's own samples whose primary
         ray left the sticker (linear; NaN where none did). Without it (or where NaN) a mixed
         pixel keeps its rendered value: unbiased, but not denoised.
+    footprint_albedo : ndarray of float (N, C), optional
+        The albedo over the sticker part of the footprint from many more primary rays than the
+        radiance's (a pass of intersections only). The irradiance is fitted on the ratio of the
+        radiance to ``albedo`` (the same rays, so their sampling of a print edge cancels) and
+        multiplied by this: a pixel that straddles an ink/paper edge would otherwise keep the
+        noise of a few samples' share of ink. Default: ``albedo``.
+    footprint_coverage : ndarray of float (N,), optional
+        The coverage from the same primary rays (the border blend uses it). Default:
+        ``coverage``.
     """
 
     uv: NDArray[np.float64]
@@ -133,6 +142,8 @@ class StickerSamples:
     coverage: NDArray[np.float64]
     albedo_variance: NDArray[np.float64] | None = None
     background: NDArray[np.float64] | None = None
+    footprint_albedo: NDArray[np.float64] | None = None
+    footprint_coverage: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.uv)
@@ -141,12 +152,16 @@ class StickerSamples:
         shape = np.shape(self.radiance)
         if len(shape) != 2 or shape[0] != n:
             raise ValueError(f"radiance: expected shape ({n}, C), got {shape}")
-        for name in ("sample_variance", "albedo", "albedo_variance", "background"):
+        for name in (
+            "sample_variance", "albedo", "albedo_variance", "background", "footprint_albedo"
+        ):  # fmt: skip
             value = getattr(self, name)
             if value is not None and np.shape(value) != shape:
                 raise ValueError(f"{name}: expected shape {shape}, got {np.shape(value)}")
-        if np.shape(self.coverage) != (n,):
-            raise ValueError(f"coverage: expected shape ({n},), got {np.shape(self.coverage)}")
+        for name in ("coverage", "footprint_coverage"):
+            value = getattr(self, name)
+            if value is not None and np.shape(value) != (n,):
+                raise ValueError(f"{name}: expected shape ({n},), got {np.shape(value)}")
         if int(self.spp) < 2:
             raise ValueError(f"spp: expected at least 2 samples per pixel, got {self.spp}")
 
@@ -365,10 +380,15 @@ def demodulate(samples: StickerSamples, alpha: float = ALPHA) -> DemodulationRes
                 raw.copy(), Treatment.FALLBACK, tuple(fits), f"channel {c}: {fit.failed}"
             )
         irradiance[:, c] = fit.irradiance_all
+    if samples.footprint_albedo is not None:
+        albedo = np.asarray(samples.footprint_albedo, np.float64)
+    if samples.footprint_coverage is not None:
+        coverage = np.asarray(samples.footprint_coverage, np.float64)
+        full = coverage >= FULL_COVERAGE
     sticker = albedo * irradiance
-    out = np.where(full[:, None], sticker, raw)
+    out = np.where(full[:, None] & np.isfinite(sticker), sticker, raw)
     if samples.background is not None:
-        mixed = ~full
+        mixed = ~full & np.isfinite(sticker).all(axis=1)
         cov = coverage[mixed, None]
         background = np.asarray(samples.background, np.float64)[mixed]
         blended = cov * sticker[mixed] + (1.0 - cov) * background

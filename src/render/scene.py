@@ -209,26 +209,46 @@ class FixtureScene:
             out[start : start + len(chunk)] = self._render_launch(chunk, launch_seed)
         return out
 
+    def trace(
+        self, pixels: np.ndarray, seed: int, spp: int | None = None, radiance: bool = True
+    ):
+        """Trace ``spp`` camera samples through each pixel (one kernel launch; Dr.Jit values).
+
+        Each pixel's samples are consecutive lanes; their offsets follow the reconstruction
+        filter (:func:`filter_offsets`). Returns the primary rays and the integrator's radiance
+        per sample (``mitsuba.Ray3f``, ``mitsuba.Color3f``; None without ``radiance``: primary
+        rays only), unevaluated, for :meth:`render_pixels` and for passes that also need the
+        primary hits (:mod:`simgap.render.pixel_samples`). ``pixels`` holds at least two (a
+        one-element array would become a literal of the kernel, recompiled per value).
+        """
+        import drjit as dr
+
+        mi = self.mi
+        spp = self.spp if spp is None else int(spp)
+        lanes = len(pixels) * spp
+        sampler = self.camera.sampler().clone()
+        if spp != self.spp:
+            sampler.set_sample_count(spp)
+        sampler.set_samples_per_wavefront(spp)
+        sampler.seed(seed, lanes)
+        pixel = dr.arange(mi.UInt32, lanes) // spp
+        u = dr.gather(mi.Float, mi.Float(pixels[:, 0]), pixel)
+        v = dr.gather(mi.Float, mi.Float(pixels[:, 1]), pixel)
+        offset = filter_offsets(self.spec.rfilter, sampler.next_2d(), mi)
+        aperture = sampler.next_2d()
+        ray = self.camera.ray_through(u + offset.x, v + offset.y, aperture)
+        if not radiance:
+            return ray, None
+        value, _, _ = self.scene.integrator().sample(self.scene, sampler, mi.RayDifferential3f(ray))
+        return ray, value
+
     def _render_launch(self, pixels: np.ndarray, seed: int) -> np.ndarray:
         """One kernel launch of :meth:`render_pixels` (N, 3)."""
         import drjit as dr
 
-        mi, spp, n = self.mi, self.spp, len(pixels)
-        # a one-element array would become a literal of the kernel (recompiled per value)
+        spp, n = self.spp, len(pixels)
         padded = np.resize(pixels, (max(n, 2), 2)).astype(np.float32)
-        lanes = len(padded) * spp
-        sampler = self.camera.sampler().clone()
-        sampler.set_samples_per_wavefront(spp)
-        sampler.seed(seed, lanes)
-        pixel = dr.arange(mi.UInt32, lanes) // spp
-        u = dr.gather(mi.Float, mi.Float(padded[:, 0]), pixel)
-        v = dr.gather(mi.Float, mi.Float(padded[:, 1]), pixel)
-        offset = filter_offsets(self.spec.rfilter, sampler.next_2d(), mi)
-        aperture = sampler.next_2d()
-        ray = self.camera.ray_through(u + offset.x, v + offset.y, aperture)
-        radiance, _, _ = self.scene.integrator().sample(
-            self.scene, sampler, mi.RayDifferential3f(ray)
-        )
+        _, radiance = self.trace(padded, seed)
         dr.eval(radiance)
         # the samples were drawn from the reconstruction filter, so each pixel's value is the
         # plain mean of its consecutive samples; per channel, so that an evaluated Float
