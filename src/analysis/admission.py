@@ -40,15 +40,15 @@ def admissible(scored: Scored, reference: Scored | None) -> bool:
 def grows_with_size(fit: Fit) -> bool:
     """Whether a print-scale-like effect's corners change in size in proportion to the tag size.
 
-    For a candidate with a size signature (``Fit.extra["size_change"]``, set by
-    :meth:`simgap.analysis.selection.ModelSearch.evaluate` on the fit split): the size change it
+    For a candidate with a size signature (``Fit.extra["size_changes"]``, set by
+    :meth:`simgap.analysis.fitting.ProjectionCandidate.fit` on the fit split): the size change it
     has to explain grows with the tag's image size by at least
     :data:`~simgap.analysis.thresholds.SIZE_SLOPE_Z` standard errors, and an edge offset of the
     other sign does not cancel it before :data:`~simgap.analysis.thresholds.SIZE_ZERO_SHARE` of
     the smallest tag's size (:mod:`simgap.analysis.size_signature`). Other effects, and fits on
     too few tags to test, pass.
     """
-    change = fit.extra.get("size_change")
+    change = fit.extra.get("size_changes", {}).get(fit.effect)
     if change is None or not np.isfinite(change.slope_z):
         return True
     return abs(change.slope_z) >= SIZE_SLOPE_Z and not change.zero_share >= SIZE_ZERO_SHARE

@@ -42,6 +42,7 @@ from simgap.pose.estimate import estimate_pose, marker_object_points, pose_error
 
 if TYPE_CHECKING:
     from simgap.analysis.runner import Runner
+from simgap.analysis.size_signature import size_change
 
 
 @dataclass
@@ -108,7 +109,9 @@ class Fit:
         Wall time of the fit (s).
     extra : dict
         Solver by-products: ``x`` (the solver's parameter vector, for joint fits and
-        projections), ``corner_rms_px`` (corner residual on the fit split, px), ``train_misfit``.
+        projections), ``corner_rms_px`` (corner residual on the fit split, px), ``train_misfit``,
+        ``size_changes`` (per print-scale-like effect of a projection fit, the size change it has
+        to explain, :func:`simgap.analysis.size_signature.size_change`).
     """
 
     effect: str
@@ -229,6 +232,10 @@ class ProjectionCandidate:
         """The parameter vector ``x`` with ``effect``'s parameters set to no effect (zero)."""
         return np.zeros_like(x) if effect == self.effect else np.array(x, float)
 
+    def parts(self) -> tuple[ProjectionCandidate, ...]:
+        """The single effects fitted (this one; a :class:`ProjectionSet`'s members)."""
+        return (self,)
+
     def corner_shift(self, rig: Rig, base: VariantState, x: np.ndarray, items: Items) -> np.ndarray:
         """Change of the projected corners (N, 4, 2) caused by the effect (px)."""
         s0, s1 = base.scene, self._state(base, x).scene
@@ -256,11 +263,20 @@ class ProjectionCandidate:
         at_bound = tuple(
             n for n, v, b in zip(self.names, x, self.bound, strict=True) if on_bound(v, -b, b)
         )
+        # what each print-scale-like effect has to explain: the corners fitted without it
+        size_changes = {
+            m.effect: size_change(
+                sub.real_corners,
+                sub.sim_corners + self.corner_shift(rig, base, self.without(x, m.effect), sub),
+            )
+            for m in self.parts()
+            if m.size_signature
+        }
         return Fit(
             self.effect,
             self.effect_params(x),
             time.perf_counter() - t0,
-            {"x": x, "corner_rms_px": rms, "at_bound": at_bound},
+            {"x": x, "corner_rms_px": rms, "at_bound": at_bound, "size_changes": size_changes},
         )
 
     def delta(self, rig: Rig, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
@@ -326,6 +342,10 @@ class ProjectionSet(ProjectionCandidate):
             [m.without(xm, effect) for m, xm in zip(self.members, parts, strict=True)]
         )
 
+    def parts(self) -> tuple[ProjectionCandidate, ...]:
+        """The member effects, in order."""
+        return tuple(self.members)
+
     def member_fits(self, fit: Fit) -> list[Fit]:
         """The joint fit split into one :class:`Fit` per member (same order)."""
         out = []
@@ -333,9 +353,8 @@ class ProjectionSet(ProjectionCandidate):
             at_bound = tuple(
                 n for n, v, b in zip(m.names, xm, m.bound, strict=True) if on_bound(v, -b, b)
             )
-            out.append(
-                Fit(m.effect, m.effect_params(xm), fit.seconds, {"x": xm, "at_bound": at_bound})
-            )
+            extra = {"x": xm, "at_bound": at_bound, "size_changes": fit.extra["size_changes"]}
+            out.append(Fit(m.effect, m.effect_params(xm), fit.seconds, extra))
         return out
 
 

@@ -30,7 +30,6 @@ from simgap.analysis.scoring import (
     improves_on_nothing,
     parsimonious,
 )
-from simgap.analysis.size_signature import size_change
 from simgap.analysis.thresholds import CORNER_UNIT_PX, MAX_EFFECTS, MINOR_CONTRIBUTION
 from simgap.core.progress import Steps
 from simgap.core.rig import Rig
@@ -114,16 +113,11 @@ class ModelSearch:
         if proj:
             joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
             shift_tr, _, _ = self._simulation_changes(fits, tr)
-            shifted = dataclasses.replace(tr, sim_corners=tr.sim_corners + shift_tr)
-            fit = joint.fit(rig, base, shifted)
+            fit = joint.fit(
+                rig, base, dataclasses.replace(tr, sim_corners=tr.sim_corners + shift_tr)
+            )
             projection = (joint, fit)
             members = joint.member_fits(fit) if len(proj) > 1 else [fit]
-            for member, member_fit in zip(proj, members, strict=True):
-                if member.size_signature:
-                    # the fit split's corners without this effect: what it has to explain
-                    x = joint.without(fit.extra["x"], member.effect)
-                    without = shifted.sim_corners + joint.corner_shift(rig, base, x, shifted)
-                    member_fit.extra["size_change"] = size_change(shifted.real_corners, without)
             fits = list(zip(proj, members, strict=True)) + fits
         scored = self.score(fits, projection, self.choose_index)
         self._evaluated[key] = scored

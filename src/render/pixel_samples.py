@@ -101,7 +101,7 @@ def sample_pixels(
     radiance : bool
         Trace paths (default); else primary rays only.
     """
-    from simgap.render.scene import SAMPLES_PER_LAUNCH
+    from simgap.render.scene import launches
 
     spp = scene.spp if spp is None else int(spp)
     if spp < 2:
@@ -110,13 +110,9 @@ def sample_pixels(
     n = len(pixels)
     rad = np.empty((n, spp, 3), np.float32) if radiance else None
     ids, alb = np.empty((n, spp), np.int32), np.empty((n, spp, 3), np.float32)
-    step = max(SAMPLES_PER_LAUNCH // spp, 2)
-    for k, start in enumerate(range(0, n, step)):
-        chunk = pixels[start : start + step]
-        padded = np.resize(chunk, (max(len(chunk), 2), 2)).astype(np.float32)
-        launch_seed = int(np.random.SeedSequence([int(seed), k, 1]).generate_state(1)[0])
+    for start, padded, launch_seed in launches(pixels, seed, spp, 1):
         r, i, a = _launch(scene, padded, launch_seed, spp, radiance)
-        m = len(chunk)
+        m = min(len(padded), n - start)
         if rad is not None:
             rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
         ids[start : start + m] = i.reshape(-1, spp)[:m]

@@ -202,11 +202,9 @@ class FixtureScene:
             raise RuntimeError("set_pose() must be called before render()")
         pixels = np.asarray(pixels).reshape(-1, 2)
         out = np.empty((len(pixels), 3), np.float32)
-        step = max(SAMPLES_PER_LAUNCH // self.spp, 2)
-        for k, start in enumerate(range(0, len(pixels), step)):
-            chunk = pixels[start : start + step]
-            launch_seed = int(np.random.SeedSequence([int(seed), k]).generate_state(1)[0])
-            out[start : start + len(chunk)] = self._render_launch(chunk, launch_seed)
+        for start, padded, launch_seed in launches(pixels, seed, self.spp):
+            m = min(len(padded), len(pixels) - start)
+            out[start : start + m] = self._render_launch(padded, launch_seed)[:m]
         return out
 
     def trace(
@@ -246,16 +244,31 @@ class FixtureScene:
         """One kernel launch of :meth:`render_pixels` (N, 3)."""
         import drjit as dr
 
-        spp, n = self.spp, len(pixels)
-        padded = np.resize(pixels, (max(n, 2), 2)).astype(np.float32)
-        _, radiance = self.trace(padded, seed)
+        spp = self.spp
+        _, radiance = self.trace(pixels, seed)
         dr.eval(radiance)
         # the samples were drawn from the reconstruction filter, so each pixel's value is the
         # plain mean of its consecutive samples; per channel, so that an evaluated Float
         # converts to numpy without a (size-specific) kernel
         means = [dr.block_sum(c, spp) / spp for c in (radiance.x, radiance.y, radiance.z)]
         dr.eval(means)
-        return np.stack([np.asarray(c) for c in means], axis=-1)[:n]
+        return np.stack([np.asarray(c) for c in means], axis=-1)
+
+
+def launches(pixels: np.ndarray, seed: int, spp: int, *stream: int):
+    """Split ``pixels`` (N, 2) into kernel launches of at most :data:`SAMPLES_PER_LAUNCH` samples.
+
+    Yields ``(start, padded, launch_seed)``: the chunk's first index, its pixels as float32 padded
+    to at least two (a one-element array would become a literal of the kernel, recompiled per
+    value) and the launch's seed, drawn from ``seed``, the launch's number and ``stream`` (another
+    pass over the same pixels takes another stream).
+    """
+    step = max(SAMPLES_PER_LAUNCH // spp, 2)
+    for k, start in enumerate(range(0, len(pixels), step)):
+        chunk = pixels[start : start + step]
+        padded = np.resize(chunk, (max(len(chunk), 2), 2)).astype(np.float32)
+        launch_seed = np.random.SeedSequence([int(seed), k, *stream]).generate_state(1)[0]
+        yield start, padded, int(launch_seed)
 
 
 def filter_offsets(rfilter: dict[str, Any], sample, mi: ModuleType):
