@@ -111,16 +111,20 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     """Every hidden sampler makes a valid effect; the camera's own exposure may be named, a
     geometric effect that was not hidden may not; magnitudes read the camera's totals."""
     from simgap.core.rig import load_rig
+    from simgap.diagnosis.hidden_effects import HIDDEN, REPORTED_AS, rendered_effects
     from simgap.diagnosis.nuisance import draw_nuisance, exposure_truth, with_exposure
     from simgap.diagnosis.trial import Trial
-    from simgap.diagnosis.validate import HIDDEN, REPORTED_AS
     from simgap.effects import make_effect
 
     rng = np.random.default_rng(0)
     for name, (sampler, keys) in HIDDEN.items():
         for _ in range(5):
             params = sampler(rng)
-            make_effect(REPORTED_AS.get(name, name), params)  # raises on an invalid parameter
+            # what renders it (a glossy laminate: the laminate and the light beside the lens),
+            # or the effect that names it; make_effect raises on an invalid parameter
+            effects = rendered_effects({name: params}) or {REPORTED_AS.get(name, name): params}
+            for effect, values in effects.items():
+                make_effect(effect, values)
             assert all(key in params for key in keys)
     rig = load_rig()
     camera = with_exposure(draw_nuisance(np.random.default_rng(1), rig), 1.2, rig)
@@ -164,8 +168,15 @@ def test_strict_accuracy_asks_for_every_hidden_effect_of_a_pair():
     from simgap.diagnosis.validation_report import summarize_scores
 
     def score(hidden, selected, correct, recall, spurious=()):
-        return dict(hidden=hidden, selected=selected, correct=correct, recall=recall,
-                    spurious=list(spurious), top1=selected[0], bins={})
+        return dict(
+            hidden=hidden,
+            selected=selected,
+            correct=correct,
+            recall=recall,
+            spurious=list(spurious),
+            top1=selected[0],
+            bins={},
+        )
 
     scores = [
         score(["jpeg", "faulty_calibration"], ["exposure", "jpeg"], True, 0.5),  # seed 31 trial 16

@@ -19,12 +19,16 @@ effect              parameters (bounds)                    fitted on
                                                            (:mod:`simgap.analysis.defocus`)
 ``jpeg``            ``quality`` (5 - 100, integer)         blockiness on the 8 px block grid;
                                                            pipeline re-run per value
+``tag_gloss``       ``alpha`` (0.01 - 0.6), the light's    ink and paper levels against the
+                    ``light_intensity_w_sr`` and offsets   half-angle of lens and light (glint
+                    (+-0.15 m)                             of a laminate), least squares
+                                                           (:mod:`simgap.analysis.gloss`)
 ==================  =====================================  =====================================
 
-Image-stage effects (blur, exposure, noise, JPEG) re-process the cached renders; defocus is
-fitted on the evidence with the thin-lens model and then rendered once for scoring (its change
-of corners, pose, statistics and detections comes from the full pipeline, like every
-candidate's). This module holds the generic one-parameter candidate (a bounded scalar search)
+Image-stage effects (blur, exposure, noise, JPEG) re-process the cached renders; defocus and
+the laminate are fitted on the evidence with a physical model and then rendered for scoring
+(their change of corners, pose, statistics and detections comes from the full pipeline, like
+every candidate's). This module holds the generic one-parameter candidate (a bounded scalar search)
 and the gates every appearance candidate passes: its own statistics must differ significantly
 (:func:`signature_significant`) and its fit must explain them (:func:`signature_supported`).
 """
@@ -127,7 +131,6 @@ def signature_significant(candidate: Any, image_tests: list[ImageTest]) -> bool:
     return not own or any(test.significant for test in image_tests if test.stat in own)
 
 
-
 class AppearanceCandidate(SimulationCandidate):
     """An effect fitted on image evidence (see module docstring).
 
@@ -198,7 +201,6 @@ class AppearanceCandidate(SimulationCandidate):
                 "at_bound": (self.param,) if on_bound(x, *self.bounds) else (),
             },
         )
-
 
 
 class JpegCandidate(AppearanceCandidate):

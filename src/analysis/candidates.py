@@ -5,7 +5,8 @@ Geometric and calibration effects are projection candidates
 parameter its typical magnitude (for conditioning) and the largest magnitude searched (inside the
 effect's valid range). Appearance effects are fitted on
 the image statistics named with them (:mod:`simgap.analysis.appearance`,
-:mod:`simgap.analysis.sensor_noise`, :mod:`simgap.analysis.defocus`); those statistics are also
+:mod:`simgap.analysis.sensor_noise`, :mod:`simgap.analysis.defocus`,
+:mod:`simgap.analysis.gloss`); those statistics are also
 their signature: an appearance effect is a candidate only where one of them differs
 significantly (:func:`simgap.analysis.appearance.signature_significant`).
 
@@ -21,6 +22,7 @@ from types import MappingProxyType
 from simgap.analysis.appearance import AppearanceCandidate, JpegCandidate
 from simgap.analysis.defocus import DefocusCandidate
 from simgap.analysis.fitting import Candidate, ProjectionCandidate
+from simgap.analysis.gloss import GlossCandidate
 from simgap.analysis.sensor_noise import SensorNoiseCandidate
 
 #: Edge widths along x and y (the all-sides width is reported only).
@@ -53,6 +55,7 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
             JpegCandidate(
                 "jpeg", ("blockiness",), "quality", (5.0, 100.0), 1.0, noise=SensorNoiseCandidate()
             ),
+            GlossCandidate(),
         )
     }
 )

@@ -47,3 +47,7 @@ class Runner(Protocol):
     def depths(self, items: Items) -> np.ndarray:
         """Depth of each item's tag along the optical axis, nominal rig (N,) (m)."""
         ...
+
+    def eye_from_tag(self, items: Items) -> np.ndarray:
+        """Pose of each item's tag in the eyepoint frame, nominal rig (N, 4, 4) (m)."""
+        ...

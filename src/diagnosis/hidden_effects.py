@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from simgap.analysis.gloss import laminate_effects
+
 Sampler = Callable[[np.random.Generator], dict[str, Any]]
 
 
@@ -31,6 +33,22 @@ def _lens(rng: np.random.Generator) -> dict[str, Any]:
     sign = float(np.sign(k1))
     k2, k3 = -sign * float(rng.uniform(0.1, 0.5)), sign * float(rng.uniform(0.0, 0.45))
     return {"k1": k1, "k2": k2, "k3": k3}
+
+
+def _gloss(rng: np.random.Generator) -> dict[str, Any]:
+    """A laminated print under a small light on the camera (an LED or ring light beside the lens).
+
+    Roughness of a gloss to satin laminate film; the light 2-8 cm to either side of the lens and
+    up to 4 cm above or below it, 0.1-0.5 W sr^-1 (a tag 0.45 m away gets 0.4-2x the template
+    key light's irradiance from it). Rendered as the scene effects of
+    :func:`simgap.analysis.gloss.laminate_effects`.
+    """
+    return {
+        "alpha": float(rng.uniform(0.05, 0.3)),
+        "light_intensity_w_sr": float(rng.uniform(0.1, 0.5)),
+        "light_offset_x_m": _signed(rng, 0.02, 0.08),
+        "light_offset_z_m": float(rng.uniform(-0.04, 0.04)),
+    }
 
 
 #: Hidden effects and how their magnitudes are drawn (realistic hardware ranges), with the
@@ -70,11 +88,12 @@ HIDDEN: dict[str, tuple[Sampler, tuple[str, ...]]] = {
         ("aperture_radius_m", "focus_distance_m"),
     ),
     "jpeg": (lambda r: {"quality": int(r.integers(25, 76))}, ("quality",)),
+    "tag_gloss": (_gloss, ("alpha", "light_intensity_w_sr")),
 }
 #: Hidden effects that are no catalogue effect, and the effect that names them.
 REPORTED_AS: dict[str, str] = {"faulty_calibration": "lens_distortion"}
 #: Appearance effects among :data:`HIDDEN` (scored per effect).
-APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg")
+APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg", "tag_gloss")
 #: Appearance effects every other camera has some of (:mod:`simgap.diagnosis.nuisance`: its
 #: exposure and light, its sensor, its pixel filter): naming them is never wrong, and a hidden one
 #: sets the camera's own (exposure: its total exposure; sensor noise: its sensor) or adds to it
@@ -90,6 +109,21 @@ OUTSIDE: dict[str, Sampler] = {
 #: Frames per pose of a pseudo-real capture when the camera's draw is overridden (tests): one
 #: render, the camera's noise drawn anew for each (two exposures of a still fixture).
 CAPTURE_REPEATS = 2
+
+
+def rendered_effects(hidden: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """The scene, geometry and image effects that render ``hidden`` into a pseudo-real capture.
+
+    A hidden exposure is the camera's total exposure and a faulty calibration is in the
+    calibration file, not the render (:func:`simgap.diagnosis.validate.pseudo_real_experiment`);
+    a glossy laminate is the laminate and the light beside the lens.
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for name, params in hidden.items():
+        if name == "exposure" or name in REPORTED_AS:
+            continue
+        out.update(laminate_effects(params) if name == "tag_gloss" else {name: params})
+    return out
 
 
 def found(hidden: str, selected: list[str]) -> bool:

@@ -22,7 +22,7 @@ class SimRunner:
 
     The :class:`simgap.analysis.runner.Runner` of :class:`simgap.analysis.selection.ModelSearch`
     and of the simulation-fitted candidates: :meth:`errors`, :meth:`corners`, :meth:`stats`,
-    :meth:`detected` and :meth:`depths` give the simulated evidence.
+    :meth:`detected`, :meth:`depths` and :meth:`eye_from_tag` give the simulated evidence.
 
     Parameters
     ----------
@@ -94,4 +94,8 @@ class SimRunner:
 
     def depths(self, items: Items) -> np.ndarray:
         """Depth of each item's tag along the optical axis, nominal rig (N,) (m)."""
-        return self.rig.eyepoints_from_tags(items.tag, items.p, items.theta)[:, 1, 3]
+        return self.eye_from_tag(items)[:, 1, 3]
+
+    def eye_from_tag(self, items: Items) -> np.ndarray:
+        """Pose of each item's tag in the eyepoint frame, nominal rig (N, 4, 4) (m)."""
+        return self.rig.eyepoints_from_tags(items.tag, items.p, items.theta)

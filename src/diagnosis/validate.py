@@ -35,9 +35,9 @@ from simgap.diagnosis.hidden_effects import (
     APPEARANCE,
     HIDDEN,
     OUTSIDE,
-    REPORTED_AS,
     Sampler,
     found,
+    rendered_effects,
 )
 from simgap.diagnosis.nuisance import (
     NuisanceCamera,
@@ -177,8 +177,7 @@ def pseudo_real_experiment(
     camera's; a hidden exposure is already the camera's total, :func:`draw_trials`), its scene
     overrides, samples per pixel, poses and frames a pose.
     """
-    rendered = {k: v for k, v in hidden.items() if k != "exposure" and k not in REPORTED_AS}
-    effects = {**camera.effects, **rendered}
+    effects = {**camera.effects, **rendered_effects(hidden)}
     return dataclasses.replace(
         base.with_render(seed=seed, spp=camera.spp),
         name="pseudo_real",

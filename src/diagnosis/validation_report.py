@@ -123,7 +123,8 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "and colour; ambient; total exposure -1.5 to +1.5 EV; box, tent or Gaussian pixel "
         "filter; 49-81 spp; nearest or bilinear texture filtering; full well 1000-20000 e-, read "
         "noise 1-10 e-; sRGB or gamma 1.8-2.4; vignetting; node and table paint; 4-6 pin holes x "
-        "6-8 stops; one or two frames a pose), with hidden effects drawn per trial. Correct: "
+        "6-8 stops, both frontal stops among them; one or two frames a pose), with hidden effects "
+        "drawn per trial. Correct: "
         "the hidden effect named (of a pair: at least one; the strict row asks for both, and the "
         "recall for pairs counts them) and nothing named that the capture does not have (the "
         "camera's own exposure, sensor noise and softness may always be named).",

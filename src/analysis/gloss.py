@@ -1,0 +1,400 @@
+"""A glossy laminate under a light beside the lens, fitted on ink and paper levels against view.
+
+The appearance candidate ``tag_gloss`` (:class:`GlossCandidate`): the tag print under a rough
+dielectric coating (:class:`simgap.effects.scene.TagGloss`, Beckmann roughness ``alpha``, the
+distribution of Mitsuba's ``roughplastic``) lit by a small light on the camera
+(:class:`simgap.effects.scene.CameraLight`: intensity in W sr^-1, offset from the lens in m).
+The pair is the issue-25 case: a laminated sticker mirrors a lens-side LED straight back into
+the lens at frontal views, so near frontal tags glint, lose contrast or clip and are lost to the
+detector, while oblique ones look as simulated. A laminate seldom sends a lab light into the
+lens; a light on the camera over matte prints only brightens near tags (no glint).
+
+How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.defocus`):
+
+1. **Levels.** Per tag of the fit split, the real and the simulated (matte, the simulation's
+   lights) linear ink and paper levels (:class:`TagLevels`). A clipped real paper is a lower
+   bound of its level only.
+2. **The level model** (:func:`predicted_levels`): ``paper = G (q + a L + b S)`` and
+   ``ink = G (h i (1 + a L / q) + b S)``, with ``q, i`` the simulated paper and ink, ``G`` the
+   exposure, ``h`` what a transfer curve or flare does to dark ink, ``L = cos(theta_l) / d^2`` the
+   light's diffuse geometry, and the glint ``S = D(theta_h; alpha) / (d^2 cos(theta_o))``: a
+   mirror reflection adds the same radiance to ink and paper (Walter et al. 2007; Fresnel and
+   shadowing near constant over a rough coating's lobe). ``theta_h`` is the angle between the
+   tag's normal and the half vector of the directions to the lens and to the light, ``theta_o``
+   the view angle, ``d`` the distance to the light (nominal rig). Residuals are log levels in
+   the floors of :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`; bounded robust least
+   squares fit exposure alone, then a matte light (``a``), then the laminate (``b``,
+   ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`).
+3. **Supported** where the laminate explains the levels better than a matte light by
+   :data:`GLINT_MIN_GAIN`: a glint that follows the half-angle is the laminate's signature
+   (that a level differs at all is the where step's test, which makes it a candidate). Three
+   glinting tags of nineteen are 0.95 floors RMS under exposure alone: an RMS gate on the
+   levels would miss them.
+4. **Intensity.** ``a`` and ``b`` are in the simulation's linear units; one render of the fit
+   split with the fitted laminate and a light of :data:`REFERENCE_INTENSITY_W_SR` is fitted with
+   the same roughness and offset, each scale over its rendered one estimates the intensity (a
+   glint and a light are linear in the intensity), and a few renders around the estimates pick
+   the intensity whose levels match (:meth:`GlossCandidate.intensity`).
+5. **Exposure.** The candidate carries the exposure ``G`` it was fitted with (``ev``).
+
+Only tags near the half-angle's zero (the frontal stops) sample the lobe's width: with few of
+them roughness, offset and intensity trade off (development captures: roughness within 1.6x).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from simgap.analysis.appearance import (
+    AppearanceCandidate,
+    capped_rms,
+    evidence_misfit,
+    measuring_only,
+)
+from simgap.analysis.fitting import Fit, Items, on_bound
+from simgap.analysis.runner import Runner
+from simgap.analysis.thresholds import IMAGE_FLOORS, SIGNATURE_MIN_GAIN
+from simgap.effects import make_effect
+from simgap.effects.state import VariantState
+from simgap.pose.image_stats import STAT_INDEX
+
+#: Searched ranges: laminate roughness (dimensionless; below 0.01 a glint is a mirror image of
+#: the LED a few pixels wide, above 0.6 the coating's reflection is spread like paper's) and the
+#: light's horizontal and vertical offsets from the lens (m; a light on the camera body: a fit
+#: that runs to 15 cm is mimicking a lab light's glint, as every spurious fit did on the 24
+#: captures without a laminate of development seed 33).
+ALPHA: tuple[float, float] = (0.01, 0.6)
+OFFSET_M: tuple[float, float] = (-0.15, 0.15)
+#: Intensity of the light of the calibration render (W sr^-1; the camera light's default: a tag
+#: 0.45 m away gets the template key light's irradiance) and the largest intensity reported.
+REFERENCE_INTENSITY_W_SR = 0.24
+INTENSITY_W_SR: tuple[float, float] = (0.0, 5.0)
+#: Index of refraction of the laminate (PET / acrylic film; Fresnel 4 % at normal incidence).
+LAMINATE_IOR = 1.49
+#: Smallest gain (floors) of the laminate over a matte light for a supported fit.
+GLINT_MIN_GAIN = SIGNATURE_MIN_GAIN
+#: Smallest ``cos(theta_o)`` of the glint's ``1 / cos(theta_o)`` (a grazing view, 87 deg).
+MIN_COS = 0.05
+#: 8-bit levels at or beyond which a real tag's paper or ink is clipped (no ratio).
+CLIPPED_DN: tuple[float, float] = (2.0, 253.0)
+
+
+def beckmann(cos_h: np.ndarray, alpha: float) -> np.ndarray:
+    """Beckmann normal distribution ``D`` at ``cos(theta_h)`` (sr^-1).
+
+    ``exp(-tan^2 / alpha^2) / (pi alpha^2 cos^4)``: the distribution of Mitsuba's
+    ``roughplastic``, the laminate's BSDF (its default; the scene does not change it).
+    """
+    c2 = np.clip(cos_h, 1e-6, 1.0) ** 2
+    tan2 = (1.0 - c2) / c2
+    return np.exp(-tan2 / alpha**2) / (np.pi * alpha**2 * c2**2)
+
+
+def laminate_effects(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The scene effects of a ``tag_gloss`` finding: the laminate and the light beside the lens.
+
+    ``params``: ``alpha``, ``light_intensity_w_sr``, ``light_offset_x_m`` and optionally
+    ``light_offset_z_m`` (0 by default: the lens's height).
+    """
+    offset = (float(params["light_offset_x_m"]), float(params.get("light_offset_z_m", 0.0)))
+    return {
+        "tag_gloss": {"alpha": float(params["alpha"]), "int_ior": LAMINATE_IOR},
+        "camera_light": {"offset_m": offset, "intensity": float(params["light_intensity_w_sr"])},
+    }
+
+
+def lobe_geometry(
+    eye_from_tag: np.ndarray, offset_x_m: float, offset_z_m: float = 0.0
+) -> tuple[np.ndarray, ...]:
+    """``cos(theta_h)``, ``cos(theta_o)``, ``cos(theta_l)`` and the distance to the light (m).
+
+    ``eye_from_tag`` (N, 4, 4): each tag's pose in the eyepoint frame (its z column the normal);
+    the light sits ``offset_x_m`` to the right of the lens and ``offset_z_m`` above it.
+    """
+    position, normal = eye_from_tag[:, :3, 3], eye_from_tag[:, :3, 2]
+    to_eye = -position / np.linalg.norm(position, axis=1, keepdims=True)
+    to_light = np.array([offset_x_m, 0.0, offset_z_m]) - position
+    distance = np.linalg.norm(to_light, axis=1)
+    half = to_eye + to_light / distance[:, None]
+    half /= np.linalg.norm(half, axis=1, keepdims=True)
+    cos_h = np.abs(np.sum(normal * half, axis=1))
+    cos_o = np.abs(np.sum(normal * to_eye, axis=1))
+    cos_l = np.clip(np.sum(normal * to_light, axis=1) / distance, 0.0, 1.0)
+    return cos_h, cos_o, cos_l, distance
+
+
+@dataclass(frozen=True)
+class TagLevels:
+    """What the level model reads of each tag (module docstring, step 1).
+
+    Attributes
+    ----------
+    real_ink, real_paper : ndarray (N,)
+        Real linear levels (sRGB-linearised medians; fraction of full scale).
+    sim_ink, sim_paper : ndarray (N,)
+        Simulated (matte, the simulation's lights) linear levels.
+    clipped, ink_clipped : ndarray of bool (N,)
+        Real paper, real ink at or beyond :data:`CLIPPED_DN` (a lower bound of its level, no
+        more: a glint can saturate the ink too).
+    eye_from_tag : ndarray (N, 4, 4)
+        Each tag's pose in the eyepoint frame (m).
+    """
+
+    real_ink: np.ndarray
+    real_paper: np.ndarray
+    sim_ink: np.ndarray
+    sim_paper: np.ndarray
+    clipped: np.ndarray
+    eye_from_tag: np.ndarray
+    ink_clipped: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, real: np.ndarray, sim: np.ndarray, eye_from_tag: np.ndarray) -> TagLevels:
+        """From real and simulated image statistics (N, S); tags missing a level left out."""
+        col = {k: STAT_INDEX[k] for k in ("ink_linear", "paper_linear", "paper_dn", "ink_dn")}
+        ok = np.isfinite(real[:, [col["ink_linear"], col["paper_linear"]]]).all(1) & np.isfinite(
+            sim[:, [col["ink_linear"], col["paper_linear"]]]
+        ).all(1)
+        ok &= (sim[:, col["paper_linear"]] > 0) & (sim[:, col["ink_linear"]] > 0)
+        ok &= real[:, col["ink_dn"]] > CLIPPED_DN[0]
+        return cls(
+            real[ok, col["ink_linear"]],
+            real[ok, col["paper_linear"]],
+            sim[ok, col["ink_linear"]],
+            sim[ok, col["paper_linear"]],
+            real[ok, col["paper_dn"]] >= CLIPPED_DN[1],
+            eye_from_tag[ok],
+            real[ok, col["ink_dn"]] >= CLIPPED_DN[1],
+        )
+
+    def __len__(self) -> int:
+        return len(self.real_ink)
+
+
+def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ink and paper linear levels of the level model (module docstring, step 2) at ``x``.
+
+    ``x = (log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m)``.
+    """
+    gain, ink_factor, a, b, alpha = 2.0 ** x[0], 2.0 ** x[1], x[2], x[3], x[4]
+    cos_h, cos_o, cos_l, distance = lobe_geometry(levels.eye_from_tag, x[5], x[6])
+    light = a * cos_l / distance**2
+    glint = b * beckmann(cos_h, alpha) / (distance**2 * np.maximum(cos_o, MIN_COS))
+    paper = gain * (levels.sim_paper + light + glint)
+    ink = gain * (ink_factor * levels.sim_ink * (1.0 + light / levels.sim_paper) + glint)
+    return ink, paper
+
+
+def level_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
+    """Log-level residuals of ink and paper in their floors; a clipped paper only below 1."""
+    ink, paper = predicted_levels(levels, x)
+    r_ink = np.log2(np.maximum(ink, 1e-6) / levels.real_ink) / IMAGE_FLOORS["ink_linear"][1]
+    r_paper = np.log2(np.maximum(paper, 1e-6) / levels.real_paper) / IMAGE_FLOORS["paper_linear"][1]
+    r_paper = np.where(levels.clipped, np.minimum(r_paper, 0.0), r_paper)
+    if levels.ink_clipped is not None:
+        r_ink = np.where(levels.ink_clipped, np.minimum(r_ink, 0.0), r_ink)
+    return np.concatenate([r_ink, r_paper])
+
+
+@dataclass(frozen=True)
+class LevelFit:
+    """The level model fitted without light, with a matte light, and with the laminate.
+
+    Attributes
+    ----------
+    x : ndarray (7,)
+        ``(log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m)`` of the laminate model.
+    rms_exposure, rms_light, rms_laminate : float
+        RMS misfits (floors) of the exposure-only, the matte light and the laminate models.
+    tags : int
+        Tags fitted.
+    """
+
+    x: np.ndarray
+    rms_exposure: float
+    rms_light: float
+    rms_laminate: float
+    tags: int
+
+    @property
+    def alpha(self) -> float:
+        """Laminate roughness."""
+        return float(self.x[4])
+
+    @property
+    def offset_x_m(self) -> float:
+        """The light's horizontal offset from the lens (m)."""
+        return float(self.x[5])
+
+    @property
+    def offset_z_m(self) -> float:
+        """The light's vertical offset from the lens (m)."""
+        return float(self.x[6])
+
+    @property
+    def glint_scale(self) -> float:
+        """``b``: the glint's scale (simulation's linear units x m^2 sr)."""
+        return float(self.x[3])
+
+
+def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = None) -> LevelFit:
+    """Robust least squares of the level model: exposure, + matte light, + laminate.
+
+    With ``fixed`` (alpha, offset x, offset z) only the scales are fitted (the calibration
+    render).
+    """
+    if len(levels) < 4:
+        nan = float("nan")
+        return LevelFit(np.array([0, 0, 0, 0, ALPHA[1], 0.0, 0.0]), nan, nan, nan, len(levels))
+
+    def solve(x0: np.ndarray, free: np.ndarray, lower, upper):
+        def residual(v: np.ndarray) -> np.ndarray:
+            x = x0.copy()
+            x[free] = v
+            return level_residuals(levels, x)
+
+        sol = least_squares(residual, x0[free], bounds=(lower, upper), loss="soft_l1")
+        x = x0.copy()
+        x[free] = sol.x
+        return x, capped_rms(level_residuals(levels, x))
+
+    a_scale = float(np.median(levels.sim_paper)) * 0.1  # a light of a tenth of the key at 0.3 m
+    base = np.array([0.0, 0.0, 0.0, 0.0, ALPHA[1], 0.0, 0.0])
+    inf = np.inf
+    x_exp, rms_exp = solve(base, np.array([1, 1, 0, 0, 0, 0, 0], bool), (-6, -4), (6, 4))
+    start = x_exp.copy()
+    start[2] = a_scale
+    scales = np.array([1, 1, 1, 0, 0, 0, 0], bool)
+    x_light, rms_light = solve(start, scales, (-6, -4, 0), (6, 4, inf))
+    if fixed is not None:
+        start = x_light.copy()
+        start[4:7] = fixed
+        start[3] = a_scale
+        scales[3] = True
+        x, rms = solve(start, scales, (-6, -4, 0, 0), (6, 4, inf, inf))
+        return LevelFit(x, rms_exp, rms_light, rms, len(levels))
+    best, best_rms = x_light, rms_light
+    lower = (-6, -4, 0, 0, ALPHA[0], OFFSET_M[0], OFFSET_M[0])
+    upper = (6, 4, inf, inf, ALPHA[1], OFFSET_M[1], OFFSET_M[1])
+    for alpha in (0.05, 0.12, 0.3):
+        for offset in (-0.05, 0.05):
+            start = x_light.copy()
+            start[3], start[4], start[5], start[6] = a_scale * alpha, alpha, offset, 0.0
+            x, rms = solve(start, np.ones(7, bool), lower, upper)
+            if rms < best_rms:
+                best, best_rms = x, rms
+    return LevelFit(best, rms_exp, rms_light, best_rms, len(levels))
+
+
+class GlossCandidate(AppearanceCandidate):
+    """A laminate under a light beside the lens, fitted on the glints (see module docstring)."""
+
+    n_params = 3
+
+    def __init__(self) -> None:
+        # its signature: ink brightened (the glint) and contrast lost, or highlights
+        stats = ("ink_linear", "contrast", "highlight_fraction")
+        super().__init__("tag_gloss", stats, "alpha", ALPHA, 0.0)
+
+    def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
+        """The state with the laminate and the light beside the lens."""
+        state = base
+        effects = laminate_effects(params)
+        # the exposure the levels were fitted with: a light beside the lens brightens near tags,
+        # so an exposure fitted without it is another (and added to it, counts that twice)
+        effects["exposure"] = {"ev": float(params.get("ev", 0.0))}
+        for name, values in effects.items():
+            state = make_effect(name, values).apply(state)
+        return state
+
+    def intensity(
+        self,
+        runner: Runner,
+        base: VariantState,
+        items: Items,
+        params: dict[str, Any],
+        fit: LevelFit,
+    ) -> float:
+        """The light's intensity (W sr^-1) whose renders match the real levels best.
+
+        One render with :data:`REFERENCE_INTENSITY_W_SR` gives the simulation's scales of the
+        matte light and of the glint; the real ones over them give two estimates (the level
+        model's nuisance lights bias them differently: on development captures each was off
+        by up to 3x, in opposite directions). The estimates, their geometric mean and a factor
+        2 beyond either are rendered, and the one whose ink, paper and contrast match the real
+        best (:func:`~simgap.analysis.appearance.evidence_misfit`) is kept.
+        """
+        stats = ("ink_linear", "paper_linear", "contrast")
+
+        def misfit(intensity: float) -> tuple[float, np.ndarray]:
+            state = self.apply(base, dict(params, light_intensity_w_sr=intensity))
+            rendered = runner.stats(measuring_only(state, ()), items)
+            return evidence_misfit(stats, items.real_stats, rendered), rendered
+
+        ref_misfit, rendered = misfit(REFERENCE_INTENSITY_W_SR)
+        ref = fit_levels(
+            TagLevels.of(rendered, items.sim_stats, runner.eye_from_tag(items)),
+            tuple(fit.x[4:7]),
+        )
+        estimates = [
+            REFERENCE_INTENSITY_W_SR * real / sim
+            for real, sim in ((fit.glint_scale, ref.glint_scale), (fit.x[2], ref.x[2]))
+            if real > 0 and sim > 0
+        ]
+        if not estimates:
+            return 0.0
+        low, high = min(estimates), max(estimates)
+        tried = {REFERENCE_INTENSITY_W_SR: ref_misfit}
+        for intensity in (low, high, np.sqrt(low * high), low / 2.0, high * 2.0):
+            intensity = float(min(intensity, INTENSITY_W_SR[1]))
+            if intensity not in tried:
+                tried[intensity] = misfit(intensity)[0]
+        finite = {k: v for k, v in tried.items() if np.isfinite(v)}
+        return float(min(finite, key=finite.get)) if finite else 0.0
+
+    def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
+        """The level model on the fit split, then the intensity whose renders match best."""
+        t0 = time.perf_counter()
+        eye_from_tag = runner.eye_from_tag(items)
+        levels = TagLevels.of(items.real_stats, items.sim_stats, eye_from_tag)
+        fit = fit_levels(levels)
+        params = {
+            "alpha": fit.alpha,
+            "light_intensity_w_sr": 0.0,
+            "light_offset_x_m": fit.offset_x_m,
+            "light_offset_z_m": fit.offset_z_m,
+            "ev": float(fit.x[0]),
+        }
+        supported = bool(fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0)
+        if supported:
+            params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit)
+        top = INTENSITY_W_SR[1]
+        at_bound = tuple(
+            name
+            for name, hit in (
+                ("alpha", on_bound(fit.alpha, *ALPHA)),
+                ("light_offset_x_m", on_bound(fit.offset_x_m, *OFFSET_M)),
+                ("light_offset_z_m", on_bound(fit.offset_z_m, *OFFSET_M)),
+                # no light is no glint (not supported), not a bound: only the bright end is
+                ("light_intensity_w_sr", on_bound(params["light_intensity_w_sr"], -top, top)),
+            )
+            if hit
+        )
+        return Fit(
+            self.effect,
+            params,
+            time.perf_counter() - t0,
+            {
+                "supported": supported,
+                "tags": fit.tags,
+                "level_rms_exposure": fit.rms_exposure,
+                "level_rms_light": fit.rms_light,
+                "level_rms_laminate": fit.rms_laminate,
+                "at_bound": at_bound,
+            },
+        )
