@@ -28,16 +28,15 @@ def _stats(ink: np.ndarray, paper: np.ndarray) -> np.ndarray:
 def _levels(eye_from_tag: np.ndarray, x: np.ndarray, rng: np.random.Generator) -> gloss.TagLevels:
     """Real levels drawn from the level model at ``x`` over simulated ones, with noise."""
     paper = rng.uniform(0.25, 0.45, len(eye_from_tag))
-    sim = gloss.TagLevels(
-        paper, paper, 0.035 * paper, paper, np.zeros(len(paper), bool), eye_from_tag
-    )
+    none = np.zeros(len(paper), bool)
+    sim = gloss.TagLevels(paper, paper, 0.035 * paper, paper, none, none, eye_from_tag)
     ink, real_paper = gloss.predicted_levels(sim, x)
     # noise: a tenth of a stop on ink, a twentieth on paper (the floors are 0.5 and 0.3 stop)
     ink = ink * 2.0 ** (0.1 * rng.standard_normal(ink.size))
     real_paper = real_paper * 2.0 ** (0.05 * rng.standard_normal(ink.size))
     clipped = real_paper >= 1.0
     return gloss.TagLevels(
-        ink, np.minimum(real_paper, 1.0), sim.sim_ink, sim.sim_paper, clipped, eye_from_tag
+        ink, np.minimum(real_paper, 1.0), sim.sim_ink, sim.sim_paper, clipped, none, eye_from_tag
     )
 
 
@@ -84,7 +83,12 @@ def test_a_rendered_laminate_under_a_lens_side_light_is_named_with_its_roughness
     )  # fmt: skip
     base = exp.variant_states()[0][1]
     candidate = gloss.GlossCandidate()
-    truth = {"alpha": 0.1, "light_intensity_w_sr": 0.3, "light_offset_x_m": 0.04}
+    truth = {
+        "alpha": 0.1,
+        "light_intensity_w_sr": 0.3,
+        "light_offset_x_m": 0.04,
+        "light_offset_z_m": 0.0,
+    }
     items.real_stats = runner.stats(candidate.apply(base, truth), items)
     items.sim_stats = runner.stats(base, items)
     fit = candidate.fit(runner, base, items)

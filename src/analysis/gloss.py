@@ -98,10 +98,10 @@ def beckmann(cos_h: np.ndarray, alpha: float) -> np.ndarray:
 def laminate_effects(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """The scene effects of a ``tag_gloss`` finding: the laminate and the light beside the lens.
 
-    ``params``: ``alpha``, ``light_intensity_w_sr``, ``light_offset_x_m`` and optionally
-    ``light_offset_z_m`` (0 by default: the lens's height).
+    ``params``: ``alpha``, ``light_intensity_w_sr``, ``light_offset_x_m`` and
+    ``light_offset_z_m``.
     """
-    offset = (float(params["light_offset_x_m"]), float(params.get("light_offset_z_m", 0.0)))
+    offset = (float(params["light_offset_x_m"]), float(params["light_offset_z_m"]))
     return {
         "tag_gloss": {"alpha": float(params["alpha"]), "int_ior": LAMINATE_IOR},
         "camera_light": {"offset_m": offset, "intensity": float(params["light_intensity_w_sr"])},
@@ -150,8 +150,8 @@ class TagLevels:
     sim_ink: np.ndarray
     sim_paper: np.ndarray
     clipped: np.ndarray
+    ink_clipped: np.ndarray
     eye_from_tag: np.ndarray
-    ink_clipped: np.ndarray | None = None
 
     @classmethod
     def of(cls, real: np.ndarray, sim: np.ndarray, eye_from_tag: np.ndarray) -> TagLevels:
@@ -168,8 +168,8 @@ class TagLevels:
             sim[ok, col["ink_linear"]],
             sim[ok, col["paper_linear"]],
             real[ok, col["paper_dn"]] >= CLIPPED_DN[1],
-            eye_from_tag[ok],
             real[ok, col["ink_dn"]] >= CLIPPED_DN[1],
+            eye_from_tag[ok],
         )
 
     def __len__(self) -> int:
@@ -191,13 +191,12 @@ def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def level_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
-    """Log-level residuals of ink and paper in their floors; a clipped paper only below 1."""
+    """Log-level residuals of ink and paper in their floors; a clipped level only from below."""
     ink, paper = predicted_levels(levels, x)
     r_ink = np.log2(np.maximum(ink, 1e-6) / levels.real_ink) / IMAGE_FLOORS["ink_linear"][1]
     r_paper = np.log2(np.maximum(paper, 1e-6) / levels.real_paper) / IMAGE_FLOORS["paper_linear"][1]
     r_paper = np.where(levels.clipped, np.minimum(r_paper, 0.0), r_paper)
-    if levels.ink_clipped is not None:
-        r_ink = np.where(levels.ink_clipped, np.minimum(r_ink, 0.0), r_ink)
+    r_ink = np.where(levels.ink_clipped, np.minimum(r_ink, 0.0), r_ink)
     return np.concatenate([r_ink, r_paper])
 
 

@@ -5,7 +5,7 @@ exposure, a softer or sharper pixel, its own sensor noise and transfer curve, vi
 paint on the fixture, the poses an operator chose, one or two frames a pose. A diagnosis whose
 rules were fitted to one such camera fails on the next, so every trial draws its own from the wide
 ranges below (realistic for a bench camera and lab lighting), and scores are reported per
-nuisance bin (:func:`nuisance_bins`).
+nuisance bin (:func:`simgap.diagnosis.trial.nuisance_bins`).
 
 The drawn camera is data (:class:`NuisanceCamera`): its image effects, its scene overrides, its
 samples per pixel and its poses. :func:`exposure_truth` and :func:`softness_truth` turn it into
@@ -366,31 +366,6 @@ def softness_truth(camera: NuisanceCamera, blur_sigma_px: float = 0.0) -> float:
     return float(np.sqrt(max(extra + blur_sigma_px**2, 0.0)))
 
 
-#: Bins of the per-nuisance score table: |exposure| (EV), softness (px), full well (e-).
-EXPOSURE_BINS_EV = (0.5, 1.0)
-SOFTNESS_BINS_PX = (0.2, 0.4)
-FULL_WELL_BINS_E = (3000.0, 8000.0)
-
-
-def _bin(value: float, edges: tuple[float, float], unit: str) -> str:
-    lo, hi = edges
-    if value < lo:
-        return f"< {lo:g} {unit}"
-    if value < hi:
-        return f"{lo:g}-{hi:g} {unit}"
-    return f">= {hi:g} {unit}"
-
-
-def nuisance_bins(camera: NuisanceCamera, rig: Rig) -> dict[str, str]:
-    """The camera's bin in each nuisance dimension: exposure, softness, noise, frames a pose."""
-    return {
-        "exposure": _bin(abs(exposure_truth(camera, rig)), EXPOSURE_BINS_EV, "EV"),
-        "softness": _bin(softness_truth(camera), SOFTNESS_BINS_PX, "px"),
-        "noise": _bin(camera.effects["sensor_noise"]["full_well_e"], FULL_WELL_BINS_E, "e-"),
-        "frames": f"{camera.frames_per_pose} a pose",
-    }
-
-
 __all__ = [
     "CAMERA_EFFECTS",
     "NuisanceCamera",
@@ -398,6 +373,5 @@ __all__ = [
     "exposure_truth",
     "filter_variance_px2",
     "light_meter_ev",
-    "nuisance_bins",
     "softness_truth",
 ]

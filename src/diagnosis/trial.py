@@ -10,13 +10,39 @@ import numpy as np
 from simgap.analysis.candidates import geometric_effects
 from simgap.core.rig import Rig
 from simgap.diagnosis.hidden_effects import CAMERA_NAMED, HIDDEN, OUTSIDE, REPORTED_AS, found
-from simgap.diagnosis.nuisance import NuisanceCamera, exposure_truth, nuisance_bins, softness_truth
+from simgap.diagnosis.nuisance import NuisanceCamera, exposure_truth, softness_truth
 from simgap.diagnosis.result import DiagnosisResult
 from simgap.diagnosis.result_json import jsonable
 
 
 def _magnitude(params: dict[str, Any], key: str) -> np.ndarray:
     return np.atleast_1d(np.asarray(params.get(key, 0.0), float))
+
+
+#: Bins of the per-nuisance score table (a trial's camera by the truths a diagnosis is scored
+#: against): |exposure| (EV), softness (px), full well (e-).
+EXPOSURE_BINS_EV = (0.5, 1.0)
+SOFTNESS_BINS_PX = (0.2, 0.4)
+FULL_WELL_BINS_E = (3000.0, 8000.0)
+
+
+def _bin(value: float, edges: tuple[float, float], unit: str) -> str:
+    lo, hi = edges
+    if value < lo:
+        return f"< {lo:g} {unit}"
+    if value < hi:
+        return f"{lo:g}-{hi:g} {unit}"
+    return f">= {hi:g} {unit}"
+
+
+def nuisance_bins(camera: NuisanceCamera, rig: Rig) -> dict[str, str]:
+    """The camera's bin in each nuisance dimension: exposure, softness, noise, frames a pose."""
+    return {
+        "exposure": _bin(abs(exposure_truth(camera, rig)), EXPOSURE_BINS_EV, "EV"),
+        "softness": _bin(softness_truth(camera), SOFTNESS_BINS_PX, "px"),
+        "noise": _bin(camera.effects["sensor_noise"]["full_well_e"], FULL_WELL_BINS_E, "e-"),
+        "frames": f"{camera.frames_per_pose} a pose",
+    }
 
 
 @dataclass
