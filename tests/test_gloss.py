@@ -90,7 +90,9 @@ def test_a_rendered_laminate_under_a_lens_side_light_is_named_with_its_roughness
         "light_offset_z_m": 0.0,
     }
     items.real_stats = runner.stats(candidate.apply(base, truth), items)
+    items.real_detected = runner.detected(candidate.apply(base, truth), items)
     items.sim_stats = runner.stats(base, items)
+    items.sim_detected = runner.detected(base, items)
     fit = candidate.fit(runner, base, items)
     # measured: supported (0.05 floors against the matte light's 1.36), alpha 0.108, intensity
     # 0.36 W/sr, offset (0.034, -0.069) m; the roughness, the light's height and its intensity
