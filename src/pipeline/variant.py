@@ -31,7 +31,7 @@ from simgap.render.scene import projected_sticker_outlines
 #: Part of every render key: bump when what a render holds changes (its pixels or their samples).
 RENDER_VERSION = "sticker-region-1"  # 1: only the pixels near the stickers, rendered as a list
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
-RESULT_VERSION = "window-detect-6"  # 6: ArUco on the window around the crop (5: temporal noise)
+RESULT_VERSION = "window-detect-7"  # 7: JPEG DC step (6: ArUco on the window around the crop)
 #: The stages :attr:`VariantPipeline.seconds` times (benchmarks/sweep_speed.py prints them).
 STAGES = (
     "scene load",  # Mitsuba scene built (its first render compiles the kernels)

@@ -49,7 +49,10 @@ Statistics (see :data:`STATS` for names, units and meanings):
   own edges do not count). About 1 without compression whatever the noise; JPEG at quality 70
   raises it by about half a stop to a stop, at 30 by about a stop (rotated synthetic tags,
   tests/test_image_stats.py). Tags whose edges run along the pixel grid leave few flat pixels
-  between blurred edges and read less reliably.
+  between blurred edges and read less reliably;
+- JPEG DC step: the quantisation step on whose lattice the DC coefficients of the sticker's
+  whole 8 x 8 blocks lie (DN; NaN without compression or above quality about 85):
+  :mod:`simgap.pose.jpeg_blocks`.
 """
 
 from __future__ import annotations
@@ -62,6 +65,7 @@ import numpy as np
 
 from simgap.core.robust import MAD_TO_SIGMA
 from simgap.pose.edge_spread import fit_esf_width
+from simgap.pose.jpeg_blocks import JPEG_BLOCK_PX, dc_step
 
 #: Long name of a temporal noise statistic (``{}``: ink or paper).
 TEMPORAL = "temporal noise sigma in flat {} pixels (two frames of one pose), linearised"
@@ -89,6 +93,7 @@ STATS: tuple[tuple[str, str, str], ...] = (
         "1",
         "mean |step| between neighbours across 8x8 JPEG block boundaries over that inside blocks",
     ),
+    ("jpeg_dc_step_dn", "DN", "quantisation step of the 8x8 JPEG blocks' DC coefficient"),
 )
 STAT_NAMES: tuple[str, ...] = tuple(s[0] for s in STATS)
 
@@ -115,8 +120,6 @@ ESF_MAX_CELL_SHARE = 0.9
 ESF_SIDE_SHARE = 0.7
 #: Fewest pixels a region needs for its statistic (else NaN).
 MIN_PIXELS = 12
-#: Side of the JPEG block grid, aligned with the full frame's top-left pixel (px).
-JPEG_BLOCK_PX = 8
 #: Added to both mean steps of the blockiness (DN): noise-free flat regions read 1, not 0 / 0.
 BLOCK_EPSILON_DN = 0.5
 #: Pixels closer than this to a cell edge of the marker are left out of the blockiness (px).
@@ -329,6 +332,7 @@ def tag_stats(
     flat = sticker_mask & (near.reshape(patch.shape) >= BLOCK_EDGE_MARGIN_PX)
     full_x0, full_y0 = int(offset[0]) + x0, int(offset[1]) + y0
     out[s["blockiness"]] = _blockiness(patch, flat, full_x0, full_y0)
+    out[s["jpeg_dc_step_dn"]] = dc_step(patch, full_x0, full_y0)
     samples = _edge_samples(pts, norm, local, layout) if edge_widths else None
     if samples is not None:
         lin_values = lin.ravel()
