@@ -50,6 +50,7 @@ STAT_LABELS: dict[str, StatLabel] = {
     "highlight_fraction": StatLabel("highlight pixels", _STICKER),
     "rejected_candidates": StatLabel("rejected detector candidates", "count"),
     "blockiness": StatLabel("JPEG blockiness (1 = none)", "ratio"),
+    "jpeg_dc_step_dn": StatLabel("JPEG DC quantisation step (none: uncompressed)", "DN"),
 }
 
 
