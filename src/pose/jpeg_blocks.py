@@ -70,7 +70,8 @@ def dc_step(patch: np.ndarray, x0: int, y0: int) -> float:
     dc = blocks.sum(axis=1) / JPEG_BLOCK_PX - 128.0 * JPEG_BLOCK_PX
     phase = dc[None, :] / DC_STEPS[:, None]
     score = np.cos(2.0 * np.pi * phase).mean(axis=1)
-    levels = np.array([np.unique(np.round(row)).size for row in phase])
+    points = np.sort(np.round(phase), axis=1)
+    levels = 1 + np.count_nonzero(np.diff(points, axis=1), axis=1)  # distinct lattice points
     fits = DC_STEPS[(score >= LATTICE_MIN_SCORE) & (levels >= LATTICE_MIN_LEVELS)]
     return float(fits.max()) if fits.size else float("nan")
 
