@@ -26,12 +26,19 @@ from simgap.pose.estimate import estimate_pose, pose_error
 
 
 def _items(
-    rig, effects: dict[str, dict], noise_px: float = 0.0, seed: int = 0, shrink_px: float = 0.0
+    rig,
+    effects: dict[str, dict],
+    noise_px: float = 0.0,
+    seed: int = 0,
+    shrink_px: float = 0.0,
+    smear_px: float = 0.0,
 ) -> tuple[Items, VariantState]:
     """Exact corners of visible tags: 'sim' nominal, 'real' with the effects (+ noise, px).
 
     ``shrink_px`` moves the real corners that far towards the marker's centre (a detector edge
-    bias, as a softer camera gives).
+    bias, as a softer camera gives); ``smear_px`` moves them that far along the image's x axis
+    only, the corners right of the marker's centre (a smear in the direction of motion: the dark
+    square reaches further that way).
     """
     base = VariantState(scene=VariantState().scene.__class__(camera=rig.camera))
     true = base
@@ -66,6 +73,9 @@ def _items(
         centre = real.mean(axis=1, keepdims=True)
         d = real - centre
         real = centre + d * (1 - shrink_px / np.linalg.norm(d, axis=-1, keepdims=True))
+    if smear_px:
+        centre = real.mean(axis=1, keepdims=True)
+        real[..., 0] += np.where(real[..., 0] > centre[..., 0], smear_px, 0.0)
     cal = rig.camera
 
     def errors(corners):
@@ -322,6 +332,31 @@ def test_a_distortion_the_corners_show_is_not_refused_for_pose_noise():
     beyond = dataclasses.replace(lens, pose_gap_all_axes_after=before + 1.1 * tolerance)
     assert seen_in_corners(inside, None)
     assert not seen_in_corners(beyond, None)
+
+
+@pytest.mark.parametrize("smear_px", [2.0, 3.0])
+def test_geometry_fitted_to_corners_something_else_moved_is_refused(smear_px):
+    """A one-sided horizontal smear of the corners is no geometry: the model the search finds
+    leaves them more than GEOMETRY_CORNER_GAP_PX off, is refused, and nothing is selected.
+
+    Blind seed 35 trial 6: a 6 px motion blur was answered with a camera mount that moved the
+    corners 2.01 -> 1.77 px. Measured here: a lens distortion the corners single out leaves 1.37
+    px of 1.48 (2 px smear) and 2.07 px of 2.16 (3 px); a focal length of +1.7 % with 0.2 px
+    noise leaves 0.20 px and is kept. (A 1 px smear leaves 0.70 px beside a minor distortion:
+    below the threshold, the distortion stays.)
+    """
+    from simgap.analysis.thresholds import GEOMETRY_CORNER_GAP_PX
+
+    rig = load_rig()
+    items, base = _items(rig, {}, noise_px=0.2, seed=1, smear_px=smear_px)
+    idx = np.arange(len(items))
+    fit, choose = idx[idx % 3 != 0], idx[idx % 3 == 0]
+    search = ModelSearch(rig, base, items, fit, choose, fit, np.ones(6, bool))
+    chosen = _select(search)
+    assert chosen is None
+    assert search.refused_geometry.corner_gap_after_px > GEOMETRY_CORNER_GAP_PX
+    kept = _search(rig, {"focal_length": {"scale": 0.017}})
+    assert _select(kept).effects == ["focal_length"] and kept.refused_geometry is None
 
 
 def test_a_model_with_a_parameter_on_its_search_bound_is_no_finding():

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simgap.analysis.admission import admissible, at_bound
-from simgap.analysis.channels import NOISE_STATS, Prediction
+from simgap.analysis.channels import Prediction
 from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
 from simgap.analysis.runner import Runner
@@ -30,7 +30,13 @@ from simgap.analysis.scoring import (
     improves_on_nothing,
     parsimonious,
 )
-from simgap.analysis.thresholds import CORNER_UNIT_PX, MAX_EFFECTS, MINOR_CONTRIBUTION
+from simgap.analysis.simulation_chain import SimulationChain
+from simgap.analysis.thresholds import (
+    CORNER_UNIT_PX,
+    GEOMETRY_CORNER_GAP_PX,
+    MAX_EFFECTS,
+    MINOR_CONTRIBUTION,
+)
 from simgap.core.progress import Steps
 from simgap.core.rig import Rig
 from simgap.effects import EFFECTS
@@ -77,9 +83,22 @@ class ModelSearch:
     corner_unit_px: float = CORNER_UNIT_PX
     steps: Steps = field(default_factory=Steps, repr=False)
     _evaluated: dict[tuple[str, ...], Scored] = field(default_factory=dict, repr=False)
+    _chain: SimulationChain | None = field(default=None, repr=False)
     #: single-effect models left out of the ranking because a fitted parameter lies on the end
     #: of its searched range (:func:`at_bound`)
     on_bound: list[Scored] = field(default_factory=list, repr=False)
+    #: the model with geometry that :meth:`select` refused because it left the corners more
+    #: than :data:`~simgap.analysis.thresholds.GEOMETRY_CORNER_GAP_PX` off (None: none refused)
+    refused_geometry: Scored | None = field(default=None, repr=False)
+
+    @property
+    def chain(self) -> SimulationChain:
+        """Fits and runs the models' simulation effects (on the fit split's subsample)."""
+        if self._chain is None:
+            self._chain = SimulationChain(
+                self.runner, self.base, self.items.subset(self.sim_fit_index)
+            )
+        return self._chain
 
     def _key(self, model: tuple[Candidate, ...]) -> tuple[str, ...]:
         proj = sorted(c.effect for c in model if isinstance(c, ProjectionCandidate))
@@ -88,31 +107,31 @@ class ModelSearch:
     def evaluate(self, model: tuple[Candidate, ...]) -> Scored:
         """Fit a model on the fit split and score it on the choose split (memoised).
 
-        Simulation (appearance) effects are fitted first, each on the image evidence of the
-        fit split's subsample; their change of the detected corners is then added to the
-        simulated corners, and the projection effects are fitted jointly on the fit split's
-        corners on top
+        Simulation (appearance) effects are fitted first on the image evidence of the fit
+        split's subsample, each on the simulation with the ones before it
+        (:class:`~simgap.analysis.simulation_chain.SimulationChain`); their change of the
+        detected corners is then added to the simulated corners, and the projection effects are
+        fitted jointly on the fit split's corners on top
         (geometry is what the corners show once the image formation is modelled; fitting it
         first would let, say, a print scale soak up a blur's edge bias and then count it twice).
-        Predictions add each effect's change of error (m, rad), corners (px), image statistics
-        and detections.
+        Predictions add the simulation effects' joint change of error (m, rad), corners (px),
+        image statistics and detections to the projection effects' changes.
         """
         key = self._key(model)
         if key in self._evaluated:
             return self._evaluated[key]
-        rig, base, runner = self.rig, self.base, self.runner
-        tr, st = self.items.subset(self.fit_index), self.items.subset(self.sim_fit_index)
-        fits: list[tuple[Candidate, Fit]] = []
-        for cand in model:
-            if not isinstance(cand, ProjectionCandidate):
-                fits.append((cand, cand.fit(runner, base, st)))
+        rig, base = self.rig, self.base
+        tr = self.items.subset(self.fit_index)
+        fits: list[tuple[Candidate, Fit]] = list(
+            self.chain.fit(tuple(c for c in model if not isinstance(c, ProjectionCandidate)))
+        )
         proj = sorted(
             (c for c in model if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
         )
         projection = None
         if proj:
             joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
-            shift_tr, _, _ = self._simulation_changes(fits, tr)
+            shift_tr, _, _ = self.chain.changes(fits, tr)
             fit = joint.fit(
                 rig, base, dataclasses.replace(tr, sim_corners=tr.sim_corners + shift_tr)
             )
@@ -124,40 +143,6 @@ class ModelSearch:
         self.steps.advance()
         return scored
 
-    def _simulation_changes(
-        self, fits: list[tuple[Candidate, Fit]], items: Items
-    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-        """Changes the simulation effects of ``fits`` make on ``items``, summed over effects.
-
-        Returns the change of detected corners (N, 4, 2) (px), of image statistics (N, S) (None
-        without statistics) and of the detection rate (N,).
-        """
-        runner, base = self.runner, self.base
-        corners = np.zeros((len(items), 4, 2))
-        has_stats = items.sim_stats is not None
-        stats = np.zeros_like(items.sim_stats) if has_stats else None
-        detected = np.zeros(len(items))
-        for cand, fit in fits:
-            if isinstance(cand, ProjectionCandidate):
-                continue
-            state = cand.apply(base, fit.params)
-            stochastic = EFFECTS[cand.effect].stochastic
-            if not stochastic:
-                # a stochastic effect (sensor noise) leaves the expected corners where they are;
-                # one noisy realisation is no prediction of them (its evidence is the noise)
-                corners += np.nan_to_num(runner.corners(state, items) - runner.corners(base, items))
-            if has_stats:
-                change = np.nan_to_num(runner.stats(state, items) - runner.stats(base, items))
-                if not stochastic:
-                    # a deterministic effect does not change the camera's noise; the change of
-                    # the simulation's noise statistics is its render noise being smoothed
-                    change[:, NOISE_STATS] = 0.0
-                stats += change
-                detected += np.nan_to_num(
-                    runner.detected(state, items) - runner.detected(base, items)
-                )
-        return corners, stats, detected
-
     def score(
         self,
         fits: list[tuple[Candidate, Fit]],
@@ -165,19 +150,12 @@ class ModelSearch:
         index: np.ndarray,
     ) -> Scored:
         """Score fitted effects (no refit) on the items at ``index``."""
-        rig, base, runner = self.rig, self.base, self.runner
+        rig, base = self.rig, self.base
         h = self.items.subset(index)
-        off_h = np.zeros((len(h), 6))
-        simulation_deltas: dict[str, np.ndarray] = {}
-        for cand, fit in fits:
-            if isinstance(cand, ProjectionCandidate):
-                continue
-            delta = np.nan_to_num(cand.delta(runner, base, fit, h))
-            if EFFECTS[cand.effect].stochastic:
-                delta[:] = 0.0  # expected pose unchanged, as for the corners
-            simulation_deltas[cand.effect] = delta
-            off_h += delta
-        corner_h, stats_h, det_h = self._simulation_changes(fits, h)
+        simulation = [(c, f) for c, f in fits if not isinstance(c, ProjectionCandidate)]
+        simulation_deltas = self.chain.pose_deltas(simulation, h)
+        off_h = sum(simulation_deltas.values(), np.zeros((len(h), 6)))
+        corner_h, stats_h, det_h = self.chain.changes(simulation, h)
         proj_record = None
         if projection is not None:
             joint, fit = projection
@@ -282,7 +260,9 @@ class ModelSearch:
             else:
                 return scored
 
-    def select(self, ranking: list[Scored], max_effects: int = MAX_EFFECTS) -> Scored | None:
+    def select(
+        self, ranking: list[Scored], max_effects: int = MAX_EFFECTS, geometry: bool = True
+    ) -> Scored | None:
         """Greedy forward search with joint refits, simplified after every step.
 
         A geometric effect enters a model (starts the search, or is added to it) only when it
@@ -305,7 +285,14 @@ class ModelSearch:
         matter most for the image evidence and move no pose: it is then also :meth:`minor`),
         stochastic effects (sensor noise) after the others: they explain noise and scatter, not
         the systematic gap, and every real camera has some, so they lead only when alone.
+
+        A model with a geometric or calibration effect that leaves the corners more than
+        :data:`~simgap.analysis.thresholds.GEOMETRY_CORNER_GAP_PX` off has fitted the geometry to
+        corners something else moved: it is kept in :attr:`refused_geometry` and the search is
+        repeated without geometry (``geometry`` false: projection effects are left out).
         """
+        if not geometry:
+            ranking = [s for s in ranking if not isinstance(s.fits[0][0], ProjectionCandidate)]
         # the search starts from the best single effect that explains something: a geometric
         # effect that, alone, does not bring the pose closer to the real one explains nothing
         # (it stays in the pool: with another effect it may)
@@ -318,9 +305,12 @@ class ModelSearch:
         # focal-length change fitted k2 on its bound alone and was never tried beside the focal
         # length); refitted jointly, every parameter must then be off its bound
         # (:func:`admissible`).
-        # Appearance fits do not change with the model, so one on a bound stays there.
+        # An appearance effect on a bound alone stays out: it named no value of its own
+        # (refitted beside others it must be off its bound too, :func:`admissible`).
         pool = [s.fits[0][0] for s in ranking] + [
-            s.fits[0][0] for s in self.on_bound if isinstance(s.fits[0][0], ProjectionCandidate)
+            s.fits[0][0]
+            for s in self.on_bound
+            if geometry and isinstance(s.fits[0][0], ProjectionCandidate)
         ]
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}
@@ -356,6 +346,10 @@ class ModelSearch:
                     key=lambda cf: (EFFECTS[cf[1].effect].stochastic, -loss[cf[1].effect]),
                 ),
             )
+        projection = any(isinstance(c, ProjectionCandidate) for c, _ in current.fits)
+        if projection and current.corner_gap_after_px > GEOMETRY_CORNER_GAP_PX:
+            self.refused_geometry = current
+            return self.select(ranking, max_effects, geometry=False)
         return current
 
     def prune(self, scored: Scored) -> Scored:

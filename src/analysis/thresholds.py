@@ -150,6 +150,15 @@ AT_BOUND_SHARE: Final[float] = 0.02
 #: the lens, which lowered the corner gap 0.339 -> 0.200 px beside them (k1 -0.166 for -0.144),
 #: was never tried (trial 9).
 MAX_EFFECTS: Final[int] = 5
+#: Largest corner gap (px, RMS over the choose split's configurations) a model with a geometric or
+#: calibration effect may leave: geometry is fitted on the corners and, once the image formation
+#: is modelled, explains them to the detector's bias. A model that leaves more has fitted the
+#: geometry to corners that something else moved (a motion smear, an unmodelled defocus), and the
+#: search is repeated without geometry. Four corner units (:data:`CORNER_UNIT_PX`): on the 400
+#: trials of blind seeds 31-35 every correct geometric model left at most 0.64 px (0.63 and 0.64
+#: beside a JPEG and a defocus), and six of the ten models with a spurious geometric effect
+#: 0.97-2.11 px (three motion blurs, two defocus captures, a focal length beside a defocus).
+GEOMETRY_CORNER_GAP_PX: Final[float] = 4.0 * CORNER_UNIT_PX
 #: A print scale (a size signature) enters a model only where the size change it explains grows
 #: with the tag's image size by this many standard errors (:mod:`simgap.analysis.size_signature`):
 #: the significance of :data:`Z_SIGNIFICANT`. On the fit and choose splits of seeds 31 and 32

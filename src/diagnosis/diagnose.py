@@ -244,6 +244,7 @@ def diagnose(
     candidates = [c for c in candidates if signature_significant(c, where.image_tests)]
     ranking = d.search.rank(candidates, where.significant) if len(d.items) >= 2 else []
     chosen = d.search.select(ranking) if where.significant else None
+    refused = d.search.refused_geometry
     result = DiagnosisResult(
         where=where,
         ranking=[RankedEffect.of(s) for s in ranking],
@@ -252,6 +253,7 @@ def diagnose(
         unexplained_evidence=unexplained_evidence(chosen, where, settings)
         if where.significant
         else [],
+        refused_geometry=None if refused is None else equivalent_model(refused),
         split=Split(
             fit=len(d.fit_index),
             choose=len(d.choose_index),
@@ -260,6 +262,8 @@ def diagnose(
         ),
         render_seeds=seeds,
     )
+    if refused is not None:
+        result.unexplained_evidence.append("corners")
     if chosen is not None:
         result.combined = d.combined(chosen)
         if settings.confirm:
@@ -284,6 +288,13 @@ def equivalent_alternatives(
         and equivalent_models(s, chosen)
     ]
     return [
-        EquivalentModel(effects=s.effects, n_params=s.n_params, scores=Scores.of(s))
+        equivalent_model(s)
         for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
     ]
+
+
+def equivalent_model(scored: Scored) -> EquivalentModel:
+    """A scored model as the result lists it: its effects, parameter count and scores."""
+    return EquivalentModel(
+        effects=scored.effects, n_params=scored.n_params, scores=Scores.of(scored)
+    )

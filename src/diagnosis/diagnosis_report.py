@@ -22,7 +22,7 @@ from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report.figures import plot_change_heatmap
 from simgap.analysis.report.output import save_figure, save_text
 from simgap.analysis.report.tables import markdown_table
-from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL
+from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL, GEOMETRY_CORNER_GAP_PX
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.diagnose import Diagnosis
 from simgap.diagnosis.engineering import (
@@ -214,6 +214,16 @@ def which_markdown(result: DiagnosisResult) -> list[str]:
                 for r in result.on_bound
             )
             + ".",
+            "",
+        ]
+    refused = result.refused_geometry
+    if refused is not None:
+        lines += [
+            f"Geometry left out: the best model with it ({', '.join(refused.effects)}) leaves "
+            f"the detected corners {refused.scores.corner_gap_after_px:.2f} px off (more than "
+            f"{GEOMETRY_CORNER_GAP_PX:.1f} px): something the catalogue does not model moved "
+            "them (a motion smear, a defocus), and a geometry fitted to them would stand in "
+            "for it.",
             "",
         ]
     if not result.where.significant:

@@ -209,8 +209,11 @@ class DiagnosisResult:
     on_bound: list[RankedEffect] = field(default_factory=list)
     #: None when nothing is selected
     selection: Selection | None = None
+    #: the model with geometry the search refused because it left the corners more than
+    #: :data:`~simgap.analysis.thresholds.GEOMETRY_CORNER_GAP_PX` off (None: none refused)
+    refused_geometry: EquivalentModel | None = None
     #: significant evidence the chosen model leaves unexplained: "pose", "detection",
-    #: "scatter" or an image statistic
+    #: "scatter", "corners" (geometry refused) or an image statistic
     unexplained_evidence: list[str] = field(default_factory=list)
     split: Split | None = None
     #: render seeds per configuration of the simulation
@@ -341,4 +344,3 @@ def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
     if data.get("confirmed") is not None:
         out["confirmed"] = {_V1_RANKED.get(k, k): v for k, v in data["confirmed"].items()}
     return out
-
