@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -31,9 +32,7 @@ def test_schema_1_is_read_under_the_new_names():
     assert result.selection.findings[0].params == combined["effects"][0]["params"]
     assert result.selection.configurations == combined["choice"]["configurations"] == 2
     assert result.combined.scores.pose_gap_reduction == combined["reduction"]
-    assert list(result.combined.pose_gap_reduction_interval_90) == combined[
-        "reduction_interval_90"
-    ]
+    assert list(result.combined.pose_gap_reduction_interval_90) == combined["reduction_interval_90"]
     assert result.combined.scores.median_abs_gap_after == combined["heldout_gap_after_per_axis"]
     assert result.confirmed.pose_gap_reduction == raw["confirmed"]["reduction"]
 
@@ -74,3 +73,24 @@ def test_a_result_that_does_not_fit_the_schema_names_the_key(change, message):
     change(data)
     with pytest.raises(ValueError, match=message):
         DiagnosisResult.from_json(data, "diag/result.json")
+
+
+def test_refused_geometry_round_trips_and_is_named_in_the_report():
+    """A model with geometry refused for the corners it leaves is kept and said in words."""
+    from simgap.diagnosis.diagnosis_report import which_markdown
+    from simgap.diagnosis.result import EquivalentModel
+
+    result = DiagnosisResult.from_json(json.loads(V1.read_text()))
+    assert result.refused_geometry is None  # schema 1 and results without one read as none
+    # blind seed 35 trial 72's camera mount: 1.185 px of the corners left on the choose split
+    scores = dataclasses.replace(result.selection.scores, corner_gap_after_px=1.185)
+    result.refused_geometry = EquivalentModel(effects=["camera_mount"], n_params=6, scores=scores)
+    data = json.loads(json.dumps(result.to_json()))
+    again = DiagnosisResult.from_json(data)
+    assert json.dumps(again.to_json()) == json.dumps(data)
+    assert again.refused_geometry.effects == ["camera_mount"]
+    text = "\n".join(which_markdown(again))
+    assert (
+        "Geometry left out: the best model with it (camera_mount) leaves the detected "
+        "corners 1.19 px off (more than 0.8 px)" in text
+    )
