@@ -135,15 +135,10 @@ class SimulationChain:
         stochastic = any(EFFECTS[c.effect].stochastic for c, _ in fits)
         corners = np.nan_to_num(runner.corners(deterministic, items) - runner.corners(base, items))
         if stats is not None:
-            stats = np.nan_to_num(runner.stats(full, items) - runner.stats(base, items))
-            stats[:, NOISE_STATS] = (
-                np.nan_to_num(
-                    runner.stats(full, items)[:, NOISE_STATS]
-                    - runner.stats(deterministic, items)[:, NOISE_STATS]
-                )
-                if stochastic
-                else 0.0
-            )
+            full_stats = runner.stats(full, items)
+            stats = np.nan_to_num(full_stats - runner.stats(base, items))
+            noise = full_stats[:, NOISE_STATS] - runner.stats(deterministic, items)[:, NOISE_STATS]
+            stats[:, NOISE_STATS] = np.nan_to_num(noise) if stochastic else 0.0
             detected = np.nan_to_num(runner.detected(full, items) - runner.detected(base, items))
         return corners, stats, detected
 
