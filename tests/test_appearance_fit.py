@@ -289,6 +289,12 @@ def test_the_jpeg_quality_is_read_from_the_capture_dc_step():
     fit = jpeg.fit(runner, base, items)
     assert fit.params["quality"] == 35 and fit.extra["dc_step_dn"] == 23
     assert fit.extra["supported"]
+    # without the step the blockiness is searched (measured: 36), and the quality stays an
+    # integer (a float quality is a configuration error of the JPEG effect)
+    items.real_stats[:, STAT_INDEX["jpeg_dc_step_dn"]] = np.nan
+    searched = jpeg.fit(runner, base, items)
+    assert isinstance(searched.params["quality"], int)
+    assert abs(searched.params["quality"] - 35) <= 3  # measured 36
 
     # where the tags do not agree, the blockiness search decides: two of many are too few, and
     # a step shown by fewer than half of those that show one is outvoted

@@ -255,6 +255,10 @@ class JpegCandidate(AppearanceCandidate):
             return self.fitted(items, quality, fun, t0, dc_step_dn=step, tags=tags)
         return super().fit(runner, base, items)
 
+    def params(self, x: float) -> dict[str, Any]:
+        """Effect parameters: the quality rounded to an integer."""
+        return {self.param: int(round(float(x)))}
+
 
 def agreed_dc_step(steps: np.ndarray) -> tuple[float, int]:
     """The DC quantisation step the tags agree on (DN), and how many tags show it.
@@ -267,7 +271,3 @@ def agreed_dc_step(steps: np.ndarray) -> tuple[float, int]:
     if counts.size and counts.max() >= max(MIN_STEP_TAGS, counts.sum() / 2):
         return float(values[np.argmax(counts)]), int(counts.max())
     return float("nan"), 0
-
-    def params(self, x: float) -> dict[str, Any]:
-        """Effect parameters: the quality rounded to an integer."""
-        return {self.param: int(round(float(x)))}

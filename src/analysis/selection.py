@@ -21,6 +21,7 @@ import numpy as np
 from simgap.analysis.admission import admissible, at_bound
 from simgap.analysis.channels import Prediction
 from simgap.analysis.contributions import pose_contributions
+from simgap.analysis.corner_findings import with_corner_effects
 from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
 from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
@@ -280,8 +281,10 @@ class ModelSearch:
 
         An effect is added while the combined misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); the model is then simplified
-        (:meth:`simplify`) and pruned (:meth:`prune`). Effects are returned most important
-        first: by how much their removal worsens the combined evidence (an effect may
+        (:meth:`simplify`) and pruned (:meth:`prune`); last, effects with a corner signature
+        that the corners single out beside it join it
+        (:func:`~simgap.analysis.corner_findings.with_corner_effects`). Effects are returned
+        most important first: by how much their removal worsens the combined evidence (an effect may
         matter most for the image evidence and move no pose: it is then also :meth:`minor`),
         stochastic effects (sensor noise) after the others: they explain noise and scatter, not
         the systematic gap, and every real camera has some, so they lead only when alone.
@@ -333,6 +336,7 @@ class ModelSearch:
             current = simpler
             seen.add(frozenset(current.effects))
         current = self.prune(current)
+        current = with_corner_effects(current, pool, self.evaluate, max_effects)
         if len(current.fits) > 1:
             model = [c for c, _ in current.fits]
             loss = {

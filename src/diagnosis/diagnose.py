@@ -32,6 +32,7 @@ from simgap.analysis import gap as gapmod
 from simgap.analysis.appearance import signature_significant
 from simgap.analysis.candidates import CANDIDATES
 from simgap.analysis.channels import corner_unit
+from simgap.analysis.corner_findings import corner_effect_alone
 from simgap.analysis.fitting import Candidate
 from simgap.analysis.gap_size import gap_score, median_abs_gap
 from simgap.analysis.scored import Scored, bootstrap_reductions
@@ -243,7 +244,9 @@ def diagnose(
     # on which the reduction is measured, plays no part in it)
     candidates = [c for c in candidates if signature_significant(c, where.image_tests)]
     ranking = d.search.rank(candidates, where.significant) if len(d.items) >= 2 else []
-    chosen = d.search.select(ranking) if where.significant else None
+    # where nothing differs significantly, only an effect the corners single out is a finding
+    # (a calibration file's wrong distortion that moves no pose beyond its noise)
+    chosen = d.search.select(ranking) if where.significant else corner_effect_alone(ranking)
     refused = d.search.refused_geometry
     result = DiagnosisResult(
         where=where,

@@ -226,7 +226,7 @@ def which_markdown(result: DiagnosisResult) -> list[str]:
             "for it.",
             "",
         ]
-    if not result.where.significant:
+    if not result.where.significant and not result.selection:
         lines.append("**No significant gap**: nothing is selected.")
     elif not result.selection:
         lines.append("**Unexplained**: no effect of the catalogue explains the evidence.")

@@ -77,7 +77,8 @@ class Trial:
         the other camera has the same kind of effect (:data:`CAMERA_NAMED`): exposure reads the
         camera's total exposure and blur its total softness (:func:`exposure_truth`,
         :func:`softness_truth`); a faulty calibration file is read as the lens it describes
-        wrongly: no distortion, an error relative to the distortion the file claims.
+        wrongly: no distortion, an error relative to the distortion the file claims (beside a
+        hidden lens distortion: the lens's own, relative to itself).
         """
         out: dict[str, tuple[dict[str, Any], dict[str, float]]] = {}
         for name, params in self.hidden.items():
@@ -85,6 +86,8 @@ class Trial:
                 continue
             params = dict(params)
             if name == "faulty_calibration":
+                if "lens_distortion" in self.hidden:
+                    continue  # the lens as it is: its own distortion (scored below)
                 scale = {"k1": abs(float(params["k1"]))}
                 out[REPORTED_AS[name]] = ({"k1": 0.0}, scale)
                 continue
