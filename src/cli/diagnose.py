@@ -119,9 +119,9 @@ def diagnose(
         typer.echo(str(p))
     if json_path:
         typer.echo(str(write_json(result, json_path)))
-    if not result.where.significant:
+    if not result.where.significant and not result.selection:
         verdict = "no significant gap"
-    else:
+    else:  # a calibration effect the corners single out is a finding without a significant gap
         verdict = "selected: " + selected_names(result)
         if result.unexplained:
             verdict += f"; unexplained: {', '.join(result.unexplained_evidence)}"
