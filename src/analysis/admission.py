@@ -64,6 +64,11 @@ def at_bound(scored: Scored) -> bool:
     return any(fit.extra.get("at_bound") for _, fit in scored.fits)
 
 
+def has_corner_signature(candidate: object) -> bool:
+    """Whether a candidate's corners have a pattern of their own (``corner_signature``)."""
+    return bool(getattr(candidate, "corner_signature", False))
+
+
 def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     """Whether a model's newest effect has a corner signature of its own and the corners show it.
 
@@ -82,7 +87,7 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     it is then reported as minor.
     """
     new = [c for c, _ in scored.fits if reference is None or c.effect not in reference.effects]
-    if len(new) != 1 or not getattr(new[0], "corner_signature", False):
+    if len(new) != 1 or not has_corner_signature(new[0]):
         return False
     if reference is None:
         before_px, before = scored.corner_gap_before_px, corner_residuals(scored, before=True)

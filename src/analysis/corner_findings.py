@@ -17,14 +17,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from simgap.analysis.admission import admissible, seen_in_corners
+from simgap.analysis.admission import admissible, has_corner_signature, seen_in_corners
 from simgap.analysis.fitting import Candidate
 from simgap.analysis.scored import Scored
-
-
-def has_corner_signature(candidate: Candidate) -> bool:
-    """Whether a candidate's corners have a pattern of their own (``corner_signature``)."""
-    return bool(getattr(candidate, "corner_signature", False))
 
 
 def with_corner_effects(
@@ -55,17 +50,15 @@ def with_corner_effects(
 
 
 def corner_effect_alone(ranking: Sequence[Scored]) -> Scored | None:
-    """The best single corner-signature effect the corners single out (None: none).
+    """The best corner-signature effect of ``ranking`` the corners single out (None: none).
 
+    ``ranking``: single-effect models (:meth:`~simgap.analysis.selection.ModelSearch.rank`).
     For a capture where no evidence family differs significantly: only an effect with a corner
     signature of its own, admissible alone and seen in the held-out corners, is a finding.
     """
     seen = [
         s
         for s in ranking
-        if len(s.fits) == 1
-        and has_corner_signature(s.fits[0][0])
-        and admissible(s, None)
-        and seen_in_corners(s, None)
+        if has_corner_signature(s.fits[0][0]) and admissible(s, None) and seen_in_corners(s, None)
     ]
     return min(seen, key=lambda s: s.evidence_after) if seen else None

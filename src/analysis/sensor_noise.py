@@ -137,7 +137,6 @@ class SensorNoiseCandidate(AppearanceCandidate):
         # (its Monte Carlo noise, measured at the simulation's level, not the capture's) is not
         # subtracted (see the class doc)
         mu, var = self._samples(items, NOISE_PAIRS)
-        real_var = var
         if mu.size < 4:
             none = {"full_well_e": FULL_WELL_BOUNDS_E[1], "read_noise_e": 0.0}
             return Fit(self.effect, none, 0.0, {})
@@ -162,7 +161,7 @@ class SensorNoiseCandidate(AppearanceCandidate):
                 loss="soft_l1",
             ).x
             c = least_squares(
-                lambda x: (self.excess_variance((*shot_read, x[0]), mu) - var) / real_var,
+                lambda x: (self.excess_variance((*shot_read, x[0]), mu) - var) / var,
                 x0=[0.5 * sum(c_bounds)],
                 x_scale=[1e-3],
                 bounds=c_bounds,
@@ -171,7 +170,7 @@ class SensorNoiseCandidate(AppearanceCandidate):
             x = np.concatenate([shot_read, c])
         else:
             x = least_squares(
-                lambda x: (self.excess_variance(x, mu) - var) / real_var,
+                lambda x: (self.excess_variance(x, mu) - var) / var,
                 x0=[1e-3, 1e-5, 0.5 * sum(c_bounds)],
                 x_scale=[1e-3, 1e-4, 1e-3],
                 bounds=([slope_lo, 0.0, c_bounds[0]], [slope_hi, 1e-2, c_bounds[1]]),
