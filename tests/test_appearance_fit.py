@@ -279,6 +279,18 @@ class _TagPipelineRunner:
         return np.array(out)
 
 
+def _grey_tags(n: int, **kwargs: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``n`` synthetic grey tags (linear render, corners), paper 0.25-0.6, each turned a little."""
+    tags = []
+    for k, paper in enumerate(np.linspace(0.25, 0.6, n)):
+        frame, corners = synthetic_tag(
+            ink=paper * 0.05, paper=paper, angle=0.2 + 0.05 * k, size=112, marker_px=56,
+            supersample=2, **kwargs,
+        )  # fmt: skip
+        tags.append((linearise(frame), corners))
+    return tags
+
+
 def test_the_jpeg_quality_is_read_from_the_capture_dc_step():
     """A capture compressed at quality 35 under 1500 e- shot noise is fitted to quality 35.
 
@@ -290,13 +302,7 @@ def test_the_jpeg_quality_is_read_from_the_capture_dc_step():
     from simgap.analysis.candidates import CANDIDATES
     from simgap.effects import make_effect
 
-    tags = []
-    for k, paper in enumerate(np.linspace(0.25, 0.6, 8)):
-        frame, corners = synthetic_tag(
-            ink=paper * 0.05, paper=paper, angle=0.2 + 0.05 * k, size=112, marker_px=56,
-            supersample=2,
-        )  # fmt: skip
-        tags.append((linearise(frame), corners))
+    tags = _grey_tags(8)
     runner = _TagPipelineRunner(tags)
     base = VariantState()
     noise = make_effect("sensor_noise", {"full_well_e": 1500.0, "read_noise_e": 6.0})
@@ -341,13 +347,7 @@ def test_a_blur_is_fitted_on_the_exposed_simulation():
     from simgap.analysis.candidates import CANDIDATES
     from simgap.analysis.simulation_chain import SimulationChain
 
-    tags = []
-    for k, paper in enumerate(np.linspace(0.25, 0.6, 12)):
-        frame, corners = synthetic_tag(
-            ink=paper * 0.05, paper=paper, angle=0.2 + 0.05 * k, size=112, marker_px=56,
-            supersample=2, sigma_px=0.4,
-        )  # fmt: skip
-        tags.append((linearise(frame), corners))
+    tags = _grey_tags(12, sigma_px=0.4)
     runner = _TagPipelineRunner(tags)
     base = VariantState()
     items = _pipeline_items(len(tags))
@@ -360,3 +360,45 @@ def test_a_blur_is_fitted_on_the_exposed_simulation():
     assert chain[0][1].params["ev"] == pytest.approx(1.2, abs=0.02)
     assert chain[1][1].params["sigma_px"] == pytest.approx(1.4, rel=0.01)
     assert blur.fit(runner, base, items).params["sigma_px"] < 0.97 * 1.4
+
+
+def test_the_censored_median_reads_clipped_tags_as_lower_bounds():
+    """Kaplan-Meier where fewer than half are clipped; else the median of the bounds."""
+    from simgap.analysis.exposure import censored_median_ev
+
+    ev = np.array([0.5, 0.7, 0.9, 1.1, 1.3, 1.5, 1.7])
+    assert censored_median_ev(ev, np.zeros(7, bool)) == pytest.approx(1.1)
+    # the two brightest clipped at bounds below their true values: the median is not moved
+    bounds = np.array([0.5, 0.7, 0.9, 1.1, 1.3, 1.2, 1.2])
+    assert censored_median_ev(bounds, ev > 1.4) == pytest.approx(1.1)
+    # most clipped: only a lower bound is known, the median of values and bounds
+    assert censored_median_ev(bounds, ev > 0.8) == pytest.approx(1.1)
+    assert np.isnan(censored_median_ev(ev[:2], np.zeros(2, bool)))
+
+
+def test_an_exposure_whose_misfit_is_flat_beyond_clipping_reads_the_tags_median():
+    """Tags lit +0.9 to +2.4 EV (median +1.65), nine of twelve clipped: +1.45 EV, not +2.93.
+
+    Under lights unlike the simulation's each tag has its own exposure change; once every
+    simulated tag clips, all larger exposures predict the same and the capped least-squares
+    misfit is flat (measured: +2.4 to +4.0 EV equal), so the scan returned an arbitrary point of
+    the plateau (+2.93 EV, as on four development captures of +1.06 to +1.91 EV). The censored
+    median reads +1.45 EV (measured; the product-limit median reads the informative clipping a
+    little low, see :func:`simgap.analysis.exposure.censored_median_ev`).
+    """
+    from simgap.analysis.appearance import AppearanceCandidate
+    from simgap.analysis.exposure import ExposureCandidate
+
+    ratios = np.random.default_rng(0).permutation(np.linspace(0.9, 2.4, 12))
+    tags = _grey_tags(12)
+    real_tags = [(lin * 2.0**r, c) for (lin, c), r in zip(tags, ratios, strict=True)]
+    runner = _TagPipelineRunner(tags)
+    base = VariantState()
+    items = _pipeline_items(len(tags))
+    items.real_stats = _TagPipelineRunner(real_tags).stats(base, items)
+    items.sim_stats = runner.stats(base, items)
+    scan = AppearanceCandidate("exposure", ("paper_linear",), "ev", (-4.0, 4.0), 0.02)
+    assert scan.fit(runner, base, items).params["ev"] > 2.5  # measured 2.93, on the plateau
+    fit = ExposureCandidate().fit(runner, base, items)
+    assert fit.extra["plateau"] and fit.extra["supported"]
+    assert fit.params["ev"] == pytest.approx(np.median(ratios), abs=0.25)  # measured 1.45

@@ -194,3 +194,19 @@ def test_strict_accuracy_asks_for_every_hidden_effect_of_a_pair():
     assert summary["top1_accuracy"] == 0.75
     assert summary["every_effect_accuracy"] == 0.5
     assert summary["pair_recall"] == 0.75
+
+
+def test_a_selected_parameter_on_its_bound_is_counted():
+    """Issue 25's "no selected parameter on a bound" is measured per trial, not assumed."""
+    from simgap.diagnosis.trial import Trial
+    from simgap.diagnosis.validation_report import summarize_scores
+
+    on = _selecting("defocus", defocus={"aperture_radius_m": 2e-4, "focus_distance_m": 5.0})
+    on.selection.findings[0].at_bound = ["focus_distance_m"]  # the searched range's far end
+    records = [
+        Trial(0, {"defocus": {"aperture_radius_m": 2e-4, "focus_distance_m": 0.9}}, None, on),
+        Trial(1, {"blur": {"sigma_px": 1.0}}, None, _selecting("blur", blur={"sigma_px": 1.0})),
+    ]
+    scores = [t.score() for t in records]
+    assert scores[0]["on_bound"] == ["defocus.focus_distance_m"] and scores[1]["on_bound"] == []
+    assert summarize_scores(scores)["on_bound_trials"] == 0.5

@@ -10,7 +10,9 @@ effect              parameters (bounds)                    fitted on
 ==================  =====================================  =====================================
 ``blur``            ``sigma_px`` (0.05 - 3 px)             edge width; pipeline re-run per value
 ``exposure``        ``ev`` (-4 - 4 stops)                  paper level (ink near black is flare
-                                                           and print, not exposure); re-run
+                                                           and print, not exposure): median
+                                                           of the tags' ratios, clipped ones
+                                                           censored (:mod:`~.exposure`)
 ``sensor_noise``    ``full_well_e``, ``read_noise_e``      photon transfer of the excess noise
                                                            variance (EMVA 1288), least squares
                                                            (:mod:`simgap.analysis.sensor_noise`)
@@ -183,20 +185,39 @@ class AppearanceCandidate(SimulationCandidate):
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
         """Bounded scalar search of the parameter that best matches the image evidence."""
         t0 = time.perf_counter()
+        grid, values = self.scan(runner, base, items)
+        return self.refine(runner, base, items, grid, values, t0)
 
-        def misfit(x: float) -> float:
-            return self.misfit(runner, base, items, x)
-
-        # the misfit is capped and can be flat far from its minimum: a coarse scan brackets the
-        # minimum, a bounded Brent search refines it
+    def scan(
+        self, runner: Runner, base: VariantState, items: Items
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The misfit at :data:`SCAN_POINTS` values evenly over the bounds (grid, misfits)."""
         grid = np.linspace(*self.bounds, SCAN_POINTS)
-        values = np.array([misfit(x) for x in grid])
+        return grid, np.array([self.misfit(runner, base, items, x) for x in grid])
+
+    def refine(
+        self,
+        runner: Runner,
+        base: VariantState,
+        items: Items,
+        grid: np.ndarray,
+        values: np.ndarray,
+        t0: float,
+    ) -> Fit:
+        """The fit refined by a bounded Brent search around the scan's (``grid``) minimum.
+
+        The misfit is capped and can be flat far from its minimum: the coarse scan brackets the
+        minimum. ``t0``: ``time.perf_counter()`` at the fit's start.
+        """
         if not np.isfinite(values).any():
             return Fit(self.effect, self.params(0.0), time.perf_counter() - t0, {})
         k = int(np.nanargmin(values))
         lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
         sol = minimize_scalar(
-            misfit, bounds=(lo, hi), method="bounded", options={"xatol": self.xatol}
+            lambda x: self.misfit(runner, base, items, x),
+            bounds=(lo, hi),
+            method="bounded",
+            options={"xatol": self.xatol},
         )
         x, fun = (sol.x, sol.fun) if sol.fun <= values[k] else (grid[k], values[k])
         return self.fitted(items, x, fun, t0)

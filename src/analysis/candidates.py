@@ -5,7 +5,8 @@ Geometric and calibration effects are projection candidates
 parameter its typical magnitude (for conditioning) and the largest magnitude searched (inside the
 effect's valid range). Appearance effects are fitted on
 the image statistics named with them (:mod:`simgap.analysis.appearance`,
-:mod:`simgap.analysis.sensor_noise`, :mod:`simgap.analysis.defocus`,
+:mod:`simgap.analysis.exposure`, :mod:`simgap.analysis.sensor_noise`,
+:mod:`simgap.analysis.defocus`,
 :mod:`simgap.analysis.gloss`); those statistics are also
 their signature: an appearance effect is a candidate only where one of them differs
 significantly (:func:`simgap.analysis.appearance.signature_significant`).
@@ -21,6 +22,7 @@ from types import MappingProxyType
 
 from simgap.analysis.appearance import AppearanceCandidate, JpegCandidate
 from simgap.analysis.defocus import DefocusCandidate
+from simgap.analysis.exposure import ExposureCandidate
 from simgap.analysis.fitting import Candidate, ProjectionCandidate
 from simgap.analysis.gloss import GlossCandidate
 from simgap.analysis.sensor_noise import SensorNoiseCandidate
@@ -49,7 +51,7 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
             ProjectionCandidate("tag_offset", [(f"offset_m[{i}]", 0.001, 0.015) for i in range(3)]),
             AppearanceCandidate("blur", EDGE_WIDTHS, "sigma_px", (0.05, 3.0), 0.02),
             # the paper level: ink near black is flare and print, not exposure
-            AppearanceCandidate("exposure", ("paper_linear",), "ev", (-4.0, 4.0), 0.02),
+            ExposureCandidate(),
             SensorNoiseCandidate(),
             DefocusCandidate(),
             JpegCandidate(

@@ -23,6 +23,7 @@ from simgap.analysis.channels import Prediction
 from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.corner_findings import with_corner_effects
 from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
+from simgap.analysis.pruning import pruned
 from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
@@ -359,25 +360,9 @@ class ModelSearch:
     def prune(self, scored: Scored) -> Scored:
         """Drop effects that move no pose by a relevant amount and are not clearly seen.
 
-        An effect whose :meth:`contributions` is below
-        :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` is dropped only when the model
-        without it still explains the evidence as well (:func:`as_good`); otherwise it
-        stays as a *minor* effect (seen in the corners or images, no pose impact beyond the
-        floor). Comparing the evidence, never letting the pose criterion alone swap the
-        explanation, is what keeps a refitted look-alike (a tag print scale soaking up a
-        focal-length change) from replacing the effect that the corners single out.
+        (:func:`simgap.analysis.pruning.pruned`, with this search's fits and contributions.)
         """
-        while len(scored.fits) > 1:
-            weight = self.contributions(scored)
-            options = []
-            for effect in (e for e, w in weight.items() if w < MINOR_CONTRIBUTION):
-                reduced = self.evaluate(tuple(c for c, _ in scored.fits if c.effect != effect))
-                if as_good(reduced, scored):
-                    options.append(reduced)
-            if not options:
-                return scored
-            scored = min(options, key=lambda o: o.evidence_after)
-        return scored
+        return pruned(scored, self.evaluate, self.contributions)
 
     @property
     def tried(self) -> list[Scored]:

@@ -167,6 +167,7 @@ class Diagnosis:
                     params=fit.params,
                     pose_contribution=weight[fit.effect],
                     minor=fit.effect in minor,
+                    at_bound=list(fit.extra.get("at_bound", ())),
                 )
                 for _, fit in chosen.fits
             ],

@@ -127,12 +127,17 @@ class Finding:
         (:meth:`simgap.analysis.selection.ModelSearch.contributions`).
     minor : bool
         Seen in the corners or images, moves no pose beyond the floor.
+    at_bound : list of str
+        Its parameters fitted on the end of their searched range
+        (:func:`simgap.analysis.admission.at_bound`; empty for every finding the search admits,
+        recorded so that validation measures it).
     """
 
     effect: str
     params: dict[str, Any]
     pose_contribution: float
     minor: bool
+    at_bound: list[str] = field(default_factory=list)
 
 
 @dataclass(kw_only=True)
@@ -231,6 +236,11 @@ class DiagnosisResult:
     def minor(self) -> list[str]:
         """The selected effects that move no pose beyond the floor."""
         return [f.effect for f in self.selection.findings if f.minor] if self.selection else []
+
+    def selected_on_bound(self) -> list[str]:
+        """``effect.parameter`` of every selected parameter fitted on the end of its range."""
+        findings = self.selection.findings if self.selection else []
+        return [f"{f.effect}.{name}" for f in findings for name in f.at_bound]
 
     @property
     def unexplained(self) -> bool:

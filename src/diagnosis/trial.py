@@ -125,6 +125,7 @@ class Trial:
             "unexplained": self.result.unexplained,
             "geometric_selected": geometric,
             "spurious": spurious,
+            "on_bound": self.result.selected_on_bound(),
             "bins": nuisance_bins(self.camera, self.rig) if self.camera and self.rig else {},
         }
         if not hidden:

@@ -73,6 +73,7 @@ def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
         "reduction_median": float(np.median(red)) if red else None,
         "reduction_at_least_70pct": _share([r >= 0.7 for r in red]),
         "spurious_trials": _share([bool(s.get("spurious")) for s in scores]),
+        "on_bound_trials": _share([bool(s.get("on_bound")) for s in scores]),
         "per_effect": per_effect,
         "per_nuisance_bin": bins,
         "confusion": confusion(scores),
@@ -150,6 +151,8 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         f"| reduced >= 70 % | {pct(summary['reduction_at_least_70pct'])} |",
         f"| trials naming something the capture does not have | "
         f"{pct(summary.get('spurious_trials'))} |",
+        "| trials with a selected parameter on the end of its searched range | "
+        f"{pct(summary.get('on_bound_trials'))} |",
         "",
         "## Per nuisance bin (share of trials correct)",
         "",
