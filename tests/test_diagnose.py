@@ -593,16 +593,18 @@ def test_a_distortion_the_corners_single_out_joins_a_model_and_stands_alone():
     assert corner_effect_alone(search.rank(pool, significant=False)) is None
 
 
-def test_a_fixture_change_that_moves_no_pose_leaves_the_model(monkeypatch):
-    """A minor camera mount beside a blur is pruned though the corners keep it; intrinsics stay.
+def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_it(monkeypatch):
+    """A minor camera mount beside a blur is pruned unless it lowers the corners beyond 10 %.
 
     Blind seeds 33-39: all four minor changes of the fixture's transform tree were not in the
-    capture; the corners had singled them out item by item (seed 38 trial 26: a 0.24 mm mount
-    beside a laminate, corners 0.482 -> 0.447 px, paired test), the residual a modelled
-    appearance effect leaves of another camera (:func:`simgap.analysis.pruning.pruned`). Here the
-    evidence keeps every effect (``as_good`` false); a mount that moves no pose beyond the floor
-    leaves, a principal point that moves no pose stays (a calibration file may know the
-    intrinsics, so they can move corners and no pose), and so does a mount that moves the pose.
+    capture; the corners had singled them out only item by item (seed 38 trial 26: a 0.24 mm mount
+    beside a laminate, corners 0.482 -> 0.447 px). Blind seed 40: true carriage pitches of 1.1 and
+    2.1 % beside the camera's blur were minor on a noisy one-frame capture and lowered the corners
+    0.44 -> 0.20 and 0.91 -> 0.23 px (:func:`simgap.analysis.pruning.pruned`). Here the evidence
+    keeps every effect (``as_good`` false): a mount that moves no pose and lowers the corners
+    0.48 -> 0.45 px leaves; one that lowers them 0.44 -> 0.20 px stays, and so does one that
+    moves the pose; a principal point that moves no pose stays (a calibration file may know the
+    intrinsics, so they can move corners and no pose).
     """
     from dataclasses import dataclass as _dataclass
 
@@ -611,25 +613,32 @@ def test_a_fixture_change_that_moves_no_pose_leaves_the_model(monkeypatch):
     @_dataclass
     class Model:
         fits: list
+        corner_gap_after_px: float
+        corner_unit_px: float = 0.2
         evidence_after: float = 1.0
 
         @property
         def effects(self) -> list[str]:
             return [c.effect for c, _ in self.fits]
 
-    def model(*names: str) -> Model:
-        return Model([(CANDIDATES[n], Fit(n, {})) for n in names])
+    def case(corners_with: float, corners_without: float):
+        def model(*names: str) -> Model:
+            corners = corners_with if len(names) == 2 else corners_without
+            return Model([(CANDIDATES[n], Fit(n, {})) for n in names], corners)
 
-    def evaluate(candidates: tuple) -> Model:
-        return model(*(c.effect for c in candidates))
+        return model, lambda candidates: model(*(c.effect for c in candidates))
 
     def weights(mount: float, pp: float):
         return lambda m: {"blur": 5.0, "camera_mount": mount, "principal_point": pp}
 
     monkeypatch.setattr(pruning, "as_good", lambda a, b: False)  # the evidence keeps them all
     pruned = pruning.pruned
+    model, evaluate = case(0.45, 0.48)
     assert pruned(model("blur", "camera_mount"), evaluate, weights(0.2, 0.0)).effects == ["blur"]
     kept = pruned(model("blur", "principal_point"), evaluate, weights(0.0, 0.2))
     assert kept.effects == ["blur", "principal_point"]
     moving = pruned(model("blur", "camera_mount"), evaluate, weights(3.0, 0.0))
     assert moving.effects == ["blur", "camera_mount"]
+    model, evaluate = case(0.20, 0.44)
+    seen = pruned(model("blur", "camera_mount"), evaluate, weights(0.2, 0.0))
+    assert seen.effects == ["blur", "camera_mount"]
