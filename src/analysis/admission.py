@@ -7,6 +7,7 @@ import numpy as np
 from simgap.analysis.fitting import Fit, ProjectionCandidate
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
+    corner_gap_lower,
     corner_residuals,
     corners_clearly_lower,
     distinguishably_lower,
@@ -93,9 +94,8 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
         before_px, before = scored.corner_gap_before_px, corner_residuals(scored, before=True)
     else:
         before_px, before = reference.corner_gap_after_px, corner_residuals(reference)
-    unit = scored.corner_unit_px
-    lower = distinguishably_lower(
-        np.array([scored.corner_gap_after_px / unit]), np.array([before_px / unit])
+    lower = corner_gap_lower(
+        scored.corner_gap_after_px, before_px, scored.corner_unit_px
     ) or corners_clearly_lower(corner_residuals(scored), before)
     if reference is None:
         pose_before = scored.pose_gap_all_axes_before

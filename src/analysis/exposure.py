@@ -98,10 +98,8 @@ class ExposureCandidate(AppearanceCandidate):
         """Least squares, or the tags' censored median where the misfit has a plateau."""
         t0 = time.perf_counter()
         grid, values = self.scan(runner, base, items)
-        if not np.isfinite(values).any():
-            return self.refine(runner, base, items, grid, values, t0)
-        low = np.nanmin(values)
-        if np.sum(values <= low * (1.0 + PLATEAU_REL)) < 2:
+        finite = values[np.isfinite(values)]
+        if np.sum(finite <= finite.min(initial=np.inf) * (1.0 + PLATEAU_REL)) < 2:
             return self.refine(runner, base, items, grid, values, t0)
         paper = STAT_INDEX["paper_linear"]
         reference = measuring_only(self.apply(base, self.params(0.0)), self.fit_stats)

@@ -9,11 +9,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import numpy as np
-
 from simgap.analysis.fitting import Candidate
 from simgap.analysis.scored import Scored
-from simgap.analysis.scoring import as_good, distinguishably_lower
+from simgap.analysis.scoring import as_good, corner_gap_lower
 from simgap.analysis.thresholds import MINOR_CONTRIBUTION
 from simgap.effects import EFFECTS
 
@@ -28,7 +26,8 @@ def pruned(
     A change of the fixture's transform tree (an effect of the ``geometry`` stage: camera mount,
     turntable offset, carriage pitch, tag offset) that moves no pose beyond the floor is dropped
     first unless the corners without it are worse beyond the corner channel's tolerance
-    (:func:`corners_lower`). The item-by-item paired test and the other channels do not keep it:
+    (:func:`~simgap.analysis.scoring.corner_gap_lower`). The item-by-item paired test and the
+    other channels do not keep it:
     such a change moves the tag rigidly against the camera, and a consistent corner improvement
     of a few hundredths of a pixel beside an appearance effect is what the modelled appearance
     leaves of another camera's image formation. Blind seeds 33-39: all four such minor findings
@@ -64,7 +63,10 @@ def pruned(
             for c, _ in scored.fits
             if EFFECTS[c.effect].stage == "geometry" and weight[c.effect] < MINOR_CONTRIBUTION
         }
-        unseen = [e for e, reduced in rigid.items() if not corners_lower(scored, reduced)]
+        after, unit = scored.corner_gap_after_px, scored.corner_unit_px
+        unseen = [
+            e for e, r in rigid.items() if not corner_gap_lower(after, r.corner_gap_after_px, unit)
+        ]
         if unseen:
             scored = rigid[min(unseen, key=weight.__getitem__)]
             continue
@@ -77,14 +79,3 @@ def pruned(
             return scored
         scored = min(options, key=lambda o: o.evidence_after)
     return scored
-
-
-def corners_lower(scored: Scored, reduced: Scored) -> bool:
-    """Whether ``scored``'s corners are lower than ``reduced``'s beyond the corner tolerance.
-
-    :func:`~simgap.analysis.scoring.distinguishably_lower` on the corner channel alone (in units
-    of the capture's corner unit): a quarter unit and 10 %.
-    """
-    unit = scored.corner_unit_px
-    after = np.array([scored.corner_gap_after_px / unit])
-    return distinguishably_lower(after, np.array([reduced.corner_gap_after_px / unit]))

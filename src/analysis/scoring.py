@@ -43,6 +43,15 @@ def distinguishably_lower(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(b - a > np.maximum(EQUIVALENT_UNITS, EQUIVALENT_REL * np.minimum(a, b))))
 
 
+def corner_gap_lower(after_px: float, before_px: float, unit_px: float) -> bool:
+    """Whether a corner gap ``after_px`` is below ``before_px`` beyond the corner tolerance.
+
+    :func:`distinguishably_lower` on the corner channel alone, in units of ``unit_px`` (the
+    capture's corner unit): a quarter unit and 10 %.
+    """
+    return distinguishably_lower(np.array([after_px / unit_px]), np.array([before_px / unit_px]))
+
+
 def corner_residuals(scored: Scored, before: bool = False) -> np.ndarray | None:
     """Per scored item, the mean squared corner distance real - predicted (px^2)."""
     h = scored.items
