@@ -376,29 +376,75 @@ def test_the_censored_median_reads_clipped_tags_as_lower_bounds():
     assert np.isnan(censored_median_ev(ev[:2], np.zeros(2, bool)))
 
 
-def test_an_exposure_whose_misfit_is_flat_beyond_clipping_reads_the_tags_median():
-    """Tags lit +0.9 to +2.4 EV (median +1.65), nine of twelve clipped: +1.45 EV, not +2.93.
+def _lit_tags(flare: float = 0.0):
+    """Twelve grey tags lit +0.9 to +2.4 EV in a shuffled order, nine clipped; runner and items.
 
-    Under lights unlike the simulation's each tag has its own exposure change; once every
-    simulated tag clips, all larger exposures predict the same and the capped least-squares
-    misfit is flat (measured: +2.4 to +4.0 EV equal), so the scan returned an arbitrary point of
-    the plateau (+2.93 EV, as on four development captures of +1.06 to +1.91 EV). The censored
-    median reads +1.45 EV (measured; the product-limit median reads the informative clipping a
-    little low, see :func:`simgap.analysis.exposure.censored_median_ev`).
+    ``flare``: a linear level added to the capture (brightens its ink relative to its paper, as
+    a laminate's glint or lens flare does).
     """
-    from simgap.analysis.appearance import AppearanceCandidate
-    from simgap.analysis.exposure import ExposureCandidate
-
     ratios = np.random.default_rng(0).permutation(np.linspace(0.9, 2.4, 12))
     tags = _grey_tags(12)
-    real_tags = [(lin * 2.0**r, c) for (lin, c), r in zip(tags, ratios, strict=True)]
+    real_tags = [(lin * 2.0**r + flare, c) for (lin, c), r in zip(tags, ratios, strict=True)]
     runner = _TagPipelineRunner(tags)
     base = VariantState()
     items = _pipeline_items(len(tags))
     items.real_stats = _TagPipelineRunner(real_tags).stats(base, items)
     items.sim_stats = runner.stats(base, items)
+    return ratios, runner, base, items
+
+
+def test_a_clipped_majority_of_tags_reads_its_exposure_from_the_ink():
+    """Tags lit +0.9 to +2.4 EV (median +1.65), nine of twelve clipped: the ink reads +1.64 EV.
+
+    Least squares on the paper levels has a plateau (every simulated tag clipped from +2.4 EV;
+    the scan returned +2.93 EV, as on four development captures of +1.06 to +1.91 EV), and the
+    paper's censored median is only a lower bound (+1.45 EV, measured). The ink, calibrated on
+    the three unclipped tags, reads the clipped ones: +1.64 EV (measured 2026-11-26).
+    """
+    from simgap.analysis.appearance import AppearanceCandidate
+    from simgap.analysis.exposure import ExposureCandidate
+
+    ratios, runner, base, items = _lit_tags()
     scan = AppearanceCandidate("exposure", ("paper_linear",), "ev", (-4.0, 4.0), 0.02)
     assert scan.fit(runner, base, items).params["ev"] > 2.5  # measured 2.93, on the plateau
     fit = ExposureCandidate().fit(runner, base, items)
+    assert fit.extra["clipped_majority"] and fit.extra["supported"]
+    assert fit.params["ev"] == pytest.approx(np.median(ratios), abs=0.05)  # measured 1.64
+
+
+def test_an_exposure_whose_misfit_is_flat_beyond_clipping_reads_the_tags_median():
+    """With a flare on the capture's ink the ink is not trusted: the paper's censored median.
+
+    A linear flare of 0.02 brightens the unclipped tags' ink by more than the ink level's floor
+    (0.5 EV) against their paper (as a laminate's glint did on development captures), so the ink
+    does not read the clipped tags; the least-squares misfit has its plateau and the paper's
+    censored median reads +1.48 EV for a median of +1.65 (measured 2026-11-26; the product-limit
+    median reads the informative clipping a little low, see
+    :func:`simgap.analysis.exposure.censored_median_ev`).
+    """
+    from simgap.analysis.exposure import ExposureCandidate
+
+    ratios, runner, base, items = _lit_tags(flare=0.02)
+    fit = ExposureCandidate().fit(runner, base, items)
     assert fit.extra["plateau"] and fit.extra["supported"]
-    assert fit.params["ev"] == pytest.approx(np.median(ratios), abs=0.25)  # measured 1.45
+    assert "clipped_majority" not in fit.extra
+    assert fit.params["ev"] == pytest.approx(np.median(ratios), abs=0.25)  # measured 1.48
+
+
+def test_the_ink_reads_a_clipped_tag_only_where_it_follows_the_paper():
+    """:func:`ink_exposures`: a clipped majority, calibrated ink; else None."""
+    from simgap.analysis.exposure import ink_exposures
+
+    ev = np.array([0.6, 0.8, 1.0, 1.4, 1.6, 1.8, 2.0])
+    sim_paper, sim_ink = np.full(7, 0.4), np.full(7, 0.02)
+    real_paper = np.minimum(sim_paper * 2.0**ev, 1.0)  # four of seven clipped
+    # the other camera's ink 0.3 EV brighter than the simulation's, on every tag
+    real_ink = sim_ink * 2.0 ** (ev + 0.3)
+    tags = ink_exposures(real_paper, sim_paper, real_ink, sim_ink)
+    np.testing.assert_allclose(tags, ev, atol=1e-9)
+    # a glint on the ink: 0.8 EV beyond the paper is more than the ink's floor
+    assert ink_exposures(real_paper, sim_paper, sim_ink * 2.0 ** (ev + 0.8), sim_ink) is None
+    # fewer than half clipped: the paper's censored median decides
+    assert ink_exposures(real_paper[:5], sim_paper[:5], real_ink[:5], sim_ink[:5]) is None
+    # too few unclipped tags to calibrate the ink on
+    assert ink_exposures(real_paper[1:], sim_paper[1:], real_ink[1:], sim_ink[1:]) is None
