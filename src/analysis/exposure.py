@@ -75,6 +75,12 @@ CLIPPED_MAJORITY = 0.5
 INK_AGREEMENT_EV = float(IMAGE_FLOORS["ink_linear"][1])
 
 
+def readable(real: np.ndarray, sim: np.ndarray) -> np.ndarray:
+    """Tags whose paper levels read an exposure change: both positive, the simulated unclipped."""
+    ok = np.isfinite(real) & np.isfinite(sim) & (real > 0) & (sim > 0)
+    return ok & (sim <= CLIPPED_PAPER_LINEAR)
+
+
 def tag_exposures(real: np.ndarray, sim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each readable tag's exposure change ``log2(real / sim)`` (EV) and whether it is clipped.
 
@@ -85,8 +91,7 @@ def tag_exposures(real: np.ndarray, sim: np.ndarray) -> tuple[np.ndarray, np.nda
         simulated ones without exposure change. Tags whose simulated level is clipped read no
         ratio and are left out.
     """
-    ok = np.isfinite(real) & np.isfinite(sim) & (real > 0) & (sim > 0)
-    ok &= sim <= CLIPPED_PAPER_LINEAR
+    ok = readable(real, sim)
     return np.log2(real[ok] / sim[ok]), real[ok] > CLIPPED_PAPER_LINEAR
 
 
@@ -131,9 +136,7 @@ def ink_exposures(
         Paper and ink levels of the same tags (linear, fraction of full scale); the simulated
         ones without exposure change.
     """
-    ok = np.isfinite(real_paper) & np.isfinite(sim_paper) & (real_paper > 0) & (sim_paper > 0)
-    ok &= sim_paper <= CLIPPED_PAPER_LINEAR
-    ok &= np.isfinite(real_ink) & np.isfinite(sim_ink) & (real_ink > 0) & (sim_ink > 0)
+    ok = readable(real_paper, sim_paper) & readable(real_ink, sim_ink)
     clipped = real_paper[ok] > CLIPPED_PAPER_LINEAR
     if ok.sum() < MIN_TAGS or clipped.mean() < CLIPPED_MAJORITY or (~clipped).sum() < MIN_TAGS:
         return None
@@ -159,8 +162,9 @@ class ExposureCandidate(AppearanceCandidate):
         """
         t0 = time.perf_counter()
         paper, ink = STAT_INDEX["paper_linear"], STAT_INDEX["ink_linear"]
-        levels = ("paper_linear", "ink_linear")
-        sim = runner.stats(measuring_only(self.apply(base, self.params(0.0)), levels), items)
+        # the scan's state at 0 EV (levels need no edge fits; the ink is measured with the paper)
+        reference = measuring_only(self.apply(base, self.params(0.0)), self.fit_stats)
+        sim = runner.stats(reference, items)
         real = items.real_stats
         tags = ink_exposures(real[:, paper], sim[:, paper], real[:, ink], sim[:, ink])
         if tags is not None:
