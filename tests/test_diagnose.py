@@ -642,3 +642,26 @@ def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_i
     model, evaluate = case(0.20, 0.44)
     seen = pruned(model("blur", "camera_mount"), evaluate, weights(0.2, 0.0))
     assert seen.effects == ["blur", "camera_mount"]
+
+
+@pytest.mark.parametrize(
+    "hidden",
+    [
+        {"tag_scale": {"scale": -0.021}, "turntable_offset": {"angle_rad": -0.021}},
+        {"tag_scale": {"scale": -0.015}, "carriage_pitch": {"scale": -0.013}},
+    ],
+    ids=["print+turntable", "print+carriage"],
+)
+def test_two_geometric_effects_that_hide_each_other_are_found_together(hidden):
+    """Issue 25, blind seed 42 trials 70 and 51 (the pairs' values): alone, neither effect may
+    enter (the other's share of the gap stays in the corners: a print scale's size change is
+    not significant beside the rotation, or is cancelled by the carriage's depth change; the
+    turntable offset moves the print-dominated pose gap by 2 %). Without the pair step the
+    search named nothing on these exact corners (measured); with it both, each parameter
+    within 6 % of the truth (measured: -0.0211, -0.021; -0.015, -0.0123, the largest 5.4 %)."""
+    rig = load_rig()
+    chosen = _select(_search(rig, hidden))
+    assert chosen is not None and sorted(chosen.effects) == sorted(hidden)
+    for _, fit in chosen.fits:
+        for key, value in hidden[fit.effect].items():
+            assert fit.params[key] == pytest.approx(value, rel=0.06)

@@ -23,6 +23,7 @@ from simgap.analysis.channels import Prediction
 from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.corner_findings import with_corner_effects
 from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
+from simgap.analysis.pair_step import pair_start, pair_step
 from simgap.analysis.pruning import pruned
 from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
@@ -281,7 +282,9 @@ class ModelSearch:
         started a model on seeds 22, 23 and 25 lowered it by 19 % or more).
 
         An effect is added while the combined misfit falls and some evidence channel
-        improves distinguishably (:func:`improves`); the model is then simplified
+        improves distinguishably (:func:`improves`); where no single one does (or none starts
+        the search) and the model leaves the geometry unexplained, two projection effects may
+        enter at once (:mod:`simgap.analysis.pair_step`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`); last, effects with a corner signature
         that the corners single out beside it join it
         (:func:`~simgap.analysis.corner_findings.with_corner_effects`). Effects are returned
@@ -301,9 +304,12 @@ class ModelSearch:
         # effect that, alone, does not bring the pose closer to the real one explains nothing
         # (it stays in the pool: with another effect it may)
         starts = [s for s in ranking if admissible(s, None)]
+        self.steps.start("model search")
+        if (not starts or not improves_on_nothing(starts[0])) and geometry and ranking:
+            # nothing alone: perhaps two geometric effects that hide each other (pair_step)
+            starts = pair_start(ranking, self._pool(ranking, geometry), self, max_effects)
         if not starts or not improves_on_nothing(starts[0]):
             return None
-        self.steps.start("model search")
         # a projection effect whose fit alone ran onto a bound may still join a model: alone it
         # stood in for another effect too (seed 32: a calibration file's distortion beside a
         # focal-length change fitted k2 on its bound alone and was never tried beside the focal
@@ -311,11 +317,7 @@ class ModelSearch:
         # (:func:`admissible`).
         # An appearance effect on a bound alone stays out: it named no value of its own
         # (refitted beside others it must be off its bound too, :func:`admissible`).
-        pool = [s.fits[0][0] for s in ranking] + [
-            s.fits[0][0]
-            for s in self.on_bound
-            if geometry and isinstance(s.fits[0][0], ProjectionCandidate)
-        ]
+        pool = self._pool(ranking, geometry)
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}
         while len(current.fits) < max_effects:
@@ -325,12 +327,12 @@ class ModelSearch:
                 option = self.evaluate(model + (c,))
                 if admissible(option, current):
                     options.append(option)
-            if not options:
-                break
-            best = parsimonious(options)
-            gain = best.evidence_after < current.evidence_after and improves(best, current)
-            if not gain:
-                break  # no distinguishable improvement
+            best = parsimonious(options) if options else None
+            if best is None or not self._gains(best, current):
+                # two geometric effects that hide each other from the single step (pair_step)
+                best = pair_step(current, pool, self, max_effects) if geometry else None
+                if best is None or not self._gains(best, current):
+                    break  # no distinguishable improvement
             simpler = self.simplify(best, pool)
             if frozenset(simpler.effects) in seen:
                 break  # simplified back to a model already visited
@@ -356,6 +358,19 @@ class ModelSearch:
             self.refused_geometry = current
             return self.select(ranking, max_effects, geometry=False)
         return current
+
+    def _pool(self, ranking: list[Scored], geometry: bool) -> list[Candidate]:
+        """The ranked effects and, with ``geometry``, the projection effects on a bound alone."""
+        return [s.fits[0][0] for s in ranking] + [
+            s.fits[0][0]
+            for s in self.on_bound
+            if geometry and isinstance(s.fits[0][0], ProjectionCandidate)
+        ]
+
+    @staticmethod
+    def _gains(model: Scored, current: Scored) -> bool:
+        """Whether ``model`` lowers the combined misfit and improves some channel clearly."""
+        return model.evidence_after < current.evidence_after and improves(model, current)
 
     def prune(self, scored: Scored) -> Scored:
         """Drop effects that move no pose by a relevant amount and are not clearly seen.
