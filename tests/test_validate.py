@@ -196,6 +196,37 @@ def test_strict_accuracy_asks_for_every_hidden_effect_of_a_pair():
     assert summary["pair_recall"] == 0.75
 
 
+def test_no_effect_trials_count_geometry_apart_from_any_spurious_finding():
+    """Issue 25's no-effect criterion is "free of geometric and calibration effects"; blind seed 43
+    trial 43 named a laminate (an appearance effect) on a capture without one: not correct, but
+    free of geometry. The report gives both rows."""
+    from simgap.diagnosis.validation_report import summarize_scores, validation_markdown
+
+    def none(selected, geometric):
+        return dict(
+            hidden=[],
+            selected=selected,
+            correct=not set(selected) - {"exposure", "blur", "sensor_noise"},
+            recall=None,
+            spurious=[e for e in selected if e not in ("exposure", "blur", "sensor_noise")],
+            geometric_selected=geometric,
+            top1=selected[0] if selected else None,
+            bins={},
+        )
+
+    scores = [
+        none(["tag_gloss", "blur"], []),
+        none(["exposure"], []),
+        none(["tag_scale"], ["tag_scale"]),
+        none([], []),
+    ]
+    summary = summarize_scores(scores)
+    assert summary["no_effect_correct"] == 0.5
+    assert summary["no_effect_free_of_geometry"] == 0.75
+    text = validation_markdown(summary, [])
+    assert "| no-effect trials free of geometric and calibration effects | 75% |" in text
+
+
 def test_a_selected_parameter_on_its_bound_is_counted():
     """Issue 25's "no selected parameter on a bound" is measured per trial, not assumed."""
     from simgap.diagnosis.trial import Trial
