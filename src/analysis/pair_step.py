@@ -25,7 +25,6 @@ as single ones. Only projection effects: their joint fit is on the corners alone
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from itertools import combinations
 from typing import Protocol
 
@@ -85,7 +84,7 @@ def pair_step(
         current.corner_gap_after_px, current.pose_gap_reduction, search.significant_axes
     ):
         return None
-    options = pair_options(current, pool, search.evaluate, max_effects)
+    options = pair_options(current, pool, search, max_effects)
     return parsimonious(options) if options else None
 
 
@@ -101,22 +100,20 @@ def pair_start(
         ranking[0].corner_gap_before_px, 0.0, search.significant_axes
     ):
         return []
-    options = pair_options(None, pool, search.evaluate, max_effects)
+    options = pair_options(None, pool, search, max_effects)
     return [parsimonious(options)] if options else []
 
 
 def pair_options(
-    current: Scored | None,
-    pool: list[Candidate],
-    evaluate: Callable[[tuple[Candidate, ...]], Scored],
-    max_effects: int,
+    current: Scored | None, pool: list[Candidate], search: Search, max_effects: int
 ) -> list[Scored]:
     """Models of ``current`` (or of nothing) with two more projection effects that may enter.
 
     Each pair from ``pool`` is fitted jointly with the model's projection effects
     (:meth:`~simgap.analysis.selection.ModelSearch.evaluate`); a pair is kept when it is
     :func:`~simgap.analysis.admission.admissible` beside ``current``. Empty when the model has
-    no room for two more effects.
+    no room for two more effects, or ``pool`` no two projection effects (a search without
+    geometry).
     """
     model = () if current is None else tuple(c for c, _ in current.fits)
     if len(model) + 2 > max_effects:
@@ -124,7 +121,7 @@ def pair_options(
     free = [c for c in pool if isinstance(c, ProjectionCandidate) and c not in model]
     options = []
     for a, b in combinations(free, 2):
-        option = evaluate(model + (a, b))
+        option = search.evaluate(model + (a, b))
         if admissible(option, current):
             options.append(option)
     return options

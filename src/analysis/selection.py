@@ -300,16 +300,6 @@ class ModelSearch:
         """
         if not geometry:
             ranking = [s for s in ranking if not isinstance(s.fits[0][0], ProjectionCandidate)]
-        # the search starts from the best single effect that explains something: a geometric
-        # effect that, alone, does not bring the pose closer to the real one explains nothing
-        # (it stays in the pool: with another effect it may)
-        starts = [s for s in ranking if admissible(s, None)]
-        self.steps.start("model search")
-        if (not starts or not improves_on_nothing(starts[0])) and geometry and ranking:
-            # nothing alone: perhaps two geometric effects that hide each other (pair_step)
-            starts = pair_start(ranking, self._pool(ranking, geometry), self, max_effects)
-        if not starts or not improves_on_nothing(starts[0]):
-            return None
         # a projection effect whose fit alone ran onto a bound may still join a model: alone it
         # stood in for another effect too (seed 32: a calibration file's distortion beside a
         # focal-length change fitted k2 on its bound alone and was never tried beside the focal
@@ -318,6 +308,16 @@ class ModelSearch:
         # An appearance effect on a bound alone stays out: it named no value of its own
         # (refitted beside others it must be off its bound too, :func:`admissible`).
         pool = self._pool(ranking, geometry)
+        # the search starts from the best single effect that explains something: a geometric
+        # effect that, alone, does not bring the pose closer to the real one explains nothing
+        # (it stays in the pool: with another effect it may)
+        starts = [s for s in ranking if admissible(s, None)]
+        self.steps.start("model search")
+        if not starts or not improves_on_nothing(starts[0]):
+            # nothing alone: perhaps two geometric effects that hide each other (pair_step)
+            starts = pair_start(ranking, pool, self, max_effects)
+            if not starts or not improves_on_nothing(starts[0]):
+                return None
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}
         while len(current.fits) < max_effects:
@@ -330,7 +330,7 @@ class ModelSearch:
             best = parsimonious(options) if options else None
             if best is None or not self._gains(best, current):
                 # two geometric effects that hide each other from the single step (pair_step)
-                best = pair_step(current, pool, self, max_effects) if geometry else None
+                best = pair_step(current, pool, self, max_effects)
                 if best is None or not self._gains(best, current):
                     break  # no distinguishable improvement
             simpler = self.simplify(best, pool)

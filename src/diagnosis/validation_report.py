@@ -143,7 +143,7 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "| no-effect trials correct (nothing named but the camera's own effects) | "
         f"{pct(summary['no_effect_correct'])} |",
         "| no-effect trials free of geometric and calibration effects | "
-        f"{pct(summary.get('no_effect_free_of_geometry'))} |",
+        f"{pct(summary['no_effect_free_of_geometry'])} |",
         f"| effect outside the catalogue reported unexplained | "
         f"{pct(summary['outside_unexplained'])} |",
         f"| fitted magnitude within 25 % | {pct(summary['magnitude_within_25pct'])} |",
