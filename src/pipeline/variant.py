@@ -26,6 +26,7 @@ from simgap.pipeline.region import OUTLINE_POINTS_PER_SIDE, Region, sticker_regi
 from simgap.pose.detect import Detector
 from simgap.pose.tags import ConfigResult, add_image_stats, estimate_tags
 from simgap.render import imaging
+from simgap.render.converged import CONVERGED_VERSION, converged_pixels
 from simgap.render.scene import projected_sticker_outlines
 
 #: Part of every render key: bump when what a render holds changes (its pixels or their samples).
@@ -161,9 +162,10 @@ class VariantPipeline:
 
     def render_key(self, p: int, theta: float, render_repeat: int) -> str:
         """Cache key of the linear render of one configuration."""
+        converged = CONVERGED_VERSION if self.state.scene.quality.mode == "converged" else ""
         return content_hash(
             self.scene_key, int(p), round(float(theta), 9), render_repeat, self.margin_px,
-            RENDER_VERSION,
+            RENDER_VERSION, converged,
         )  # fmt: skip
 
     def hdr(self, p: int, theta: float, render_repeat: int):
@@ -182,8 +184,6 @@ class VariantPipeline:
         seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat)
         with self._timed("sampling"):
             if self.state.scene.quality.mode == "converged":
-                from simgap.render.converged import converged_pixels
-
                 converged = converged_pixels(scene, region.pixels(), seed)
                 values = converged.values
                 self.sticker_treatments.update(converged.treatments.values())

@@ -2,8 +2,10 @@
 
 ``render.mode: converged`` (issue 28). Every pixel of a region is traced at the scene's samples
 per pixel with its primary hit's sticker and print albedo (:func:`simgap.render.pixel_samples.
-sample_pixels`), and once more with :data:`FOOTPRINT_SPP` primary rays only (the footprint's
-albedo and coverage). Per sticker, the radiance is divided by the albedo of its own samples, a
+sample_pixels`), and the pixels on a print edge or the sticker's border once more with
+:data:`FOOTPRINT_POINTS` primary rays only, from one fixed pattern (the footprint's albedo and
+coverage, :func:`simgap.render.pixel_samples.footprint_samples`: the same for every render
+seed). Per sticker, the radiance is divided by the albedo of its own samples, a
 smooth irradiance is fitted and multiplied by the footprint's albedo
 (:func:`simgap.render.demodulate.demodulate`), which removes most of
 the Monte Carlo noise of a flat diffuse print. Where the smooth model is rejected (a shadow or
@@ -24,19 +26,24 @@ import cv2
 import numpy as np
 
 from simgap.render.demodulate import StickerSamples, Treatment, demodulate
-from simgap.render.pixel_samples import sample_pixels
+from simgap.render.pixel_samples import PixelSamples, footprint_samples, sample_pixels
 
 if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
+#: Part of the render key of a converged render: bump when what it holds changes.
+CONVERGED_VERSION = "footprint-2"  # 2: a fixed Sobol' footprint where neighbours differ
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
-#: Primary rays per pixel of the footprint pass (albedo and coverage the product is made with):
-#: intersections only, stratified by the scene's sampler. Measured on a baseline configuration
-#: (p 2, 4 spp, against 1024 spp that carry 0.42 DN of their own): 16 rays 0.93 DN RMS, 64 rays
-#: 0.58 DN, 256 rays 0.55 DN at four times the cost of 64.
-FOOTPRINT_SPP = 64
+#: Primary rays per pixel of the footprint pass (albedo and coverage the product is made with),
+#: a fixed Sobol' pattern (:func:`simgap.render.pixel_samples.footprint_pattern`): its points are
+#: stratified in 1/64 px along each pixel axis, so an edge along an axis is placed to within
+#: 1/64 px (0.0064 px RMS over the edge's sub-pixel position). 256 points took 2.3x the time
+#: of 64 on a baseline configuration (p 2, 4.7 k edge pixels: 0.16 s against 0.07 s). Before
+#: the pattern was fixed (random rays per render seed), 64 rays moved the detected corners by
+#: 0.12 px RMS between two render seeds (docs/results/converged_render_step2.md).
+FOOTPRINT_POINTS = 64
 #: Treatment of a coated print's stickers (no demodulation; path traced).
 COATED = "path (coated print)"
 
@@ -76,14 +83,12 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     tags = [int(t) for t in np.unique(samples.sticker[samples.sticker >= 0])]
     if scene.spec.tag.coating is not None:
         return ConvergedRender(values.astype(np.float32), dict.fromkeys(tags, COATED))
-    # the footprint pass where a pixel's samples disagree (a print edge or the sticker's border
-    # in its footprint) and next to such pixels (an edge that cuts a corner of a pixel may miss
-    # all of its few samples); elsewhere every sample saw one cell, whose albedo is exact
-    mixed = (samples.albedo_variance.max(axis=1) > 0) | (
-        (samples.coverage > 0) & (samples.coverage < 1)
-    )
-    near = near_pixels(pixels, mixed)
-    footprint = sample_pixels(scene, pixels[near], seed + 1, FOOTPRINT_SPP, radiance=False)
+    # the footprint pass on the pixels whose footprint may hold a print edge or the sticker's
+    # border: a pixel's own samples disagree, or its samples' albedo or sticker differs from a
+    # neighbour's (an edge that cuts a corner of a pixel, or crosses it near its side, misses
+    # all of its few samples, but then lies between it and a neighbour that does not look alike)
+    near = edge_pixels(pixels, samples)
+    footprint = footprint_samples(scene, pixels[near], FOOTPRINT_POINTS)
     footprint_albedo, footprint_coverage = samples.albedo.copy(), samples.coverage.copy()
     footprint_sticker = samples.sticker.copy()
     footprint_albedo[near], footprint_coverage[near] = footprint.albedo, footprint.coverage
@@ -117,11 +122,30 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     return ConvergedRender(values.astype(np.float32), treatments)
 
 
-def near_pixels(pixels: np.ndarray, marked: np.ndarray) -> np.ndarray:
-    """Pixels that are marked or touch a marked one (8-neighbourhood), as a mask over ``pixels``."""
-    lo = pixels.min(axis=0) - 1
+def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:
+    """Pixels that may hold a print edge or a sticker's border, as a mask over ``pixels``.
+
+    Marked: a pixel whose samples land on two albedos or partly off its sticker, and both of any
+    two 8-neighbours that differ in their samples' albedo or sticker, where either is on a
+    sticker.
+    """
+    lo = pixels.min(axis=0)
     u, v = (pixels - lo).T
-    grid = np.zeros((v.max() + 2, u.max() + 2), np.uint8)
-    grid[v[marked], u[marked]] = 1
-    grid = cv2.dilate(grid, np.ones((3, 3), np.uint8))
-    return grid[v, u].astype(bool)
+    shape = (int(v.max()) + 1, int(u.max()) + 1)
+    kernel = np.ones((3, 3), np.uint8)
+    differs = np.zeros(len(pixels), bool)
+    albedo = np.where(samples.sticker[:, None] >= 0, samples.albedo, -1.0)
+    for layer in (*albedo.T, samples.sticker.astype(np.float64)):
+        grid = np.full(shape, np.nan, np.float32)
+        grid[v, u] = layer
+        # outside the region: the pixel's own value (no difference from what was not rendered)
+        high = cv2.dilate(np.nan_to_num(grid, nan=-np.inf), kernel)
+        low = cv2.erode(np.nan_to_num(grid, nan=np.inf), kernel)
+        differs |= (high[v, u] != grid[v, u]) | (low[v, u] != grid[v, u])
+    sticker = np.full(shape, -1.0, np.float32)
+    sticker[v, u] = samples.sticker
+    near_sticker = cv2.dilate(sticker, kernel)[v, u] >= 0
+    mixed = (samples.albedo_variance.max(axis=1) > 0) | (
+        (samples.coverage > 0) & (samples.coverage < 1)
+    )
+    return mixed | (differs & near_sticker)

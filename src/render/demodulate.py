@@ -223,17 +223,49 @@ class DemodulationResult:
 
 
 def _design(uv: NDArray[np.float64], centre: NDArray[np.float64], scale: float, order: int):
-    """Monomials ``x**i y**j`` (i + j <= order) of coordinates normalised to about [-1, 1]."""
+    """Monomials ``x**i y**j`` (i + j <= order) of coordinates normalised to about [-1, 1].
+
+    Columns run by total degree, so the design of a lower order is the first
+    ``(order + 1) (order + 2) / 2`` columns of a higher one's.
+    """
     x, y = ((uv - centre) / scale).T
     return np.stack([x**i * y ** (d - i) for d in range(order + 1) for i in range(d + 1)], axis=1)
 
 
-def _wls(design: NDArray[np.float64], ratio: NDArray[np.float64], var: NDArray[np.float64]):
-    """Weighted least squares: coefficients and chi-square."""
-    w = 1.0 / np.sqrt(var)
-    coef, *_ = np.linalg.lstsq(design * w[:, None], ratio * w, rcond=None)
-    chi2 = float(np.sum(((design @ coef - ratio) * w) ** 2))
-    return coef, chi2
+def _n_coefficients(order: int) -> int:
+    """Coefficients of a 2-D polynomial of total degree ``order``."""
+    return (order + 1) * (order + 2) // 2
+
+
+def _solve(normal: NDArray[np.float64], rhs: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Least-squares solution of normal equations (minimum-norm where they are singular).
+
+    Singular: a sticker seen nearly edge-on, whose pixels on a line leave a coordinate
+    undetermined.
+    """
+    coef, *_ = np.linalg.lstsq(normal, rhs, rcond=None)
+    return coef
+
+
+def _wls_orders(
+    design: NDArray[np.float64], ratio: NDArray[np.float64], var: NDArray[np.float64]
+) -> list[tuple[NDArray[np.float64], float]]:
+    """Weighted least squares of every order at once: per order, coefficients and chi-square.
+
+    Normal equations of the highest order's design (columns by degree, coordinates in about
+    [-1, 1], so at most 10 x 10); a lower order solves the leading block.
+    """
+    w = 1.0 / var
+    weighted = design * w[:, None]
+    normal = weighted.T @ design
+    rhs = weighted.T @ ratio
+    fits = []
+    for order in range(MAX_ORDER + 1):
+        k = _n_coefficients(order)
+        coef = _solve(normal[:k, :k], rhs[:k])
+        residual = design[:, :k] @ coef - ratio
+        fits.append((coef, float(np.sum(w * residual * residual))))
+    return fits
 
 
 def _ratio_variance(
@@ -275,8 +307,7 @@ def _block_z(uv: NDArray[np.float64], z: NDArray[np.float64]) -> tuple[float, in
     origin = uv.min(axis=0)
     for size in BLOCK_SIZES_PX:
         cell = np.floor((uv - origin) / size).astype(np.int64)
-        _, index = np.unique(cell, axis=0, return_inverse=True)
-        index = index.ravel()
+        index = cell[:, 0] + cell[:, 1] * (int(cell[:, 0].max()) + 1)
         counts = np.bincount(index)
         sums = np.bincount(index, weights=z)
         full = counts >= max(size * size // 2, 4)
@@ -306,18 +337,19 @@ def _fit_channel(
     """Fit one channel's irradiance over the fitted pixels ``uv``; evaluate at ``uv_all``."""
     centre = uv.mean(axis=0)
     scale = max(float(np.max(np.abs(uv - centre))), 1.0)
-    designs = [_design(uv, centre, scale, k) for k in range(MAX_ORDER + 1)]
+    design = _design(uv, centre, scale, MAX_ORDER)
     # first pass: unweighted quadratic irradiance, only to scale the pooled variance
-    start, *_ = np.linalg.lstsq(designs[2], ratio, rcond=None)
-    irradiance = designs[2] @ start
+    quadratic = design[:, : _n_coefficients(2)]
+    start = _solve(quadratic.T @ quadratic, quadratic.T @ ratio)
+    irradiance = quadratic @ start
     for _ in range(2):
         var = _ratio_variance(rel_var, albedo, spread, irradiance, spp)
-        fits = [_wls(d, ratio, var) for d in designs]
-        aic = [chi2 + 2 * d.shape[1] for d, (_, chi2) in zip(designs, fits, strict=True)]
+        fits = _wls_orders(design, ratio, var)
+        aic = [chi2 + 2 * len(coef) for coef, chi2 in fits]
         order = int(np.argmin(aic))
         coef, chi2 = fits[order]
-        irradiance = designs[order] @ coef
-    n, k = len(ratio), designs[order].shape[1]
+        irradiance = design[:, : len(coef)] @ coef
+    n, k = len(ratio), len(coef)
     f_stat = chi2 / (n - k)
     p_value = float(stats.f.sf(f_stat, n - k, n * (spp - 1)))
     z = (ratio - irradiance) / np.sqrt(var)

@@ -20,6 +20,9 @@ if TYPE_CHECKING:
 
 #: Shape ids of the stickers in the Mitsuba scene: ``tag_<id>`` (:class:`FixtureScene`).
 STICKER_PREFIX = "tag_"
+#: Scrambling seed of :func:`footprint_pattern` (any fixed value: the pattern must not change
+#: between renders, so that every render seed shares one footprint quadrature).
+FOOTPRINT_PATTERN_SEED = 28
 
 
 @dataclass(frozen=True)
@@ -52,41 +55,39 @@ class PixelSamples:
     spp: int
 
 
-def _launch(scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, radiance: bool):
-    """One kernel launch: per sample radiance, sticker id and albedo ((L, 3), (L,), (L, 3)).
-
-    Without ``radiance`` only primary rays are traced and the radiance is NaN.
-    """
+def _primary_hits(scene: FixtureScene, ray):
+    """The sticker id (-1 off every sticker) and the print's albedo of primary rays (Dr.Jit)."""
     import drjit as dr
 
     mi = scene.mi
-    ray, value = scene.trace(pixels, seed, spp, radiance)
     hit = scene.scene.ray_intersect(mi.Ray3f(ray))
     sticker = mi.Int32(-1)
     for shape in scene.scene.shapes():
         if shape.id().startswith(STICKER_PREFIX):
             tag = int(shape.id()[len(STICKER_PREFIX) :])
             sticker = dr.select(hit.shape == mi.ShapePtr(shape), tag, sticker)
-    albedo = hit.bsdf().eval_diffuse_reflectance(hit, True)
-    dr.eval(sticker, albedo) if value is None else dr.eval(value, sticker, albedo)
-    alb = np.stack([np.asarray(c, np.float32) for c in (albedo.x, albedo.y, albedo.z)], -1)
-    rgb = None
-    if value is not None:
-        rgb = np.stack([np.asarray(c, np.float32) for c in (value.x, value.y, value.z)], -1)
-    return rgb, np.asarray(sticker, np.int32), alb
+    return sticker, hit.bsdf().eval_diffuse_reflectance(hit, True)
+
+
+def _to_numpy(value) -> np.ndarray:
+    """A Dr.Jit colour or point as a float32 (L, 3) array."""
+    return np.stack([np.asarray(c, np.float32) for c in (value.x, value.y, value.z)], -1)
+
+
+def _launch(scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int):
+    """One kernel launch: per sample radiance, sticker id and albedo ((L, 3), (L,), (L, 3))."""
+    import drjit as dr
+
+    ray, value = scene.trace(pixels, seed, spp)
+    sticker, albedo = _primary_hits(scene, ray)
+    dr.eval(value, sticker, albedo)
+    return _to_numpy(value), np.asarray(sticker, np.int32), _to_numpy(albedo)
 
 
 def sample_pixels(
-    scene: FixtureScene,
-    pixels: np.ndarray,
-    seed: int,
-    spp: int | None = None,
-    radiance: bool = True,
+    scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int | None = None
 ) -> PixelSamples:
     """Trace ``spp`` samples (default: the scene's) per pixel; reduce them per pixel.
-
-    Without ``radiance`` only the primary rays are traced (the sticker, coverage and albedo of
-    the footprint; radiance NaN): a pass of many samples at the cost of one intersection each.
 
     Parameters
     ----------
@@ -98,8 +99,6 @@ def sample_pixels(
         Sampler seed (same seed, same statistics).
     spp : int, optional
         Samples per pixel (at least 2: the variance needs two).
-    radiance : bool
-        Trace paths (default); else primary rays only.
     """
     from simgap.render.scene import launches
 
@@ -108,16 +107,76 @@ def sample_pixels(
         raise ValueError(f"spp: expected at least 2 samples per pixel, got {spp}")
     pixels = np.asarray(pixels).reshape(-1, 2)
     n = len(pixels)
-    rad = np.empty((n, spp, 3), np.float32) if radiance else None
+    rad = np.empty((n, spp, 3), np.float32)
     ids, alb = np.empty((n, spp), np.int32), np.empty((n, spp, 3), np.float32)
     for start, padded, launch_seed in launches(pixels, seed, spp, 1):
-        r, i, a = _launch(scene, padded, launch_seed, spp, radiance)
+        r, i, a = _launch(scene, padded, launch_seed, spp)
         m = min(len(padded), n - start)
-        if rad is not None:
-            rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
+        rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
         ids[start : start + m] = i.reshape(-1, spp)[:m]
         alb[start : start + m] = a.reshape(-1, spp, 3)[:m]
     return reduce_samples(rad, ids, alb)
+
+
+def footprint_pattern(points: int) -> np.ndarray:
+    """The fixed footprint pattern: ``points`` (a power of two) points in [0, 1)^4, float32.
+
+    The first ``points`` of an Owen-scrambled Sobol' sequence (``scipy.stats.qmc.Sobol``, seed
+    :data:`FOOTPRINT_PATTERN_SEED`): a (0, m, 2) net in each pair of dimensions, so an edge along
+    a pixel axis is placed to within ``1 / points`` px; dimensions 0-1 are the pixel filter's
+    sample, 2-3 the aperture's.
+    """
+    from scipy.stats import qmc
+
+    if points < 2 or points & (points - 1):
+        raise ValueError(f"points: expected a power of two >= 2, got {points}")
+    sobol = qmc.Sobol(d=4, scramble=True, seed=FOOTPRINT_PATTERN_SEED)
+    return sobol.random_base2(int(points).bit_length() - 1).astype(np.float32)
+
+
+def footprint_samples(scene: FixtureScene, pixels: np.ndarray, points: int) -> PixelSamples:
+    """Sticker, coverage and albedo over each pixel's footprint, from a fixed point pattern.
+
+    Primary rays only (radiance NaN): every pixel is integrated with the same
+    :func:`footprint_pattern`, warped by the reconstruction filter (and the thin lens'
+    aperture) as the camera samples are, so a pixel's footprint is a deterministic quadrature
+    of the geometry: the same for every render seed, whichever other pixels are asked for.
+
+    Parameters
+    ----------
+    scene : FixtureScene
+        A posed scene.
+    pixels : ndarray of int (N, 2)
+        Full-image pixel columns and rows (px).
+    points : int
+        Points per pixel (a power of two).
+    """
+    import drjit as dr
+
+    from simgap.render.scene import SAMPLES_PER_LAUNCH, filter_offsets
+
+    mi = scene.mi
+    pattern = footprint_pattern(points)
+    offset = filter_offsets(scene.spec.rfilter, mi.Point2f(pattern[:, 0], pattern[:, 1]), mi)
+    dx, dy = np.asarray(offset.x, np.float32), np.asarray(offset.y, np.float32)
+    pixels = np.asarray(pixels).reshape(-1, 2)
+    n = len(pixels)
+    ids, alb = np.empty((n, points), np.int32), np.empty((n, points, 3), np.float32)
+    step = max(SAMPLES_PER_LAUNCH // points, 1)
+    for start in range(0, n, step):
+        chunk = pixels[start : start + step].astype(np.float32)
+        m = len(chunk)
+        # at least two lanes: a one-element array would become a literal of the kernel
+        u = np.resize((chunk[:, :1] + dx).ravel(), max(m * points, 2))
+        v = np.resize((chunk[:, 1:] + dy).ravel(), max(m * points, 2))
+        aperture = mi.Point2f(np.resize(np.tile(pattern[:, 2], m), len(u)),
+                              np.resize(np.tile(pattern[:, 3], m), len(u)))  # fmt: skip
+        ray = scene.camera.ray_through(mi.Float(u), mi.Float(v), aperture)
+        sticker, albedo = _primary_hits(scene, ray)
+        dr.eval(sticker, albedo)
+        ids[start : start + m] = np.asarray(sticker, np.int32)[: m * points].reshape(m, points)
+        alb[start : start + m] = _to_numpy(albedo)[: m * points].reshape(m, points, 3)
+    return reduce_samples(None, ids, alb)
 
 
 def reduce_samples(
@@ -128,29 +187,25 @@ def reduce_samples(
     ``radiance`` None: primary rays only (the radiance statistics are NaN).
     """
     n, spp = sticker.shape
-    tags = np.flatnonzero(np.bincount(sticker[sticker >= 0].ravel()))
-    own = np.full(n, -1)
-    best = np.zeros(n, int)
-    for tag in tags:
-        count = np.count_nonzero(sticker == tag, axis=1)
-        better = count > best
-        own[better], best[better] = tag, count[better]
-    on = sticker == own[:, None]
-    on &= own[:, None] >= 0
-    n_on = best.astype(np.float64)
-    w = on[..., None]
+    own = majority_sticker(sticker)
+    on = (sticker == own[:, None]) & (own[:, None] >= 0)
+    n_on = np.count_nonzero(on, axis=1).astype(np.float64)
+    weight = on.astype(np.float64)
     nan3 = np.full((n, 3), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
-        albedo_mean = np.where(w, albedo, 0.0).sum(axis=1, dtype=np.float64) / n_on[:, None]
-        albedo_sq = np.where(w, albedo * albedo, 0.0).sum(axis=1, dtype=np.float64)
-        albedo_var = albedo_sq / n_on[:, None] - albedo_mean**2
+        albedo_mean = np.einsum("ns,nsc->nc", weight, albedo) / n_on[:, None]
+        # the mean of squared deviations, not of squares minus the squared mean: exactly zero
+        # where every sample saw one albedo (callers tell edge pixels by a non-zero variance)
+        deviation = albedo - albedo_mean[:, None].astype(np.float32)
+        albedo_var = np.einsum("ns,nsc,nsc->nc", weight, deviation, deviation) / n_on[:, None]
         if radiance is None:
             mean = variance = background = nan3
         else:
-            total = radiance.sum(axis=1, dtype=np.float64)
+            total = np.einsum("nsc->nc", radiance, dtype=np.float64)
             mean = total / spp
-            variance = radiance.var(axis=1, ddof=1, dtype=np.float64)
-            off = total - np.where(w, radiance, 0.0).sum(axis=1, dtype=np.float64)
+            deviation = radiance - mean[:, None].astype(np.float32)
+            variance = np.einsum("nsc,nsc->nc", deviation, deviation, dtype=np.float64) / (spp - 1)
+            off = total - np.einsum("ns,nsc->nc", weight, radiance)
             background = off / (spp - n_on)[:, None]
     return PixelSamples(
         mean=mean,
@@ -162,3 +217,19 @@ def reduce_samples(
         background=background,
         spp=spp,
     )
+
+
+def majority_sticker(sticker: np.ndarray) -> np.ndarray:
+    """Per pixel, the sticker id most of its samples (N, S) land on; -1 where none does."""
+    lowest = np.where(sticker >= 0, sticker, np.iinfo(sticker.dtype).max).min(axis=1)
+    own = sticker.max(axis=1)
+    # samples on two stickers (rare: where two stickers meet in the image): count them
+    split = np.flatnonzero((own >= 0) & (lowest != own))
+    if len(split):
+        rows = sticker[split]
+        best = np.zeros(len(split), np.int64)
+        for tag in np.unique(rows[rows >= 0]):
+            count = np.count_nonzero(rows == tag, axis=1)
+            better = count > best  # ties go to the lower id
+            own[split[better]], best[better] = tag, count[better]
+    return np.where(own >= 0, own, -1)
