@@ -1,20 +1,21 @@
-"""Converged renders against a many-sample path-traced reference, in one run (issue 28).
+"""Converged renders against path tracing, in one run (issue 28).
 
-The baseline experiment restricted to ``--configs`` configurations (drawn with ``--seed`` from the
-full grid) is run through the whole pipeline (render, camera, detector, PnP), each from an empty
-cache:
+Two parts, each run from an empty cache through the whole pipeline (render, camera, detector,
+PnP):
 
-- the reference: path tracing at ``--ref-spp`` (1024);
-- today's baseline: path tracing at 16 spp;
-- converged at ``--spp`` (4), at two render seeds.
+- **Accuracy**: the baseline experiment restricted to ``--configs`` configurations (drawn with
+  ``--seed`` from the full grid), path traced at ``--ref-spp`` (the reference), at 16 spp, and
+  converged at ``--spp`` (4). Per run: the detected corners' RMS distance from the reference's
+  (px) and the mean |difference| of the estimated pose per axis (mm, mrad). The issue's bars:
+  0.02 px, 0.1 mm, 1 mrad.
+- **Seeds and speed**: the whole baseline sweep (``--sweep-configs`` configurations, default all
+  540) path traced at 16 spp and converged at ``--spp``, each at render seeds 0 and 1. Per mode:
+  the wall time of the seed-0 sweep and the two seeds' mean |difference| (ty in mm, rotations in
+  mrad). The issue's bars: 0.1 mm and 1 mrad between seeds, converged at most half the 16-spp
+  time.
 
-Prints, per run, the wall time of the run, the detected corners' RMS distance from the
-reference's (px), and the mean |difference| of the estimated pose from the reference's per axis
-(mm, mrad). Then it prints the two converged seeds' mean |difference| (ty in mm, rotations in
-mrad) and the speed ratio of the converged run to the 16-spp one. The issue's bars are 0.02 px,
-0.1 mm, 1 mrad, and half the 16-spp time.
-
-Usage: ``python benchmarks/converged_render.py [--configs 12] [--ref-spp 1024] [--spp 4]``
+Usage: ``python benchmarks/converged_render.py [--configs 12] [--ref-spp 1024] [--spp 4]
+[--sweep-configs 540]``
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from simgap.pipeline.experiment import Configurations, load_experiment
+from simgap.pipeline.experiment import Configurations, Experiment, load_experiment
 from simgap.pipeline.simulator import Simulator
 
 
@@ -57,42 +58,55 @@ def compare(ds: xr.Dataset, ref: xr.Dataset, label: str) -> None:
     )
 
 
+def drawn(base: Experiment, n: int, seed: int) -> Experiment:
+    """``base`` on the (p, theta) sets of ``n`` configurations drawn from its grid."""
+    if n >= len(base.configuration_axes()[0]) * len(base.configuration_axes()[1]):
+        return base
+    rng = np.random.default_rng(seed)
+    p_all, theta_all, _ = base.configuration_axes()
+    ps = rng.choice(np.asarray(p_all), size=n)
+    thetas = rng.choice(np.rad2deg(np.asarray(theta_all)), size=n)
+    configurations = Configurations(
+        tuple(sorted({int(p) for p in ps})), tuple(sorted({float(t) for t in thetas})), ()
+    )
+    return dataclasses.replace(base, configurations=configurations)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--configs", type=int, default=12)
     parser.add_argument("--ref-spp", type=int, default=1024)
     parser.add_argument("--spp", type=int, default=4)
+    parser.add_argument("--sweep-configs", type=int, default=540)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--experiment", default="experiments/baseline.yaml")
     args = parser.parse_args()
-
     base = load_experiment(args.experiment)
-    rng = np.random.default_rng(args.seed)
-    p_all, theta_all, _ = base.configuration_axes()
-    ps = rng.choice(np.asarray(p_all), size=args.configs)
-    thetas = rng.choice(np.rad2deg(np.asarray(theta_all)), size=args.configs)
-    # one configuration per (p, theta) drawn: the grid's p and theta sets of the draw
-    exp = dataclasses.replace(
-        base,
-        configurations=Configurations(
-            tuple(sorted({int(p) for p in ps})), tuple(sorted({float(t) for t in thetas})), ()
-        ),
-    )
-    print(f"{exp.configurations}", flush=True)
+
+    exp = drawn(base, args.configs, args.seed)
+    print(f"accuracy: {exp.configurations}", flush=True)
     ref, _ = run(exp.with_render(spp=args.ref_spp), f"reference: path {args.ref_spp} spp")
-    path, t_path = run(exp.with_render(spp=16), "baseline: path 16 spp")
-    conv = []
-    for seed in (0, 1):
-        ds, t_conv = run(
-            exp.with_render(spp=args.spp, mode="converged", seed=seed),
-            f"converged {args.spp} spp, render seed {seed}",
-        )
-        conv.append((ds, t_conv))
+    path, _ = run(exp.with_render(spp=16), "path 16 spp")
+    conv, _ = run(exp.with_render(spp=args.spp, mode="converged"), f"converged {args.spp} spp")
     compare(path, ref, "path 16 spp")
-    for seed, (ds, _) in enumerate(conv):
-        compare(ds, ref, f"converged {args.spp} spp, seed {seed}")
-    compare(conv[1][0], conv[0][0], "converged seed 1 against seed 0")
-    print(f"speed: converged / path 16 spp = {conv[0][1] / t_path:.2f} (bar: <= 0.5)")
+    compare(conv, ref, f"converged {args.spp} spp")
+
+    sweep = drawn(base, args.sweep_configs, args.seed + 1)
+    print(f"seeds and speed: {sweep.configurations}", flush=True)
+    seconds = {}
+    modes = {
+        "path 16 spp": {"spp": 16},
+        f"converged {args.spp} spp": {"spp": args.spp, "mode": "converged"},
+    }
+    for label, settings in modes.items():
+        seeds = []
+        for seed in (0, 1):
+            ds, t = run(sweep.with_render(**settings, seed=seed), f"{label}, render seed {seed}")
+            seeds.append(ds)
+            seconds.setdefault(label, t)
+        compare(seeds[1], seeds[0], f"{label}: render seed 1 against seed 0")
+    path_s, conv_s = seconds.values()
+    print(f"speed: converged / path 16 spp = {conv_s / path_s:.2f} (bar: <= 0.5)")
 
 
 if __name__ == "__main__":

@@ -234,7 +234,7 @@ def diagnose(
         simulator = Simulator(Path(simulator))
     t0 = time.perf_counter()
     sim_exp = simulation_experiment(real, exp)
-    seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"])
+    seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"], sim_exp.render.mode)
     sim = simulator.dataset(with_render_seeds(sim_exp, seeds))
     d = Diagnosis(real, sim, sim_exp, simulator, settings, progress)
     where = where_summary(d.real, d.sim, d.field, d.axis_gaps)

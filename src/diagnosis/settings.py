@@ -39,7 +39,15 @@ class DiagnoseSettings:
     #: Most render seeds per configuration.
     max_render_seeds: int = 4
 
-    def render_seeds(self, configurations: int) -> int:
-        """Render seeds for the simulation of a capture of ``configurations`` configurations."""
+    def render_seeds(self, configurations: int, render_mode: str = "path") -> int:
+        """Render seeds for the simulation of a capture of ``configurations`` configurations.
+
+        One for a ``converged`` render (``render.mode``): its sticker pixels carry no Monte
+        Carlo noise to average (two render seeds of the baseline differ by 0.09 mm in ty and
+        0.4-0.6 mrad in rotation; docs/results/converged_render_step3.md), so the simulation's
+        noise is the modelled camera's.
+        """
+        if render_mode == "converged":
+            return 1
         wanted = -(-self.min_simulated_frames // max(configurations, 1))
         return int(min(max(wanted, 1), self.max_render_seeds))

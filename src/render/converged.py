@@ -8,13 +8,12 @@ coverage, :func:`simgap.render.pixel_samples.footprint_samples`: the same for ev
 seed). Per sticker, the radiance is divided by the albedo of its own samples, a
 smooth irradiance is fitted and multiplied by the footprint's albedo
 (:func:`simgap.render.demodulate.demodulate`), which removes most of
-the Monte Carlo noise of a flat diffuse print. Where the smooth model is rejected (a shadow or
-highlight edge across the sticker), that sticker's pixels are path traced again with
-:data:`FALLBACK_SPP_FACTOR` times the samples; a print under a coating (a glossy laminate, whose
-diffuse lobe is no linear function of the albedo and whose specular lobe is not smooth across
-the texture) is path traced as in ``path`` mode. Pixels off the stickers (node, table) keep their
-path-traced mean: only the detector's thresholds see them. The treatment of every sticker is
-returned so that the caller can record it.
+the Monte Carlo noise of a flat diffuse print; a print under a laminate is fitted as the albedo
+times a smooth diffuse field plus a smooth specular one. Where the smooth model is rejected (a
+shadow or highlight edge across the sticker, a sharp glint), that sticker's pixels are path
+traced again with :data:`FALLBACK_SPP_FACTOR` times the samples. Pixels off the stickers
+(node, table) keep their path-traced mean: only the detector's thresholds see them. The
+treatment of every sticker is returned so that the caller can record it.
 """
 
 from __future__ import annotations
@@ -32,7 +31,7 @@ if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
 #: Part of the render key of a converged render: bump when what it holds changes.
-CONVERGED_VERSION = "footprint-2"  # 2: a fixed Sobol' footprint where neighbours differ
+CONVERGED_VERSION = "coated-3"  # 3: laminates demodulated; 2: a fixed footprint where pixels differ
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
@@ -44,8 +43,8 @@ FALLBACK_SPP_FACTOR = 4
 #: the pattern was fixed (random rays per render seed), 64 rays moved the detected corners by
 #: 0.12 px RMS between two render seeds (docs/results/converged_render_step2.md).
 FOOTPRINT_POINTS = 64
-#: Treatment of a coated print's stickers (no demodulation; path traced).
-COATED = "path (coated print)"
+#: Treatment of a coated print's sticker whose diffuse and specular fields were both smooth.
+COATED = "smooth (coated print)"
 
 
 @dataclass(frozen=True)
@@ -57,8 +56,8 @@ class ConvergedRender:
     values : ndarray (N, 3)
         Linear RGB radiance of the pixels, in the order asked for.
     treatments : dict of int to str
-        Per tag id: ``"smooth"`` (demodulated), ``"fallback (<why>): <spp> spp"`` (path traced
-        with more samples) or :data:`COATED`.
+        Per tag id: ``"smooth"`` (demodulated), :data:`COATED` (a laminated print demodulated)
+        or ``"fallback (<why>): <spp> spp"`` (path traced with more samples).
     """
 
     values: np.ndarray
@@ -81,8 +80,7 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     samples = sample_pixels(scene, pixels, seed)
     values = samples.mean.copy()
     tags = [int(t) for t in np.unique(samples.sticker[samples.sticker >= 0])]
-    if scene.spec.tag.coating is not None:
-        return ConvergedRender(values.astype(np.float32), dict.fromkeys(tags, COATED))
+    coated = scene.spec.tag.coating is not None
     # the footprint pass on the pixels whose footprint may hold a print edge or the sticker's
     # border: a pixel's own samples disagree, or its samples' albedo or sticker differs from a
     # neighbour's (an edge that cuts a corner of a pixel, or crosses it near its side, misses
@@ -109,11 +107,12 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
                 background=samples.background[on],
                 footprint_albedo=np.where(own[:, None], footprint_albedo[on], samples.albedo[on]),
                 footprint_coverage=np.where(own, footprint_coverage[on], samples.coverage[on]),
+                coated=coated,
             )
         )
         if result.treatment is Treatment.SMOOTH:
             values[on] = result.radiance
-            treatments[tag] = Treatment.SMOOTH.value
+            treatments[tag] = COATED if coated else Treatment.SMOOTH.value
             continue
         spp = samples.spp * FALLBACK_SPP_FACTOR
         more = sample_pixels(scene, pixels[on], seed + 1 + tag, spp)

@@ -10,6 +10,7 @@ nearly free). Statistics are reduced per pixel in numpy.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -118,6 +119,7 @@ def sample_pixels(
     return reduce_samples(rad, ids, alb)
 
 
+@functools.lru_cache(maxsize=4)
 def footprint_pattern(points: int) -> np.ndarray:
     """The fixed footprint pattern: ``points`` (a power of two) points in [0, 1)^4, float32.
 
@@ -131,7 +133,9 @@ def footprint_pattern(points: int) -> np.ndarray:
     if points < 2 or points & (points - 1):
         raise ValueError(f"points: expected a power of two >= 2, got {points}")
     sobol = qmc.Sobol(d=4, scramble=True, seed=FOOTPRINT_PATTERN_SEED)
-    return sobol.random_base2(int(points).bit_length() - 1).astype(np.float32)
+    pattern = sobol.random_base2(int(points).bit_length() - 1).astype(np.float32)
+    pattern.flags.writeable = False  # cached: shared by every call
+    return pattern
 
 
 def footprint_samples(scene: FixtureScene, pixels: np.ndarray, points: int) -> PixelSamples:

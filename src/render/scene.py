@@ -207,9 +207,7 @@ class FixtureScene:
             out[start : start + m] = self._render_launch(padded, launch_seed)[:m]
         return out
 
-    def trace(
-        self, pixels: np.ndarray, seed: int, spp: int | None = None, radiance: bool = True
-    ):
+    def trace(self, pixels: np.ndarray, seed: int, spp: int | None = None, radiance: bool = True):
         """Trace ``spp`` camera samples through each pixel (one kernel launch; Dr.Jit values).
 
         Each pixel's samples are consecutive lanes; their offsets follow the reconstruction
