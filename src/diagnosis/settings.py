@@ -43,9 +43,9 @@ class DiagnoseSettings:
         """Render seeds for the simulation of a capture of ``configurations`` configurations.
 
         One for a ``converged`` render (``render.mode``): its sticker pixels carry no Monte
-        Carlo noise to average (two render seeds of the baseline differ by 0.09 mm in ty and
-        0.4-0.6 mrad in rotation; docs/results/converged_render_step3.md), so the simulation's
-        noise is the modelled camera's.
+        Carlo noise to average (two render seeds of the baseline sweep differ by 0.085 mm in ty
+        and 0.25-0.41 mrad in rotation; docs/results/converged_render_step3.md), so the
+        simulation's noise is the modelled camera's.
         """
         if render_mode == "converged":
             return 1
