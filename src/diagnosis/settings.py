@@ -42,10 +42,11 @@ class DiagnoseSettings:
     def render_seeds(self, configurations: int, render_mode: str = "path") -> int:
         """Render seeds for the simulation of a capture of ``configurations`` configurations.
 
-        One for a ``converged`` render (``render.mode``): its sticker pixels carry no Monte
-        Carlo noise to average (two render seeds of the baseline sweep differ by 0.085 mm in ty
-        and 0.25-0.41 mrad in rotation; docs/results/converged_render_step3.md), so the
-        simulation's noise is the modelled camera's.
+        One for a ``converged`` render (``render.mode``): its demodulated sticker pixels carry
+        almost no Monte Carlo noise to average (two render seeds of the baseline sweep differ by
+        0.085 mm in ty and 0.25-0.41 mrad in rotation; docs/results/converged_render_step3.md),
+        so the simulation's noise is the modelled camera's. A sticker that falls back to path
+        tracing, and the pixels off the stickers, keep their path-traced noise.
         """
         if render_mode == "converged":
             return 1

@@ -162,10 +162,11 @@ class VariantPipeline:
 
     def render_key(self, p: int, theta: float, render_repeat: int) -> str:
         """Cache key of the linear render of one configuration."""
-        converged = CONVERGED_VERSION if self.state.scene.quality.mode == "converged" else ""
+        # a converged render's own version; a path render's key stays what it was
+        converged = (CONVERGED_VERSION,) if self.state.scene.quality.mode == "converged" else ()
         return content_hash(
             self.scene_key, int(p), round(float(theta), 9), render_repeat, self.margin_px,
-            RENDER_VERSION, converged,
+            RENDER_VERSION, *converged,
         )  # fmt: skip
 
     def hdr(self, p: int, theta: float, render_repeat: int):

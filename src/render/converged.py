@@ -31,17 +31,18 @@ if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
 #: Part of the render key of a converged render: bump when what it holds changes.
-CONVERGED_VERSION = "coated-3"  # 3: laminates demodulated; 2: a fixed footprint where pixels differ
+CONVERGED_VERSION = "coated-4"  # 4: coated fits keep the darkest pixels; 3: laminates demodulated
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
 #: Primary rays per pixel of the footprint pass (albedo and coverage the product is made with),
 #: a fixed Sobol' pattern (:func:`simgap.render.pixel_samples.footprint_pattern`): its points are
-#: stratified in 1/64 px along each pixel axis, so an edge along an axis is placed to within
-#: 1/64 px (0.0064 px RMS over the edge's sub-pixel position). 256 points took 2.3x the time
-#: of 64 on a baseline configuration (p 2, 4.7 k edge pixels: 0.16 s against 0.07 s). Before
-#: the pattern was fixed (random rays per render seed), 64 rays moved the detected corners by
-#: 0.12 px RMS between two render seeds (docs/results/converged_render_step2.md).
+#: stratified in 1/64 px along each pixel axis, so under a box filter an edge along an axis is
+#: placed to within 1/64 px (0.0064 px RMS over the edge's sub-pixel position). 256 points took
+#: 2.3x the time of 64 on a baseline configuration (p 2, 4.7 k edge pixels: 0.16 s against
+#: 0.07 s) and the whole render 1.5x (docs/results/converged_render_step3.md). Before the pattern
+#: was fixed (random rays per render seed), 64 rays moved the detected corners by 0.12 px RMS
+#: between two render seeds (docs/results/converged_render_step2.md).
 FOOTPRINT_POINTS = 64
 #: Treatment of a coated print's sticker whose diffuse and specular fields were both smooth.
 COATED = "smooth (coated print)"
@@ -125,8 +126,8 @@ def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:
     """Pixels that may hold a print edge or a sticker's border, as a mask over ``pixels``.
 
     Marked: a pixel whose samples land on two albedos or partly off its sticker, and both of any
-    two 8-neighbours that differ in their samples' albedo or sticker, where either is on a
-    sticker.
+    two 8-neighbours that differ in their samples' albedo or sticker (one of them is then on a
+    sticker).
     """
     lo = pixels.min(axis=0)
     u, v = (pixels - lo).T
@@ -141,10 +142,8 @@ def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:
         high = cv2.dilate(np.nan_to_num(grid, nan=-np.inf), kernel)
         low = cv2.erode(np.nan_to_num(grid, nan=np.inf), kernel)
         differs |= (high[v, u] != grid[v, u]) | (low[v, u] != grid[v, u])
-    sticker = np.full(shape, -1.0, np.float32)
-    sticker[v, u] = samples.sticker
-    near_sticker = cv2.dilate(sticker, kernel)[v, u] >= 0
     mixed = (samples.albedo_variance.max(axis=1) > 0) | (
         (samples.coverage > 0) & (samples.coverage < 1)
     )
-    return mixed | (differs & near_sticker)
+    # every pixel off the stickers reads -1 in every layer, so two that differ include one on
+    return mixed | differs

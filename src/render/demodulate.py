@@ -101,7 +101,8 @@ MIN_ALBEDO = 1e-3
 #: Floor of the ratio's standard deviation relative to the irradiance: 10x the float32 machine
 #: epsilon (1.19e-7) of a rendered radiance, so a noise-free render is not given infinite weight.
 RELATIVE_NOISE_FLOOR = 1e-6
-#: Fewest fully covered pixels a fit needs (dimensionless): 3x the most coefficients.
+#: Fewest fully covered pixels a fit needs (dimensionless): 3x the most coefficients of a matte
+#: fit (1.5x those of a coated one's two fields).
 MIN_PIXELS = 3 * (MAX_ORDER + 1) * (MAX_ORDER + 2) // 2
 
 
@@ -436,7 +437,8 @@ def demodulate(samples: StickerSamples, alpha: float = ALPHA) -> DemodulationRes
     specular = np.zeros_like(raw)
     coated = bool(samples.coated)
     for c in range(n_channels):
-        used = full & (albedo[:, c] > MIN_ALBEDO)
+        # a coated print's radiance needs no division: its darkest pixels fit the specular best
+        used = full if coated else full & (albedo[:, c] > MIN_ALBEDO)
         if used.sum() < MIN_PIXELS:
             return DemodulationResult(
                 raw.copy(), Treatment.FALLBACK, tuple(fits),

@@ -124,9 +124,10 @@ def footprint_pattern(points: int) -> np.ndarray:
     """The fixed footprint pattern: ``points`` (a power of two) points in [0, 1)^4, float32.
 
     The first ``points`` of an Owen-scrambled Sobol' sequence (``scipy.stats.qmc.Sobol``, seed
-    :data:`FOOTPRINT_PATTERN_SEED`): a (0, m, 2) net in each pair of dimensions, so an edge along
-    a pixel axis is placed to within ``1 / points`` px; dimensions 0-1 are the pixel filter's
-    sample, 2-3 the aperture's.
+    :data:`FOOTPRINT_PATTERN_SEED`): every dimension has one point in each ``1 / points``
+    interval, and dimensions 0-1 (the pixel filter's sample) form a (0, m, 2)-net, so under a
+    box filter an edge along a pixel axis is placed to within ``1 / points`` px; dimensions 2-3
+    are the aperture's sample.
     """
     from scipy.stats import qmc
 
