@@ -75,14 +75,38 @@ def _to_numpy(value) -> np.ndarray:
     return np.stack([np.asarray(c, np.float32) for c in (value.x, value.y, value.z)], -1)
 
 
-def _launch(scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int):
-    """One kernel launch: per sample radiance, sticker id and albedo ((L, 3), (L,), (L, 3))."""
+def _launch(scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, pattern):
+    """One kernel launch: per sample radiance, sticker id and albedo ((L, 3), (L,), (L, 3)).
+
+    With a ``pattern`` only the primary rays are traced and the radiance is None.
+    """
     import drjit as dr
 
-    ray, value = scene.trace(pixels, seed, spp)
+    ray, value = scene.trace(pixels, seed, spp, pattern)
     sticker, albedo = _primary_hits(scene, ray)
-    dr.eval(value, sticker, albedo)
-    return _to_numpy(value), np.asarray(sticker, np.int32), _to_numpy(albedo)
+    dr.eval(sticker, albedo) if value is None else dr.eval(value, sticker, albedo)
+    rgb = None if value is None else _to_numpy(value)
+    return rgb, np.asarray(sticker, np.int32), _to_numpy(albedo)
+
+
+def _reduced(
+    scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, pattern: np.ndarray | None
+) -> PixelSamples:
+    """Trace ``spp`` samples per pixel (the sampler's, or ``pattern``) and reduce them."""
+    from simgap.render.scene import launches
+
+    pixels = np.asarray(pixels).reshape(-1, 2)
+    n = len(pixels)
+    rad = np.empty((n, spp, 3), np.float32) if pattern is None else None
+    ids, alb = np.empty((n, spp), np.int32), np.empty((n, spp, 3), np.float32)
+    for start, padded, launch_seed in launches(pixels, seed, spp, 1):
+        r, i, a = _launch(scene, padded, launch_seed, spp, pattern)
+        m = min(len(padded), n - start)
+        if rad is not None:
+            rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
+        ids[start : start + m] = i.reshape(-1, spp)[:m]
+        alb[start : start + m] = a.reshape(-1, spp, 3)[:m]
+    return reduce_samples(rad, ids, alb)
 
 
 def sample_pixels(
@@ -101,22 +125,10 @@ def sample_pixels(
     spp : int, optional
         Samples per pixel (at least 2: the variance needs two).
     """
-    from simgap.render.scene import launches
-
     spp = scene.spp if spp is None else int(spp)
     if spp < 2:
         raise ValueError(f"spp: expected at least 2 samples per pixel, got {spp}")
-    pixels = np.asarray(pixels).reshape(-1, 2)
-    n = len(pixels)
-    rad = np.empty((n, spp, 3), np.float32)
-    ids, alb = np.empty((n, spp), np.int32), np.empty((n, spp, 3), np.float32)
-    for start, padded, launch_seed in launches(pixels, seed, spp, 1):
-        r, i, a = _launch(scene, padded, launch_seed, spp)
-        m = min(len(padded), n - start)
-        rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
-        ids[start : start + m] = i.reshape(-1, spp)[:m]
-        alb[start : start + m] = a.reshape(-1, spp, 3)[:m]
-    return reduce_samples(rad, ids, alb)
+    return _reduced(scene, pixels, seed, spp, None)
 
 
 @functools.lru_cache(maxsize=4)
@@ -156,32 +168,7 @@ def footprint_samples(scene: FixtureScene, pixels: np.ndarray, points: int) -> P
     points : int
         Points per pixel (a power of two).
     """
-    import drjit as dr
-
-    from simgap.render.scene import SAMPLES_PER_LAUNCH, filter_offsets
-
-    mi = scene.mi
-    pattern = footprint_pattern(points)
-    offset = filter_offsets(scene.spec.rfilter, mi.Point2f(pattern[:, 0], pattern[:, 1]), mi)
-    dx, dy = np.asarray(offset.x, np.float32), np.asarray(offset.y, np.float32)
-    pixels = np.asarray(pixels).reshape(-1, 2)
-    n = len(pixels)
-    ids, alb = np.empty((n, points), np.int32), np.empty((n, points, 3), np.float32)
-    step = max(SAMPLES_PER_LAUNCH // points, 1)
-    for start in range(0, n, step):
-        chunk = pixels[start : start + step].astype(np.float32)
-        m = len(chunk)
-        # at least two lanes: a one-element array would become a literal of the kernel
-        u = np.resize((chunk[:, :1] + dx).ravel(), max(m * points, 2))
-        v = np.resize((chunk[:, 1:] + dy).ravel(), max(m * points, 2))
-        aperture = mi.Point2f(np.resize(np.tile(pattern[:, 2], m), len(u)),
-                              np.resize(np.tile(pattern[:, 3], m), len(u)))  # fmt: skip
-        ray = scene.camera.ray_through(mi.Float(u), mi.Float(v), aperture)
-        sticker, albedo = _primary_hits(scene, ray)
-        dr.eval(sticker, albedo)
-        ids[start : start + m] = np.asarray(sticker, np.int32)[: m * points].reshape(m, points)
-        alb[start : start + m] = _to_numpy(albedo)[: m * points].reshape(m, points, 3)
-    return reduce_samples(None, ids, alb)
+    return _reduced(scene, pixels, 0, points, footprint_pattern(points))
 
 
 def reduce_samples(
@@ -192,9 +179,14 @@ def reduce_samples(
     ``radiance`` None: primary rays only (the radiance statistics are NaN).
     """
     n, spp = sticker.shape
-    own = majority_sticker(sticker)
+    # the sticker most samples land on (ties: the lower id)
+    own, best = np.full(n, -1), np.zeros(n, int)
+    for tag in np.flatnonzero(np.bincount(sticker[sticker >= 0].ravel())):
+        count = np.count_nonzero(sticker == tag, axis=1)
+        better = count > best
+        own[better], best[better] = tag, count[better]
     on = (sticker == own[:, None]) & (own[:, None] >= 0)
-    n_on = np.count_nonzero(on, axis=1).astype(np.float64)
+    n_on = best.astype(np.float64)
     weight = on.astype(np.float64)
     nan3 = np.full((n, 3), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -222,19 +214,3 @@ def reduce_samples(
         background=background,
         spp=spp,
     )
-
-
-def majority_sticker(sticker: np.ndarray) -> np.ndarray:
-    """Per pixel, the sticker id most of its samples (N, S) land on; -1 where none does."""
-    lowest = np.where(sticker >= 0, sticker, np.iinfo(sticker.dtype).max).min(axis=1)
-    own = sticker.max(axis=1)
-    # samples on two stickers (rare: where two stickers meet in the image): count them
-    split = np.flatnonzero((own >= 0) & (lowest != own))
-    if len(split):
-        rows = sticker[split]
-        best = np.zeros(len(split), np.int64)
-        for tag in np.unique(rows[rows >= 0]):
-            count = np.count_nonzero(rows == tag, axis=1)
-            better = count > best  # ties go to the lower id
-            own[split[better]], best[better] = tag, count[better]
-    return np.where(own >= 0, own, -1)

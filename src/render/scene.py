@@ -207,33 +207,48 @@ class FixtureScene:
             out[start : start + m] = self._render_launch(padded, launch_seed)[:m]
         return out
 
-    def trace(self, pixels: np.ndarray, seed: int, spp: int | None = None, radiance: bool = True):
+    def trace(
+        self,
+        pixels: np.ndarray,
+        seed: int,
+        spp: int | None = None,
+        pattern: np.ndarray | None = None,
+    ):
         """Trace ``spp`` camera samples through each pixel (one kernel launch; Dr.Jit values).
 
         Each pixel's samples are consecutive lanes; their offsets follow the reconstruction
         filter (:func:`filter_offsets`). Returns the primary rays and the integrator's radiance
-        per sample (``mitsuba.Ray3f``, ``mitsuba.Color3f``; None without ``radiance``: primary
-        rays only), unevaluated, for :meth:`render_pixels` and for passes that also need the
-        primary hits (:mod:`simgap.render.pixel_samples`). ``pixels`` holds at least two (a
-        one-element array would become a literal of the kernel, recompiled per value).
+        per sample (``mitsuba.Ray3f``, ``mitsuba.Color3f``), unevaluated, for
+        :meth:`render_pixels` and for passes that also need the primary hits
+        (:mod:`simgap.render.pixel_samples`). ``pixels`` holds at least two (a one-element array
+        would become a literal of the kernel, recompiled per value).
+
+        With ``pattern`` (S, 4), every pixel takes the same S samples instead of the sampler's
+        (columns: the pixel filter's sample, then the aperture's, in [0, 1)); ``seed`` and
+        ``spp`` are then unused, and only the primary rays are traced (radiance None).
         """
         import drjit as dr
 
         mi = self.mi
-        spp = self.spp if spp is None else int(spp)
-        lanes = len(pixels) * spp
-        sampler = self.camera.sampler().clone()
-        if spp != self.spp:
-            sampler.set_sample_count(spp)
-        sampler.set_samples_per_wavefront(spp)
-        sampler.seed(seed, lanes)
-        pixel = dr.arange(mi.UInt32, lanes) // spp
+        if pattern is None:
+            spp = self.spp if spp is None else int(spp)
+            sampler = self.camera.sampler().clone()
+            if spp != self.spp:
+                sampler.set_sample_count(spp)
+            sampler.set_samples_per_wavefront(spp)
+            sampler.seed(seed, len(pixels) * spp)
+            filter_sample, aperture = sampler.next_2d(), sampler.next_2d()
+        else:
+            spp = len(pattern)
+            tiled = np.tile(np.asarray(pattern, np.float32), (len(pixels), 1))
+            filter_sample = mi.Point2f(tiled[:, 0], tiled[:, 1])
+            aperture = mi.Point2f(tiled[:, 2], tiled[:, 3])
+        pixel = dr.arange(mi.UInt32, len(pixels) * spp) // spp
         u = dr.gather(mi.Float, mi.Float(pixels[:, 0]), pixel)
         v = dr.gather(mi.Float, mi.Float(pixels[:, 1]), pixel)
-        offset = filter_offsets(self.spec.rfilter, sampler.next_2d(), mi)
-        aperture = sampler.next_2d()
+        offset = filter_offsets(self.spec.rfilter, filter_sample, mi)
         ray = self.camera.ray_through(u + offset.x, v + offset.y, aperture)
-        if not radiance:
+        if pattern is not None:
             return ray, None
         value, _, _ = self.scene.integrator().sample(self.scene, sampler, mi.RayDifferential3f(ray))
         return ray, value
