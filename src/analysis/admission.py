@@ -77,7 +77,9 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     corner signature (:attr:`~simgap.analysis.fitting.ProjectionCandidate.corner_signature`);
     its corners are distinguishably better than ``reference``'s (or than no effect): the corner
     channel beyond its tolerance (:func:`~simgap.analysis.scoring.distinguishably_lower`) or
-    item by item (:func:`~simgap.analysis.scoring.corners_clearly_lower`); and the pose gap is not
+    item by item over both folds of a cross-fit
+    (:func:`~simgap.analysis.scoring.corners_clearly_lower`,
+    :func:`~simgap.analysis.scoring.corner_residuals`); and the pose gap is not
     distinguishably larger, by the tolerance of every channel
     (:func:`~simgap.analysis.scoring.distinguishably_lower` on the pose channel: a quarter unit
     and 10 %). Within its noise the pose gap tells nothing either way: a lens distortion whose
@@ -91,12 +93,14 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     if len(new) != 1 or not has_corner_signature(new[0]):
         return False
     if reference is None:
-        before_px, before = scored.corner_gap_before_px, corner_residuals(scored, before=True)
+        before_px = scored.corner_gap_before_px
+        before = corner_residuals(scored, before=True, cross_fitted=True)
     else:
-        before_px, before = reference.corner_gap_after_px, corner_residuals(reference)
+        before_px = reference.corner_gap_after_px
+        before = corner_residuals(reference, cross_fitted=True)
     lower = corner_gap_lower(
         scored.corner_gap_after_px, before_px, scored.corner_unit_px
-    ) or corners_clearly_lower(corner_residuals(scored), before)
+    ) or corners_clearly_lower(corner_residuals(scored, cross_fitted=True), before)
     if reference is None:
         pose_before = scored.pose_gap_all_axes_before
     else:

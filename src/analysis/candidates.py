@@ -38,7 +38,10 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
             ProjectionCandidate("focal_length", [("scale", 0.01, 0.25)]),
             ProjectionCandidate("principal_point", [("dx_px", 5.0, 150.0), ("dy_px", 5.0, 150.0)]),
             ProjectionCandidate(
-                "lens_distortion", [("k1", 0.05, 1.5), ("k2", 0.1, 1.5)], corner_signature=True
+                "lens_distortion",
+                [("k1", 0.05, 1.5), ("k2", 0.1, 1.5)],
+                corner_signature=True,
+                nested=1,
             ),
             ProjectionCandidate(
                 "camera_mount",

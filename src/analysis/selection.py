@@ -2,7 +2,8 @@
 
 A *model* is a set of catalogue effects. Simulation (appearance) effects are fitted one by one on
 the image evidence of the fit split, projection effects jointly on its corners on top. Every
-model is scored on the choose split on all evidence channels (:mod:`simgap.analysis.channels`).
+model is scored on the choose split on all evidence channels (:mod:`simgap.analysis.channels`),
+its corners also cross-fitted (:mod:`simgap.analysis.cross_fit`).
 The search ranks single effects, then adds effects greedily while the combined misfit falls and
 some channel improves distinguishably (:mod:`simgap.analysis.scoring`), and after every step
 simplifies the model: effects are dropped or swapped for ones with fewer parameters while the
@@ -22,8 +23,10 @@ from simgap.analysis.admission import admissible, at_bound
 from simgap.analysis.channels import Prediction
 from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.corner_findings import with_corner_effects
-from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate, ProjectionSet
+from simgap.analysis.cross_fit import cross_fitted
+from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate
 from simgap.analysis.pair_step import pair_start, pair_step
+from simgap.analysis.projection_set import ProjectionSet
 from simgap.analysis.pruning import pruned
 from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
@@ -142,7 +145,7 @@ class ModelSearch:
             members = joint.member_fits(fit) if len(proj) > 1 else [fit]
             fits = list(zip(proj, members, strict=True)) + fits
         scored = self.score(fits, projection, self.choose_index)
-        self._evaluated[key] = scored
+        self._evaluated[key] = scored = cross_fitted(scored, rig, base, self.chain, tr)
         self.steps.advance()
         return scored
 

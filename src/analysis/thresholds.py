@@ -103,7 +103,7 @@ EQUIVALENT_REL: Final[float] = 0.1
 #: channel's tolerance in its unit, a quarter unit, applied to every channel.
 EQUIVALENT_UNITS: Final[float] = EQUIVALENT_PX / CORNER_UNIT_PX
 #: Paired one-sided signed-rank test of per-item corner residuals
-#: (:func:`simgap.analysis.scoring.corners_clearly_lower`): its false-alarm rate, and the
+#: (:func:`simgap.analysis.paired.clearly_lower`): its false-alarm rate, and the
 #: smallest median improvement as a share of the other model's median residual (a lens
 #: distortion moves the central tags' corners by tenths of a pixel, consistently).
 PAIRED_ALPHA: Final[float] = 0.01

@@ -1,0 +1,79 @@
+"""Two-fold cross-fitting of a model's corners: every searched item held out once.
+
+Models are fitted on the fit split and scored on the choose split
+(:mod:`simgap.analysis.selection`). For the corner evidence the folds are also swapped: the model's
+projection effects are refitted on the choose split and predict the fit split's corners, so that
+the paired corner test (:func:`simgap.analysis.scoring.corner_residuals`) sees every searched item
+predicted by a model that did not fit it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate
+from simgap.analysis.paired import item_residuals_px2
+from simgap.analysis.projection_set import ProjectionSet
+from simgap.analysis.scored import Scored
+from simgap.core.rig import Rig
+from simgap.effects.state import VariantState
+
+if TYPE_CHECKING:
+    from simgap.analysis.simulation_chain import SimulationChain
+
+
+def cross_fit_residuals(
+    rig: Rig,
+    base: VariantState,
+    chain: SimulationChain,
+    fits: list[tuple[Candidate, Fit]],
+    fit_items: Items,
+    choose_items: Items,
+) -> np.ndarray:
+    """Per fit-split item, the corner residual (px^2) of the model refitted on the choose split.
+
+    The model's projection effects (those of ``fits``) are refitted jointly on the choose split's
+    corners, on top of its simulation effects (as
+    :meth:`~simgap.analysis.selection.ModelSearch.evaluate` fits them on the fit split), and predict
+    the fit split's corners. The simulation effects keep
+    their fits (made on image statistics, not on corners).
+    """
+    simulation = [(c, f) for c, f in fits if not isinstance(c, ProjectionCandidate)]
+    proj = sorted(
+        (c for c, _ in fits if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
+    )
+    predicted = fit_items.sim_corners + chain.changes(simulation, fit_items)[0]
+    if proj:
+        joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
+        shifted = choose_items.sim_corners + chain.changes(simulation, choose_items)[0]
+        refit = joint.fit(rig, base, dataclasses.replace(choose_items, sim_corners=shifted))
+        shift = joint.corner_shift(rig, base, refit.extra["x"], fit_items)
+        predicted = predicted + np.nan_to_num(shift)
+    return item_residuals_px2(fit_items.real_corners - predicted)
+
+
+def cross_fitted(
+    scored: Scored,
+    rig: Rig,
+    base: VariantState,
+    chain: SimulationChain,
+    fit_items: Items,
+) -> Scored:
+    """``scored`` (fitted on ``fit_items``, scored on its own items) with the other fold added.
+
+    Sets :attr:`~simgap.analysis.scored.Scored.cross_fit_residuals` (:func:`cross_fit_residuals`
+    with the model refitted on ``scored.items``) and the simulation's own residuals on
+    ``fit_items``.
+    """
+    return dataclasses.replace(
+        scored,
+        cross_fit_residuals=cross_fit_residuals(
+            rig, base, chain, scored.fits, fit_items, scored.items
+        ),
+        cross_fit_residuals_before=item_residuals_px2(
+            fit_items.real_corners - fit_items.sim_corners
+        ),
+    )

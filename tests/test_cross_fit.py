@@ -1,0 +1,99 @@
+"""Held-out corner evidence: two-fold cross-fitted residuals, the paired test, nested lens fits."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from test_diagnose import _items, _search
+
+from simgap.analysis.candidates import CANDIDATES
+from simgap.analysis.paired import MIN_PAIRED_ITEMS, clearly_lower
+from simgap.analysis.scoring import corner_residuals
+from simgap.core.rig import load_rig
+
+
+def test_clearly_lower_needs_a_consistent_improvement():
+    rng = np.random.default_rng(0)
+    b = rng.uniform(0.5, 1.5, 30)
+    # every item 10 % lower: consistent
+    assert clearly_lower(0.9 * b, b)
+    # the same residuals with noise of either sign around them: no direction
+    assert not clearly_lower(b + rng.normal(0.0, 0.2, b.size), b)
+    # consistent, but by less than the smallest share (PAIRED_MIN_SHARE, 5 %)
+    assert not clearly_lower(0.97 * b, b)
+    # too few items to test; items missing on either side are left out
+    assert not clearly_lower(0.5 * b[: MIN_PAIRED_ITEMS - 1], b[: MIN_PAIRED_ITEMS - 1])
+    a = 0.9 * b
+    a[:3] = np.nan
+    assert clearly_lower(a, b)
+
+
+def test_every_searched_item_is_held_out_once():
+    """A searched model's corner residuals cover the choose split (model fitted on the fit split)
+    and then the fit split, predicted by the model refitted on the choose split."""
+    rig = load_rig()
+    search = _search(rig, {"lens_distortion": {"k1": 0.05}})
+    lens = CANDIDATES["lens_distortion"]
+    scored = search.evaluate((lens,))
+    n_choose, n_fit = len(search.choose_index), len(search.fit_index)
+    residuals = corner_residuals(scored, cross_fitted=True)
+    before = corner_residuals(scored, before=True, cross_fitted=True)
+    assert residuals.shape == before.shape == (n_choose + n_fit,)
+    # the model search's own comparisons keep the choose split
+    assert corner_residuals(scored).shape == (n_choose,)
+    # the second fold, computed here without the search
+    choose, fit = search.items.subset(search.choose_index), search.items.subset(search.fit_index)
+    refit = lens.fit(rig, search.base, choose)
+    predicted = fit.sim_corners + lens.corner_shift(rig, search.base, refit.extra["x"], fit)
+    expected = np.sum((fit.real_corners - predicted) ** 2, axis=-1).mean(axis=-1)
+    np.testing.assert_allclose(residuals[n_choose:], expected, rtol=1e-12)
+    np.testing.assert_allclose(
+        before[n_choose:],
+        np.sum((fit.real_corners - fit.sim_corners) ** 2, axis=-1).mean(axis=-1),
+        rtol=1e-12,
+    )
+    # the lens is right: lower on both folds (measured medians 0.47x and 0.79x the simulation's)
+    assert np.median(residuals[:n_choose]) < 0.6 * np.median(before[:n_choose])
+    assert np.median(residuals[n_choose:]) < 0.9 * np.median(before[n_choose:])
+
+
+def test_a_report_split_score_is_not_cross_fitted():
+    """Scored outside the search (the report split), a model keeps its own items only."""
+    rig = load_rig()
+    search = _search(rig, {"lens_distortion": {"k1": 0.05}})
+    scored = search.evaluate((CANDIDATES["lens_distortion"],))
+    reported = search.score(scored.fits, scored.projection[:2], search.choose_index)
+    assert corner_residuals(reported, cross_fitted=True).shape == (len(search.choose_index),)
+    assert dataclasses.replace(scored, cross_fit_residuals=None).cross_fit_residuals is None
+
+
+@pytest.mark.parametrize(
+    "hidden, noise_px, k2_released, k1_tolerance",
+    [
+        # a lens with k1 alone: k2 stays zero (fitted always, it took 0.020 and k1 -0.0835;
+        # nested, measured k1 -0.0811)
+        ({"k1": -0.08}, 0.2, False, 0.003),
+        # a D435-like module (k1 0.16, k2 -0.48, k3 0.42) whose corners demand k2: released
+        # (measured k1 0.157, k2 -0.398, corners 0.005 px RMS)
+        ({"k1": 0.16, "k2": -0.48, "k3": 0.42}, 0.0, True, 0.005),
+        ({"k1": 0.1, "k2": -0.45}, 0.0, True, 1e-6),
+    ],
+)
+def test_a_lens_fit_frees_k2_only_where_the_corners_need_it(
+    hidden, noise_px, k2_released, k1_tolerance
+):
+    """Issue 25, blind seed 44 trial 39: a lens without distortion (a calibration file that
+    claims k1 0.062) fitted k1 0.017, k2 -0.25 on central tags; with k1 alone, 0.006. The
+    nested fit keeps k2 at zero unless it lowers the items' corners consistently
+    (:func:`simgap.analysis.paired.clearly_lower`). Tolerances from the measured values (in the
+    comments). Under 0.2 px of corner noise the D435-like lens keeps k1 alone on these items
+    (measured k1 0.115): k2 lowers the median item by 1.9 %, at p = 0.025 (the gain is at the
+    outer tags); on development seed 44 every lens but two read k1 within 10 %
+    (docs/validation.md)."""
+    rig = load_rig()
+    items, base = _items(rig, {"lens_distortion": hidden}, noise_px=noise_px, seed=1)
+    fit = CANDIDATES["lens_distortion"].fit(rig, base, items)
+    assert (fit.params["k2"] != 0.0) == k2_released
+    assert fit.params["k1"] == pytest.approx(hidden["k1"], abs=k1_tolerance)
