@@ -269,10 +269,14 @@ def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
     real = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 1.0])
     swapped = np.array([0.0, 1.0, 0.0, 1.0, 1.0, 1.0])  # the same losses, other tags
     views = np.array([0, 0, 1, 1, 2, 2])
-    assert detection_score(real, swapped) == pytest.approx(4 / 6 / DETECTION_UNIT)
+    # six items: the unit is one item's share (1/6), so four tags swapped are 4 units
+    assert detection_score(real, swapped) == pytest.approx(4.0)
     assert detection_score(real, swapped, [views]) == pytest.approx(0.0)
     nothing_lost = np.ones(6)
-    assert detection_score(real, nothing_lost, [views]) == pytest.approx(2 / 6 / DETECTION_UNIT)
+    assert detection_score(real, nothing_lost, [views]) == pytest.approx(2.0)
+    # from twenty items on, the unit is DETECTION_UNIT (5 %)
+    many_real, many_pred = np.tile(real, 5), np.tile(swapped, 5)
+    assert detection_score(many_real, many_pred) == pytest.approx(4 / 6 / DETECTION_UNIT)
 
 
 def _search(rig, hidden: dict[str, dict]) -> ModelSearch:
