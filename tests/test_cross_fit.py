@@ -43,7 +43,9 @@ def test_every_searched_item_is_held_out_once():
     assert residuals.shape == before.shape == (n_choose + n_fit,)
     # the model search's own comparisons keep the choose split
     assert corner_residuals(scored).shape == (n_choose,)
-    # the second fold, computed here without the search
+    # the second fold, computed here without the search (on the simulation fits' items: here the
+    # whole fit split)
+    assert np.array_equal(search.sim_fit_index, search.fit_index)
     choose, fit = search.items.subset(search.choose_index), search.items.subset(search.fit_index)
     refit = lens.fit(rig, search.base, choose)
     predicted = fit.sim_corners + lens.corner_shift(rig, search.base, refit.extra["x"], fit)
@@ -60,13 +62,18 @@ def test_every_searched_item_is_held_out_once():
 
 
 def test_a_report_split_score_is_not_cross_fitted():
-    """Scored outside the search (the report split), a model keeps its own items only."""
+    """Scored outside the search (the report split), a model has its own items only: asked for
+    cross-fitted residuals it raises (a paired test against a cross-fitted model would compare
+    other items)."""
     rig = load_rig()
     search = _search(rig, {"lens_distortion": {"k1": 0.05}})
     scored = search.evaluate((CANDIDATES["lens_distortion"],))
     reported = search.score(scored.fits, scored.projection[:2], search.choose_index)
-    assert corner_residuals(reported, cross_fitted=True).shape == (len(search.choose_index),)
-    assert dataclasses.replace(scored, cross_fit_residuals=None).cross_fit_residuals is None
+    assert corner_residuals(reported).shape == (len(search.choose_index),)
+    with pytest.raises(ValueError, match="not cross-fitted"):
+        corner_residuals(reported, cross_fitted=True)
+    with pytest.raises(ValueError, match="not cross-fitted"):
+        corner_residuals(dataclasses.replace(scored, cross_fit_residuals=None), cross_fitted=True)
 
 
 @pytest.mark.parametrize(

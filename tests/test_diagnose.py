@@ -304,7 +304,7 @@ def test_a_lens_distortion_the_corners_single_out_is_reported_as_minor():
     chosen = _select(search)
     assert chosen.effects == ["lens_distortion"]
     assert search.minor(chosen) == ["lens_distortion"]
-    # measured 0.0486 (k1 alone: k2 does not predict held-out corners better)
+    # measured 0.0486 (k1 alone: k2 does not lower the items' corners consistently)
     assert chosen.fits[0][1].params["k1"] == pytest.approx(0.05, abs=0.012)
     # a calibration file that claims a distortion the lens does not have reads the same way
     # (the simulation renders the claimed k1 0.08, the lens has none): measured k1 -0.087

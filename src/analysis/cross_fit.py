@@ -2,9 +2,11 @@
 
 Models are fitted on the fit split and scored on the choose split
 (:mod:`simgap.analysis.selection`). For the corner evidence the folds are also swapped: the model's
-projection effects are refitted on the choose split and predict the fit split's corners, so that
-the paired corner test (:func:`simgap.analysis.scoring.corner_residuals`) sees every searched item
-predicted by a model that did not fit it.
+projection effects are refitted on the choose split and predict the corners of the fit split's
+items that the simulation effects were fitted on (its subsample, ``sim_fit_index``: rendered
+already), so that the paired corner test (:func:`simgap.analysis.scoring.corner_residuals`) sees
+every such item predicted by geometry that did not fit it. The simulation (appearance) effects are
+not refitted: their fits were made on the fit split's image statistics, not on corners.
 """
 
 from __future__ import annotations
@@ -55,19 +57,16 @@ def cross_fit_residuals(
     return item_residuals_px2(fit_items.real_corners - predicted)
 
 
-def cross_fitted(
-    scored: Scored,
-    rig: Rig,
-    base: VariantState,
-    chain: SimulationChain,
-    fit_items: Items,
-) -> Scored:
-    """``scored`` (fitted on ``fit_items``, scored on its own items) with the other fold added.
+def cross_fitted(scored: Scored, rig: Rig, base: VariantState, chain: SimulationChain) -> Scored:
+    """``scored`` (scored on its own items, the choose split) with the other fold added.
 
-    Sets :attr:`~simgap.analysis.scored.Scored.cross_fit_residuals` (:func:`cross_fit_residuals`
-    with the model refitted on ``scored.items``) and the simulation's own residuals on
-    ``fit_items``.
+    The other fold is the items the simulation effects were fitted on (``chain.items``, the fit
+    split's subsample: already rendered with them). Sets
+    :attr:`~simgap.analysis.scored.Scored.cross_fit_residuals` (:func:`cross_fit_residuals` with
+    the model's projection effects refitted on ``scored.items``) and the simulation's own
+    residuals on those items.
     """
+    fit_items = chain.items
     return dataclasses.replace(
         scored,
         cross_fit_residuals=cross_fit_residuals(

@@ -190,12 +190,14 @@ class ProjectionCandidate:
         (:mod:`simgap.analysis.size_signature`), not where it is an edge offset of an image effect.
     nested : int
         Fit the first ``nested`` parameters alone first (0: all at once); the others are
-        released only where they lower the items' corner residuals consistently, item by item
-        (:func:`simgap.analysis.paired.clearly_lower`: by at least 5 % of the median residual and
-        at p < 0.01). A lens's k2 beside k1 on tags that
-        span a small part of the image radius is nearly degenerate with it: fitted always, it
-        traded k1 for k2 (blind seed 44 trial 39: k1 0.017, k2 -0.25 for a lens without
-        distortion; k1 alone 0.006) and its corners on held-out items were worse.
+        released only where they lower the fitted items' own corner residuals consistently, item
+        by item (:func:`simgap.analysis.paired.clearly_lower`: by at least 5 % of the median
+        residual and at p < 0.01; an in-sample test, so on fewer than 7 items nothing is
+        released). A lens's k2 beside k1 on tags that span a small part of the image radius is
+        nearly degenerate with it: fitted always, it traded k1 for k2 (blind seed 44 trial 39:
+        k1 0.017, k2 -0.25 for a lens without distortion; k1 alone 0.006) and its corners on
+        held-out items were worse. :attr:`n_params` still counts every parameter (parsimony
+        charges a lens for k2 whether or not it was released).
     """
 
     kind = "projection"

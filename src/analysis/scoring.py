@@ -53,12 +53,12 @@ def corner_residuals(
     """Per held-out item, the mean squared corner distance real - predicted (px^2).
 
     The scored items, each predicted by the model fitted on the other split; with
-    ``cross_fitted`` and where the model was cross-fitted
-    (:attr:`~simgap.analysis.scored.Scored.cross_fit_residuals`), followed by the other split's
-    items predicted by the model refitted on the scored ones: every item is then held out once
-    (two-fold cross-fitting). A choose split of 6-10 configurations alone could not show a lens
-    distortion that moves the corners by a tenth of a pixel (blind seed 42: the paired test gave
-    p = 0.02-0.23 on three calibration files whose lens fit was right). Only an effect with a
+    ``cross_fitted``, followed by the other split's items predicted by the model refitted on the
+    scored ones (:attr:`~simgap.analysis.scored.Scored.cross_fit_residuals`; a ValueError for a
+    model that was not cross-fitted): every item is then held out once (two-fold cross-fitting).
+    A choose split of 6-10 configurations alone could not show a lens distortion that moves the
+    corners by a tenth of a pixel (blind seed 42: the paired test gave p = 0.02-0.23 on three
+    calibration files whose lens fit was right). Only an effect with a
     corner signature of its own is admitted on the cross-fitted corners
     (:func:`~simgap.analysis.admission.seen_in_corners`): the model search's comparisons keep
     the choose split (pooled, a focal length of -0.04 % joined a principal point on seed 44 trial
@@ -69,8 +69,12 @@ def corner_residuals(
         return None
     pred = h.sim_corners if before else scored.prediction.corners
     own = item_residuals_px2(h.real_corners - pred)
+    if not cross_fitted:
+        return own
     cross = scored.cross_fit_residuals_before if before else scored.cross_fit_residuals
-    return own if cross is None or not cross_fitted else np.concatenate([own, cross])
+    if cross is None:  # two models compared on other items would be no paired test
+        raise ValueError("corner_residuals: the model was not cross-fitted (ModelSearch.evaluate)")
+    return np.concatenate([own, cross])
 
 
 def corners_clearly_lower(a: np.ndarray | None, b: np.ndarray | None) -> bool:

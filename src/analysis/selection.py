@@ -3,13 +3,13 @@
 A *model* is a set of catalogue effects. Simulation (appearance) effects are fitted one by one on
 the image evidence of the fit split, projection effects jointly on its corners on top. Every
 model is scored on the choose split on all evidence channels (:mod:`simgap.analysis.channels`),
-its corners also cross-fitted (:mod:`simgap.analysis.cross_fit`).
-The search ranks single effects, then adds effects greedily while the combined misfit falls and
-some channel improves distinguishably (:mod:`simgap.analysis.scoring`), and after every step
-simplifies the model: effects are dropped or swapped for ones with fewer parameters while the
-model stays *as good* (the data cannot tell the models apart, so the simpler explanation is
-reported and the others are listed). The report split is scored only for the chosen model.
-Whether an effect may enter a model at all is :mod:`simgap.analysis.admission`.
+its corners also cross-fitted (:mod:`simgap.analysis.cross_fit`). The search ranks single effects,
+then adds effects greedily while the combined misfit falls and some channel improves
+distinguishably (:mod:`simgap.analysis.scoring`), and after every step simplifies the model:
+effects are dropped or swapped for ones with fewer parameters while the model stays *as good*
+(the data cannot tell the models apart, so the simpler explanation is reported and the others are
+listed). The report split is scored only for the chosen model. Whether an effect may enter a
+model at all is :mod:`simgap.analysis.admission`.
 """
 
 from __future__ import annotations
@@ -145,7 +145,7 @@ class ModelSearch:
             members = joint.member_fits(fit) if len(proj) > 1 else [fit]
             fits = list(zip(proj, members, strict=True)) + fits
         scored = self.score(fits, projection, self.choose_index)
-        self._evaluated[key] = scored = cross_fitted(scored, rig, base, self.chain, tr)
+        scored = self._evaluated[key] = cross_fitted(scored, rig, base, self.chain)
         self.steps.advance()
         return scored
 
