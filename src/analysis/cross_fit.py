@@ -16,9 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate
+from simgap.analysis.fitting import Items, ProjectionCandidate
 from simgap.analysis.paired import item_residuals_px2
-from simgap.analysis.projection_set import ProjectionSet
 from simgap.analysis.scored import Scored
 from simgap.core.rig import Rig
 from simgap.effects.state import VariantState
@@ -28,30 +27,22 @@ if TYPE_CHECKING:
 
 
 def cross_fit_residuals(
-    rig: Rig,
-    base: VariantState,
-    chain: SimulationChain,
-    fits: list[tuple[Candidate, Fit]],
-    fit_items: Items,
-    choose_items: Items,
+    scored: Scored, rig: Rig, base: VariantState, chain: SimulationChain, fit_items: Items
 ) -> np.ndarray:
-    """Per fit-split item, the corner residual (px^2) of the model refitted on the choose split.
+    """Per item of ``fit_items``, the corner residual (px^2) of ``scored`` refitted on its items.
 
-    The model's projection effects (those of ``fits``) are refitted jointly on the choose split's
-    corners, on top of its simulation effects (as
-    :meth:`~simgap.analysis.selection.ModelSearch.evaluate` fits them on the fit split), and predict
-    the fit split's corners. The simulation effects keep
-    their fits (made on image statistics, not on corners).
+    The model's joint projection effect (``scored.projection``: the candidate, and the scored
+    items with the simulation effects' corner changes it was applied to) is refitted on those
+    items, on top of the simulation effects (as
+    :meth:`~simgap.analysis.selection.ModelSearch.evaluate` fits it on the fit split), and
+    predicts the corners of ``fit_items``. The simulation effects keep their fits (made on image
+    statistics, not on corners).
     """
-    simulation = [(c, f) for c, f in fits if not isinstance(c, ProjectionCandidate)]
-    proj = sorted(
-        (c for c, _ in fits if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
-    )
+    simulation = [(c, f) for c, f in scored.fits if not isinstance(c, ProjectionCandidate)]
     predicted = fit_items.sim_corners + chain.changes(simulation, fit_items)[0]
-    if proj:
-        joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
-        shifted = choose_items.sim_corners + chain.changes(simulation, choose_items)[0]
-        refit = joint.fit(rig, base, dataclasses.replace(choose_items, sim_corners=shifted))
+    if scored.projection is not None:
+        joint, _, shifted = scored.projection
+        refit = joint.fit(rig, base, shifted)
         shift = joint.corner_shift(rig, base, refit.extra["x"], fit_items)
         predicted = predicted + np.nan_to_num(shift)
     return item_residuals_px2(fit_items.real_corners - predicted)
@@ -62,16 +53,13 @@ def cross_fitted(scored: Scored, rig: Rig, base: VariantState, chain: Simulation
 
     The other fold is the items the simulation effects were fitted on (``chain.items``, the fit
     split's subsample: already rendered with them). Sets
-    :attr:`~simgap.analysis.scored.Scored.cross_fit_residuals` (:func:`cross_fit_residuals` with
-    the model's projection effects refitted on ``scored.items``) and the simulation's own
-    residuals on those items.
+    :attr:`~simgap.analysis.scored.Scored.cross_fit_residuals` (:func:`cross_fit_residuals`) and
+    the simulation's own residuals on those items.
     """
     fit_items = chain.items
     return dataclasses.replace(
         scored,
-        cross_fit_residuals=cross_fit_residuals(
-            rig, base, chain, scored.fits, fit_items, scored.items
-        ),
+        cross_fit_residuals=cross_fit_residuals(scored, rig, base, chain, fit_items),
         cross_fit_residuals_before=item_residuals_px2(
             fit_items.real_corners - fit_items.sim_corners
         ),

@@ -267,17 +267,15 @@ class ProjectionCandidate:
         target = items.real_corners
         ok = np.isfinite(target).all(axis=(1, 2)) & np.isfinite(items.sim_corners).all(axis=(1, 2))
         sub = items.subset(np.flatnonzero(ok))
-        goal = target[ok] - sub.sim_corners
+        goal = (target[ok] - sub.sim_corners).ravel()
 
-        def residual_on(index: np.ndarray):
-            part, want = sub.subset(index), goal[index].ravel()
-            return lambda x: self.corner_shift(rig, base, x * self.x_scale, part).ravel() - want
+        def residual(x):
+            return self.corner_shift(rig, base, x * self.x_scale, sub).ravel() - goal
 
-        every = np.arange(len(sub))
-        x, fun = self._solve(residual_on(every), np.ones(self.n_params, bool))
+        x, fun = self._solve(residual, np.ones(self.n_params, bool))
         low = self.low_order()
         if not low.all():
-            x_low, fun_low = self._solve(residual_on(every), low)
+            x_low, fun_low = self._solve(residual, low)
             if not clearly_lower(item_residuals_px2(fun), item_residuals_px2(fun_low)):
                 x, fun = x_low, fun_low
         x = x * self.x_scale
