@@ -279,9 +279,9 @@ def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
     assert detection_score(many_real, many_pred) == pytest.approx(4 / 6 / DETECTION_UNIT)
 
 
-def _search(rig, hidden: dict[str, dict]) -> ModelSearch:
-    """A model search over exact corners with 0.2 px detector-like noise (seed 1)."""
-    items, base = _items(rig, hidden, noise_px=0.2, seed=1)
+def _search(rig, hidden: dict[str, dict], seed: int = 1, shrink_px: float = 0.0) -> ModelSearch:
+    """A model search over exact corners with 0.2 px detector-like noise (:func:`_items`)."""
+    items, base = _items(rig, hidden, noise_px=0.2, seed=seed, shrink_px=shrink_px)
     idx = np.arange(len(items))
     fit, choose = idx[idx % 3 != 0], idx[idx % 3 == 0]
     return ModelSearch(rig, base, items, fit, choose, fit, np.ones(6, bool))

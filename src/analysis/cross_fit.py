@@ -4,9 +4,10 @@ Models are fitted on the fit split and scored on the choose split
 (:mod:`simgap.analysis.selection`). For the corner evidence the folds are also swapped: the model's
 projection effects are refitted on the choose split and predict the corners of the fit split's
 items that the simulation effects were fitted on (its subsample, ``sim_fit_index``: rendered
-already), so that the paired corner test (:func:`simgap.analysis.scoring.corner_residuals`) sees
-every such item predicted by geometry that did not fit it. The simulation (appearance) effects are
-not refitted: their fits were made on the fit split's image statistics, not on corners.
+already), so that the paired corner tests (:func:`simgap.analysis.scoring.corner_residuals`, on
+the corners or on the tag centres) see every such item predicted by geometry that did not fit
+it. The simulation (appearance) effects are not refitted: their fits were made on the fit split's
+image statistics, not on corners.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simgap.analysis.fitting import Items, ProjectionCandidate
-from simgap.analysis.paired import item_residuals_px2
 from simgap.analysis.scored import Scored
 from simgap.core.rig import Rig
 from simgap.effects.state import VariantState
@@ -26,10 +26,10 @@ if TYPE_CHECKING:
     from simgap.analysis.simulation_chain import SimulationChain
 
 
-def cross_fit_residuals(
+def cross_fit_difference(
     scored: Scored, rig: Rig, base: VariantState, chain: SimulationChain, fit_items: Items
 ) -> np.ndarray:
-    """Per item of ``fit_items``, the corner residual (px^2) of ``scored`` refitted on its items.
+    """Corners of ``fit_items``, real - predicted (N, 4, 2) (px), by ``scored`` refitted on its own.
 
     The model's joint projection effect (``scored.projection``: the candidate, and the scored
     items with the simulation effects' corner changes it was applied to) is refitted on those
@@ -45,7 +45,7 @@ def cross_fit_residuals(
         refit = joint.fit(rig, base, shifted)
         shift = joint.corner_shift(rig, base, refit.extra["x"], fit_items)
         predicted = predicted + np.nan_to_num(shift)
-    return item_residuals_px2(fit_items.real_corners - predicted)
+    return fit_items.real_corners - predicted
 
 
 def cross_fitted(scored: Scored, rig: Rig, base: VariantState, chain: SimulationChain) -> Scored:
@@ -53,14 +53,12 @@ def cross_fitted(scored: Scored, rig: Rig, base: VariantState, chain: Simulation
 
     The other fold is the items the simulation effects were fitted on (``chain.items``, the fit
     split's subsample: already rendered with them). Sets
-    :attr:`~simgap.analysis.scored.Scored.cross_fit_residuals` (:func:`cross_fit_residuals`) and
-    the simulation's own residuals on those items.
+    :attr:`~simgap.analysis.scored.Scored.cross_fit_difference` (:func:`cross_fit_difference`)
+    and the simulation's own corner differences on those items.
     """
     fit_items = chain.items
     return dataclasses.replace(
         scored,
-        cross_fit_residuals=cross_fit_residuals(scored, rig, base, chain, fit_items),
-        cross_fit_residuals_before=item_residuals_px2(
-            fit_items.real_corners - fit_items.sim_corners
-        ),
+        cross_fit_difference=cross_fit_difference(scored, rig, base, chain, fit_items),
+        cross_fit_difference_before=fit_items.real_corners - fit_items.sim_corners,
     )

@@ -3,8 +3,8 @@
 The one test the diagnosis uses wherever a model's corners must be *consistently* better item by
 item, even by less than the fixed corner tolerance: the model search
 (:func:`simgap.analysis.scoring.corners_clearly_lower`) and the order of a nested fit
-(:meth:`simgap.analysis.fitting.ProjectionCandidate.fit`); and the per-item residual they compare
-(:func:`item_residuals_px2`).
+(:meth:`simgap.analysis.fitting.ProjectionCandidate.fit`); and the per-item residuals they compare
+(:func:`item_residuals_px2`, :func:`item_centre_residuals_px2`).
 """
 
 from __future__ import annotations
@@ -21,6 +21,15 @@ MIN_PAIRED_ITEMS = 6
 def item_residuals_px2(difference: np.ndarray) -> np.ndarray:
     """Per item, the mean squared corner distance (px^2) of corner differences (N, 4, 2) (px)."""
     return np.sum(np.reshape(difference, (-1, 4, 2)) ** 2, axis=-1).mean(axis=-1)
+
+
+def item_centre_residuals_px2(difference: np.ndarray) -> np.ndarray:
+    """Per item, the squared tag-centre distance (px^2) of corner differences (N, 4, 2) (px).
+
+    The centre is the mean of the four corners: an edge bias that moves every side of the tag
+    in or out by the same amount (exposure, softness, ink spread, a print scale) leaves it.
+    """
+    return np.sum(np.mean(np.reshape(difference, (-1, 4, 2)), axis=-2) ** 2, axis=-1)
 
 
 def clearly_lower(a: np.ndarray, b: np.ndarray) -> bool:

@@ -58,11 +58,11 @@ class Scored:
         simulation effects' corner changes).
     simulation_deltas : dict of str to ndarray (N, 6)
         Change of error (m, rad) of each simulation effect of the model.
-    cross_fit_residuals, cross_fit_residuals_before : ndarray (M,) or None
-        Per item of the *other* split (the fit split while models are searched), the mean
-        squared corner distance real - predicted (px^2) of the model with its projection effects
-        refitted on the scored items (two-fold cross-fitting, :mod:`simgap.analysis.cross_fit`),
-        and of the simulation alone; None where the model was not cross-fitted.
+    cross_fit_difference, cross_fit_difference_before : ndarray (M, 4, 2) or None
+        Per item of the *other* split (the fit split while models are searched), the corners
+        real - predicted (px) by the model with its projection effects refitted on the scored
+        items (two-fold cross-fitting, :mod:`simgap.analysis.cross_fit`), and by the simulation
+        alone; None where the model was not cross-fitted.
     """
 
     fits: list[tuple[Candidate, Fit]]
@@ -83,8 +83,8 @@ class Scored:
     prediction: Prediction | None = None
     projection: tuple[Any, Fit, Items] | None = None
     simulation_deltas: dict[str, np.ndarray] = field(default_factory=dict)
-    cross_fit_residuals: np.ndarray | None = None
-    cross_fit_residuals_before: np.ndarray | None = None
+    cross_fit_difference: np.ndarray | None = None
+    cross_fit_difference_before: np.ndarray | None = None
 
     @classmethod
     def measured(

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.paired import clearly_lower, item_residuals_px2
+from simgap.analysis.paired import clearly_lower, item_centre_residuals_px2, item_residuals_px2
 from simgap.analysis.scored import Scored
 from simgap.analysis.thresholds import EQUIVALENT_REL, EQUIVALENT_UNITS
 
@@ -48,33 +48,37 @@ def corner_gap_lower(after_px: float, before_px: float, unit_px: float) -> bool:
 
 
 def corner_residuals(
-    scored: Scored, before: bool = False, cross_fitted: bool = False
+    scored: Scored, before: bool = False, cross_fitted: bool = False, centres: bool = False
 ) -> np.ndarray | None:
     """Per held-out item, the mean squared corner distance real - predicted (px^2).
 
     The scored items, each predicted by the model fitted on the other split; with
     ``cross_fitted``, followed by the other split's items predicted by the model refitted on the
-    scored ones (:attr:`~simgap.analysis.scored.Scored.cross_fit_residuals`; a ValueError for a
+    scored ones (:attr:`~simgap.analysis.scored.Scored.cross_fit_difference`; a ValueError for a
     model that was not cross-fitted): every item is then held out once (two-fold cross-fitting).
     A choose split of 6-10 configurations alone could not show a lens distortion that moves the
     corners by a tenth of a pixel (blind seed 42: the paired test gave p = 0.02-0.23 on three
-    calibration files whose lens fit was right). Only an effect with a
-    corner signature of its own is admitted on the cross-fitted corners
-    (:func:`~simgap.analysis.admission.seen_in_corners`): the model search's comparisons keep
+    calibration files whose lens fit was right). Only the admission of a geometric effect uses
+    the cross-fitted residuals (:func:`~simgap.analysis.admission.seen_in_corners`,
+    :func:`~simgap.analysis.admission.seen_in_centres`): the model search's comparisons keep
     the choose split (pooled, a focal length of -0.04 % joined a principal point on seed 44 trial
     61 at p = 0.009, its corners on the choose split worse).
+
+    With ``centres``, the squared distance of the tag centres (the mean of the four corners,
+    :func:`~simgap.analysis.paired.item_centre_residuals_px2`) instead.
     """
     h = scored.items
     if h is None or scored.prediction is None:
         return None
+    residuals = item_centre_residuals_px2 if centres else item_residuals_px2
     pred = h.sim_corners if before else scored.prediction.corners
-    own = item_residuals_px2(h.real_corners - pred)
+    own = residuals(h.real_corners - pred)
     if not cross_fitted:
         return own
-    cross = scored.cross_fit_residuals_before if before else scored.cross_fit_residuals
+    cross = scored.cross_fit_difference_before if before else scored.cross_fit_difference
     if cross is None:  # two models compared on other items would be no paired test
         raise ValueError("corner_residuals: the model was not cross-fitted (ModelSearch.evaluate)")
-    return np.concatenate([own, cross])
+    return np.concatenate([own, residuals(cross)])
 
 
 def corners_clearly_lower(a: np.ndarray | None, b: np.ndarray | None) -> bool:
