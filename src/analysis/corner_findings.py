@@ -17,7 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from simgap.analysis.admission import admissible, has_corner_signature, seen_in_corners
+from simgap.analysis.admission import (
+    admissible,
+    at_bound,
+    has_corner_signature,
+    seen_in_corners,
+)
 from simgap.analysis.fitting import Candidate, ProjectionCandidate
 from simgap.analysis.scored import Scored
 
@@ -37,17 +42,15 @@ def with_corner_effects(
     """
     while len(scored.fits) < max_effects:
         model = tuple(c for c, _ in scored.fits)
-        options = [
-            option
-            for option in (
-                evaluate(model + (c,)) for c in pool if has_corner_signature(c) and c not in model
-            )
-            if admissible(option, scored) and seen_in_corners(option, scored)
-        ]
+        options = []
+        for c in (c for c in pool if has_corner_signature(c) and c not in model):
+            option = evaluate(model + (c,))
+            if admissible(option, scored) and seen_in_corners(option, scored):
+                options.append((option, c))
         if not options:
             return scored
-        scored = min(options, key=lambda s: s.evidence_after)
-        scored = without_displaced(scored, evaluate, scored.fits[-1][0])
+        best, added = min(options, key=lambda oc: oc[0].evidence_after)
+        scored = without_displaced(best, evaluate, added)
     return scored
 
 
@@ -61,13 +64,15 @@ def without_displaced(
     blind seed 45 trial 69, a calibration file's wrong distortion, the search let a focal length
     of -0.01 % in beside exposure on the tag centres the distortion had moved; with the lens
     distortion beside it, its centres were no better than the lens's alone (p = 0.67) and its
-    pose no closer, and it was still named.
+    pose no closer, and it was still named. Effects are questioned in the model's order (the
+    projection effects by name); each one that leaves is questioned no further.
     """
     for c, _ in scored.fits:
         if c is added or not isinstance(c, ProjectionCandidate):
             continue
         rest = evaluate(tuple(m for m, _ in scored.fits if m is not c))
-        if not admissible(scored, rest):
+        # a rest refitted onto a bound needs ``c`` to stay off it: not displaced
+        if not at_bound(rest) and not admissible(scored, rest):
             return without_displaced(rest, evaluate, added)
     return scored
 

@@ -27,7 +27,8 @@ def item_centre_residuals_px2(difference: np.ndarray) -> np.ndarray:
     """Per item, the squared tag-centre distance (px^2) of corner differences (N, 4, 2) (px).
 
     The centre is the mean of the four corners: an edge bias that moves every side of the tag
-    in or out by the same amount (exposure, softness, ink spread, a print scale) leaves it.
+    in or out by the same amount (exposure, softness, ink spread, a print scale) leaves it, up
+    to the perspective of an oblique tag (its near side drawn larger).
     """
     return np.sum(np.mean(np.reshape(difference, (-1, 4, 2)), axis=-2) ** 2, axis=-1)
 

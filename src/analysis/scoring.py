@@ -128,7 +128,8 @@ def worsens_pose(
 
     Larger by more than ``tolerance`` (relative; all axes,
     :attr:`~simgap.analysis.scored.Scored.pose_gap_all_axes_after`). A geometric
-    effect that does so is not an explanation of the gap, whatever it does to the corners: it is
+    effect that does so, and that neither the held-out corners nor the tag centres single out
+    (:func:`~simgap.analysis.admission.admissible`), is no explanation of the gap: it is
     a look-alike absorbing an image effect outside the catalogue (motion blur shifts the corners
     the detector finds; a tag print scale follows them and moves every pose further away).
     """

@@ -272,14 +272,13 @@ class ModelSearch:
         """Greedy forward search with joint refits, simplified after every step.
 
         A geometric effect enters a model (starts the search, or is added to it) only when it
-        brings the pose at least
-        :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one than
-        the model without it (:func:`worsens_pose`), or, for an effect with a corner signature
-        of its own (a lens distortion), when the corners single it out
-        (:func:`~simgap.analysis.admission.seen_in_corners`; issue 25: a D435-like lens fitted
-        to k1 0.155 was left out because it moved no pose beyond the floor, and a calibration
-        file's wrong distortion answered with a print scale). One that follows the corners without
-        moving the poses closer is a look-alike of an image effect (measured: a tag print scale
+        brings the pose at least :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer
+        to the real one than the model without it (:func:`worsens_pose`), when the held-out
+        corners single out an effect with a corner signature of its own (a lens distortion), or
+        when the held-out tag centres show it (:func:`~simgap.analysis.admission.admissible`;
+        a lens that moved no pose beyond the floor, or carriage pitches whose depth another
+        camera's edges hid, were left out). One that follows the corners without moving the poses
+        closer or the centres is a look-alike of an image effect (measured: a tag print scale
         following the corners of a motion blur, pose gap 1-5 % larger on seed 23 and 6 % smaller
         on seed 25, 42 % larger on that trial's report split; every true geometric effect that
         started a model on seeds 22, 23 and 25 lowered it by 19 % or more).
@@ -312,8 +311,7 @@ class ModelSearch:
         # (refitted beside others it must be off its bound too, :func:`admissible`).
         pool = self._pool(ranking, geometry)
         # the search starts from the best single effect that explains something: a geometric
-        # effect that, alone, does not bring the pose closer to the real one explains nothing
-        # (it stays in the pool: with another effect it may)
+        # effect that alone is not admissible explains nothing (with another effect it may)
         starts = [s for s in ranking if admissible(s, None)]
         self.steps.start("model search")
         if not starts or not improves_on_nothing(starts[0]):
