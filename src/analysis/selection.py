@@ -22,7 +22,7 @@ import numpy as np
 from simgap.analysis.admission import admissible, at_bound
 from simgap.analysis.channels import Prediction
 from simgap.analysis.contributions import pose_contributions
-from simgap.analysis.corner_findings import with_corner_effects
+from simgap.analysis.corner_findings import corner_effect_alone, with_corner_effects
 from simgap.analysis.cross_fit import cross_fitted
 from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate
 from simgap.analysis.pair_step import pair_start, pair_step
@@ -288,8 +288,8 @@ class ModelSearch:
         the search) and the model leaves the geometry unexplained, two projection effects may
         enter at once (:mod:`simgap.analysis.pair_step`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`); last, effects with a corner signature
-        that the corners single out beside it join it
-        (:func:`~simgap.analysis.corner_findings.with_corner_effects`). Effects are returned
+        that the corners single out beside it join it (:mod:`~simgap.analysis.corner_findings`;
+        where nothing starts the search, such an effect alone is the answer). Effects are returned
         most important first: by how much their removal worsens the combined evidence (an effect may
         matter most for the image evidence and move no pose: it is then also :meth:`minor`),
         stochastic effects (sensor noise) after the others: they explain noise and scatter, not
@@ -318,7 +318,8 @@ class ModelSearch:
             # nothing alone: perhaps two geometric effects that hide each other (pair_step)
             starts = pair_start(ranking, pool, self, max_effects)
             if not starts or not improves_on_nothing(starts[0]):
-                return None
+                # as where nothing differs: a lens on a 9-item choose split (blind seed 46 t. 33)
+                return corner_effect_alone(ranking)
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}
         while len(current.fits) < max_effects:
