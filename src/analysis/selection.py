@@ -31,7 +31,7 @@ from simgap.analysis.pruning import pruned
 from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
-    as_good,
+    as_good_held_out,
     improves,
     improves_on_nothing,
     parsimonious,
@@ -223,7 +223,7 @@ class ModelSearch:
         Effects are dropped, or projection effects swapped for ones with fewer parameters that
         could enter the model in their place (:func:`admissible`: a carriage pitch of -0.2 %
         that moved no pose replaced a lens distortion whose corners it nearly matched on 13
-        items), while the model stays :func:`as_good` as ``scored`` on every evidence channel.
+        items), while the model stays as good as ``scored`` (:func:`as_good_held_out`).
         Where nothing simpler is as good, a projection effect is swapped for one with as many
         parameters that explains the evidence distinguishably better (:func:`improves`): the
         greedy search keeps the effect it started with, and a look-alike that led alone stays
@@ -258,7 +258,7 @@ class ModelSearch:
                         swapped, scored
                     ):
                         better.append(swapped)
-            ok = [o for o in options if as_good(o, reference)]
+            ok = [o for o in options if as_good_held_out(o, reference)]
             if ok:
                 scored = min(ok, key=lambda s: (s.n_params, s.evidence_after))
             elif better:
