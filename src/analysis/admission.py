@@ -147,10 +147,9 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     ) or corners_clearly_lower(
         corner_residuals(scored, cross_fitted=True), residuals_without(scored, reference)
     )
-    if reference is None:
-        pose_before = scored.pose_gap_all_axes_before
-    else:
-        pose_before = reference.pose_gap_all_axes_after
+    pose_before = (
+        scored.pose_gap_all_axes_before if reference is None else reference.pose_gap_all_axes_after
+    )
     pose_after = scored.pose_gap_all_axes_after
     pose_worse = distinguishably_lower(np.array([pose_before]), np.array([pose_after]))
     return lower and not pose_worse

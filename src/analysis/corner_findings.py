@@ -43,7 +43,9 @@ def with_corner_effects(
     while len(scored.fits) < max_effects:
         model = tuple(c for c, _ in scored.fits)
         options = []
-        for c in (c for c in pool if has_corner_signature(c) and c not in model):
+        for c in pool:
+            if not has_corner_signature(c) or c in model:
+                continue
             option = evaluate(model + (c,))
             if admissible(option, scored) and seen_in_corners(option, scored):
                 options.append((option, c))

@@ -59,11 +59,12 @@ def corner_residuals(
     model that was not cross-fitted): every item is then held out once (two-fold cross-fitting).
     A choose split of 6-10 configurations alone could not show a lens distortion that moves the
     corners by a tenth of a pixel (blind seed 42: the paired test gave p = 0.02-0.23 on three
-    calibration files whose lens fit was right). Only the admission of a geometric effect uses
-    the cross-fitted residuals (:func:`~simgap.analysis.admission.seen_in_corners`,
-    :func:`~simgap.analysis.admission.seen_in_centres`): the model search's comparisons keep
-    the choose split (pooled, a focal length of -0.04 % joined a principal point on seed 44 trial
-    61 at p = 0.009, its corners on the choose split worse).
+    calibration files whose lens fit was right). Only the admission of a geometric effect
+    (:func:`~simgap.analysis.admission.seen_in_corners`,
+    :func:`~simgap.analysis.admission.seen_in_centres`) and ties between other geometries
+    (:func:`generalises_better`) use the cross-fitted residuals: the model search's other
+    comparisons keep the choose split (pooled, a focal length of -0.04 % joined a principal point
+    on seed 44 trial 61 at p = 0.009, its corners on the choose split worse).
 
     With ``centres``, the squared distance of the tag centres (the mean of the four corners,
     :func:`~simgap.analysis.paired.item_centre_residuals_px2`) instead.
@@ -174,12 +175,20 @@ def generalises_better(a: Scored, b: Scored) -> bool:
     few items did not predict the others (median 0.60 px^2 against the mount's 0.08, p = 0.0003
     on 18 items).
     """
-    geometric_a = {c.effect for c, _ in a.fits if isinstance(c, ProjectionCandidate)}
-    geometric_b = {c.effect for c, _ in b.fits if isinstance(c, ProjectionCandidate)}
-    if geometric_a == geometric_b or set(a.effects) - geometric_a != set(b.effects) - geometric_b:
+    if _geometry(a) == _geometry(b) or _appearance(a) != _appearance(b):
         return False
     if a.cross_fit_difference is None or b.cross_fit_difference is None:
         return False
     return corners_clearly_lower(
         corner_residuals(a, cross_fitted=True), corner_residuals(b, cross_fitted=True)
     )
+
+
+def _geometry(scored: Scored) -> set[str]:
+    """The model's projection (geometric and calibration) effects."""
+    return {c.effect for c, _ in scored.fits if isinstance(c, ProjectionCandidate)}
+
+
+def _appearance(scored: Scored) -> set[str]:
+    """The model's simulation (appearance) effects."""
+    return set(scored.effects) - _geometry(scored)
