@@ -75,10 +75,10 @@ def test_per_pixel_statistics_of_samples():
 def test_a_converged_sticker_from_4_spp_is_within_the_noise_of_256_spp():
     """Baseline scene (area key light, ambient, box filter), p 12 and theta 40 deg: the sticker
     demodulated from 4 spp against a 256-spp path-traced reference of its fully covered pixels.
-    Measured: 0.88 DN RMS (64 footprint rays), raw 4 spp 8.9 DN; the reference carries about
-    8.9 / 8 = 1.1 DN of its own. Against 1024 spp of whole regions the converged stickers were
-    within 0.6-0.8 DN on three configurations, raw 4 spp 15-18 DN. Bound: about twice the
-    measured."""
+    Measured: 0.79 DN RMS (exact footprint; 0.88 with 64 footprint rays), raw 4 spp 8.9 DN; the
+    reference carries about 8.9 / 8 = 1.1 DN of its own. Against 1024 spp of whole regions the
+    converged stickers were within 0.6-0.8 DN on three configurations, raw 4 spp 15-18 DN.
+    Bound: about twice the measured."""
     scene, pixels = _baseline_region(12, 40.0)
     converged = converged_pixels(scene, pixels, seed=5)
     assert converged.treatments == {0: "smooth"}
@@ -107,8 +107,9 @@ def test_the_footprint_pattern_is_stratified_along_every_axis():
 def test_converged_print_edges_do_not_depend_on_the_render_seed():
     """p 12, theta 40 deg. A pixel's footprint is the same whichever other pixels are asked
     for, and the converged print-edge pixels (off the sticker's border) of two render seeds
-    differ by 0.17 DN RMS (measured; 1.9 DN when the footprint's 64 rays were drawn per render
-    seed; 5.6-6.9 DN when only the pixels whose own 4 samples disagreed got a footprint).
+    differ by 0.18 DN RMS (measured with the exact footprint; 0.17 with 64 fixed footprint
+    rays; 1.9 DN when the footprint's 64 rays were drawn per render seed; 5.6-6.9 DN when only
+    the pixels whose own 4 samples disagreed got a footprint).
     Bound: 3x the measured."""
     scene, pixels = _baseline_region(12, 40.0)
     every_third = np.arange(0, len(pixels), 3)
@@ -127,9 +128,10 @@ def test_converged_print_edges_do_not_depend_on_the_render_seed():
 def test_a_glossy_sticker_from_4_spp_is_within_the_noise_of_256_spp():
     """The baseline's tag under a rough laminate (alpha 0.08, the tag_gloss default), p 12 and
     theta 40 deg: demodulated as albedo x diffuse + specular. Measured against 256 spp on the
-    fully covered pixels: 0.90-0.93 DN RMS (path 16 spp: 3.7 DN; the reference carries about
-    1 DN of its own). Against 1024 spp at four poses: 0.50-0.89 DN interior, 1.2-1.5 DN on print
-    edges (docs/results/converged_render_step3.md). Bound: about twice the measured."""
+    fully covered pixels: 0.85 DN RMS (exact footprint; 0.90-0.93 with 64 footprint rays; path
+    16 spp: 3.7 DN; the reference carries about 1 DN of its own). Against 1024 spp at four
+    poses: 0.50-0.89 DN interior, 1.2-1.5 DN on print edges (docs/results/converged_render_step3
+    .md). Bound: about twice the measured."""
     scene, pixels = _baseline_region(12, 40.0, Coating(alpha=0.08))
     converged = converged_pixels(scene, pixels, seed=5)
     assert converged.treatments == {0: "smooth (coated print)"}

@@ -2,14 +2,16 @@
 
 ``render.mode: converged`` (issue 28). Every pixel of a region is traced at the scene's samples
 per pixel with its primary hit's sticker and print albedo (:func:`simgap.render.pixel_samples.
-sample_pixels`), and the pixels on a print edge or the sticker's border once more with
-:data:`FOOTPRINT_POINTS` primary rays only, from one fixed pattern (the footprint's albedo and
-coverage, :func:`simgap.render.pixel_samples.footprint_samples`: the same for every render
-seed). Per sticker, the radiance is divided by the albedo of its own samples, a
-smooth irradiance is fitted and multiplied by the footprint's albedo
-(:func:`simgap.render.demodulate.demodulate`), which removes most of
-the Monte Carlo noise of a flat diffuse print; a print under a laminate is fitted as the albedo
-times a smooth diffuse field plus a smooth specular one. Where the smooth model is rejected (a
+sample_pixels`). On the pixels on a print edge or the sticker's border, the print's albedo and
+coverage over the pixel's footprint are clipped exactly from the print's cells
+(:mod:`simgap.render.print_footprint`: box filter, pinhole, nearest texture lookup, no occluder)
+or else integrated with :data:`FOOTPRINT_POINTS` primary rays of one fixed pattern
+(:func:`simgap.render.pixel_samples.footprint_samples`); either is the same for every render
+seed (:func:`edge_footprint`). Per sticker, the radiance is divided by the albedo of its own
+samples, a smooth irradiance is fitted and multiplied by the footprint's albedo
+(:func:`simgap.render.demodulate.demodulate`), which removes most of the Monte Carlo noise
+of a flat diffuse print; a print under a laminate is fitted as the albedo times a smooth
+diffuse field plus a smooth specular one. Where the smooth model is rejected (a
 shadow or highlight edge across the sticker, a sharp glint), that sticker's pixels are path
 traced again with :data:`FALLBACK_SPP_FACTOR` times the samples. Pixels off the stickers
 (node, table) keep their path-traced mean: only the detector's thresholds see them. The
@@ -26,16 +28,19 @@ import numpy as np
 
 from simgap.render.demodulate import StickerSamples, Treatment, demodulate
 from simgap.render.pixel_samples import PixelSamples, footprint_samples, sample_pixels
+from simgap.render.print_footprint import agrees, exact_footprint_applies, print_footprint
 
 if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
 #: Part of the render key of a converged render: bump when what it holds changes.
-CONVERGED_VERSION = "coated-4"  # 4: coated fits keep the darkest pixels; 3: laminates demodulated
+#: 5: exact footprints; 4: coated fits keep the darkest pixels; 3: laminates demodulated.
+CONVERGED_VERSION = "exact-5"
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
-#: Primary rays per pixel of the footprint pass (albedo and coverage the product is made with),
+#: Primary rays per pixel of the footprint pass where the exact footprint does not apply (a tent
+#: or Gaussian filter, a thin lens, bilinear texture lookup, an occluder) or disagrees,
 #: a fixed Sobol' pattern (:func:`simgap.render.pixel_samples.footprint_pattern`): its points are
 #: stratified in 1/64 px along each pixel axis, so under a box filter an edge along an axis is
 #: placed to within 1/64 px (0.0064 px RMS over the edge's sub-pixel position). 256 points took
@@ -87,7 +92,7 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     # neighbour's (an edge that cuts a corner of a pixel, or crosses it near its side, misses
     # all of its few samples, but then lies between it and a neighbour that does not look alike)
     near = edge_pixels(pixels, samples)
-    footprint = footprint_samples(scene, pixels[near], FOOTPRINT_POINTS)
+    footprint = edge_footprint(scene, pixels[near], samples.sticker[near], samples.coverage[near])
     footprint_albedo, footprint_coverage = samples.albedo.copy(), samples.coverage.copy()
     footprint_sticker = samples.sticker.copy()
     footprint_albedo[near], footprint_coverage[near] = footprint.albedo, footprint.coverage
@@ -120,6 +125,65 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
         values[on] = more.mean
         treatments[tag] = f"fallback ({result.reason}): {spp} spp"
     return ConvergedRender(values.astype(np.float32), treatments)
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """The print over each pixel's footprint: what the demodulated radiance is made with.
+
+    Attributes
+    ----------
+    sticker : ndarray of int (N,)
+        The tag id of the sticker that covers most of the footprint; -1 where none does.
+    coverage : ndarray (N,)
+        Share of the footprint on that sticker (0-1).
+    albedo : ndarray (N, 3)
+        The print's mean albedo over that share (NaN where it is 0).
+    exact : bool
+        Clipped from the print's cells (:mod:`simgap.render.print_footprint`), not integrated
+        with :data:`FOOTPRINT_POINTS` rays.
+    """
+
+    sticker: np.ndarray
+    coverage: np.ndarray
+    albedo: np.ndarray
+    exact: bool
+
+
+def edge_footprint(
+    scene: FixtureScene, pixels: np.ndarray, sample_sticker: np.ndarray, sample_coverage: np.ndarray
+) -> Footprint:
+    """The footprint of edge pixels: exact where the scene allows it and its samples agree.
+
+    Exact (:func:`simgap.render.print_footprint.print_footprint`) under a box filter, a pinhole
+    and nearest texture lookup, for every sticker the first pass saw, if each agrees with the
+    first pass's samples (:func:`simgap.render.print_footprint.agrees`: no occluder); otherwise
+    from :data:`FOOTPRINT_POINTS` primary rays of a fixed pattern
+    (:func:`simgap.render.pixel_samples.footprint_samples`).
+
+    Parameters
+    ----------
+    scene : FixtureScene
+        A posed scene.
+    pixels : ndarray of int (N, 2)
+        Full-image pixel columns and rows (px).
+    sample_sticker, sample_coverage : ndarray (N,)
+        The first pass's sticker and coverage of these pixels (:class:`PixelSamples`).
+    """
+    n = len(pixels)
+    if exact_footprint_applies(scene):
+        sticker, coverage = np.full(n, -1), np.zeros(n)
+        albedo = np.full((n, 3), np.nan)
+        for tag in (int(t) for t in np.unique(sample_sticker[sample_sticker >= 0])):
+            share, mean = print_footprint(scene, pixels, tag)
+            if not agrees(share, sample_sticker, sample_coverage, tag):
+                break
+            more = share > coverage
+            sticker[more], coverage[more], albedo[more] = tag, share[more], mean[more, None]
+        else:
+            return Footprint(sticker, coverage, albedo, exact=True)
+    rays = footprint_samples(scene, pixels, FOOTPRINT_POINTS)
+    return Footprint(rays.sticker, rays.coverage, rays.albedo, exact=False)
 
 
 def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:

@@ -41,18 +41,27 @@ def bsdf(material: Material) -> dict[str, Any]:
     raise TypeError(f"no Mitsuba BSDF for {type(material).__name__}")
 
 
+def print_albedo(tag: TagPrint, texture: np.ndarray) -> np.ndarray:
+    """The print's albedo texture (float32, rows x columns) that the tag BSDF looks up.
+
+    One texel per cell of the marker (``texture``, uint8): ink where the cell is dark, paper
+    where it is light; ``bilinear`` filtering first repeats each cell
+    :data:`BILINEAR_UPSAMPLE` times per side, so that only a cell's rim blends.
+    """
+    if tag.texture_filter == "bilinear":
+        texture = np.kron(texture, np.ones((BILINEAR_UPSAMPLE, BILINEAR_UPSAMPLE), texture.dtype))
+    return np.where(texture > PAPER_THRESHOLD, tag.paper, tag.ink).astype(np.float32)
+
+
 def tag_bsdf(tag: TagPrint, texture: np.ndarray, mi: ModuleType) -> dict[str, Any]:
     """Tag BSDF: the marker texture (uint8, one texel per cell) mapped to ink/paper albedo.
 
     The bitmap's v is flipped (``to_uv``): a ``rectangle`` maps uv = ((x+1)/2, (y+1)/2) while
     bitmap row 0 is the image's top (docs/conventions.md §4).
     """
-    if tag.texture_filter == "bilinear":
-        texture = np.kron(texture, np.ones((BILINEAR_UPSAMPLE, BILINEAR_UPSAMPLE), texture.dtype))
-    albedo = np.where(texture > PAPER_THRESHOLD, tag.paper, tag.ink).astype(np.float32)[..., None]
     bitmap = {
         "type": "bitmap",
-        "bitmap": mi.Bitmap(albedo),
+        "bitmap": mi.Bitmap(print_albedo(tag, texture)[..., None]),
         "raw": True,
         "filter_type": tag.texture_filter,
         "to_uv": mi.ScalarTransform4f().translate([0, 1, 0]).scale([1, -1, 1]),

@@ -20,7 +20,7 @@ from simgap.core.paths import assets_dir
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors, Rig
 from simgap.render.backend import mitsuba
 from simgap.render.camera import PLUGIN_NAME as SENSOR_PLUGIN
-from simgap.render.mitsuba_scene import bsdf, emitter, light_transform, tag_bsdf
+from simgap.render.mitsuba_scene import bsdf, emitter, light_transform, print_albedo, tag_bsdf
 from simgap.scene.spec import SceneSpec, load_scene_spec
 
 #: Most samples traced in one kernel launch of :meth:`FixtureScene.render_pixels` (bounds memory).
@@ -111,10 +111,13 @@ class FixtureScene:
                 "face_normals": True,
                 "bsdf": bsdf(spec.materials[obj.material]),
             }
+        #: per tag id, the print's albedo texture the tag BSDF looks up (rows x columns)
+        self.print_albedo: dict[int, np.ndarray] = {}
         for face in rig.tags.faces:
             texture = cv2.imread(str(assets_dir() / f"tag_{face.id}.png"), cv2.IMREAD_GRAYSCALE)
             if texture is None:
                 raise ConfigError(f"assets/tag_{face.id}.png not found (run `simgap assets`)")
+            self.print_albedo[face.id] = print_albedo(spec.tag, texture)
             scene_dict[f"tag_{face.id}"] = {
                 "type": "rectangle",
                 "bsdf": tag_bsdf(spec.tag, texture, mi),
@@ -131,9 +134,11 @@ class FixtureScene:
         self.camera = self.scene.sensors()[0]
         # the sampler may round the count up (multijitter: to a product of two near-equal sides)
         self.spp = int(self.camera.sampler().sample_count())
-        cam = camera or rig.camera
+        #: the camera that takes the picture, and its thin lens (aperture radius, focus; m)
+        self.camera_model = cam = camera or rig.camera
+        self.lens = (float(lens[0]), float(lens[1]))
         self.camera.set_intrinsics(cam.fx, cam.fy, cam.cx, cam.cy, cam.distortion)
-        self.camera.set_lens(*lens)
+        self.camera.set_lens(*self.lens)
         self._base = {
             name: np.array(self.params[f"{name}.vertex_positions"]).reshape(-1, 3)
             for name, obj in spec.objects.items()

@@ -1,0 +1,229 @@
+"""Exact pixel footprints of a print: the pixel square clipped against its cells (issue 28).
+
+The converged render multiplies a smooth irradiance by the print's albedo averaged over each
+pixel's footprint (:mod:`simgap.render.demodulate`). Under a ``box`` pixel filter, a pinhole (no
+thin lens) and ``nearest`` texture lookup that average has a closed form: the print is a grid of
+cells of one albedo each on the sticker's plane; the camera maps each cell to a convex
+quadrilateral in the image (a homography), and the share of a pixel that a cell covers is the
+area of that quadrilateral clipped to the pixel's square (Sutherland-Hodgman, vectorised over
+cell-pixel pairs). The albedo and the sticker's coverage are then exact, with no rays and none
+of a point pattern's quadrature error (1/64 px along an edge at 64 points,
+docs/results/converged_render_step3.md).
+
+Two things this geometry does not hold, and how they are handled:
+
+- **Lens distortion** bends a cell's projected sides. A side of ``L`` px at normalised radius
+  ``r`` bows by about ``0.75 |k1| r L^2 / f`` px from the straight line between its projected
+  corners (the radial term's second derivative): 0.003 px for ``|k1|`` 0.1, ``r`` 0.7, a cell
+  of 8 px and ``f`` 1400 px, against 0.016 px for the point pattern. The sides are taken straight.
+- **Visibility**: an occluder in front of the sticker is not in the print's geometry.
+  :func:`agrees` compares the footprint with the render's own samples on the pixels where
+  either saw an edge; an occluder's edge across a sticker makes pixels the geometry calls
+  wholly on it whose samples are not, and the caller then integrates the footprint with rays.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from simgap.core import transforms as tf
+from simgap.render.scene import pose_transforms
+
+if TYPE_CHECKING:
+    from simgap.render.scene import FixtureScene
+
+#: Most vertices of a convex quadrilateral clipped by the four sides of a square (4 + 4).
+CLIPPED_VERTICES = 8
+#: A pixel whose exact coverage is within this of 1 (or of 0) is wholly on (off) the sticker:
+#: float64 round-off of the clipped areas is about 1e-15 (dimensionless).
+WHOLE_TOLERANCE = 1e-9
+
+
+def exact_footprint_applies(scene: FixtureScene) -> bool:
+    """Whether :func:`print_footprint` is exact for ``scene`` (box filter, pinhole, nearest)."""
+    return (
+        scene.spec.rfilter["type"] == "box"
+        and scene.lens[0] == 0.0
+        and scene.spec.tag.texture_filter == "nearest"
+    )
+
+
+def projected_cells(scene: FixtureScene, tag: int) -> tuple[NDArray[np.float64], NDArray]:
+    """The print's cells of sticker ``tag`` as image quadrilaterals, and their albedo.
+
+    Returns
+    -------
+    quads : ndarray (C, 4, 2)
+        Full-image pixel coordinates (px; pixel centres at integers) of each cell's corners,
+        in order around the cell.
+    albedo : ndarray (C,)
+        The cell's print albedo (linear, dimensionless).
+    """
+    if scene.pose is None:
+        raise RuntimeError("set_pose() must be called before the footprint")
+    grid = scene.print_albedo[tag]
+    rows, cols = grid.shape
+    world = pose_transforms(scene.rig, *scene.pose, scene.errors, scene.tag_scale)
+    cv_from_rect = np.linalg.inv(world["camera"]) @ world[f"tag_{tag}"]
+    # the rectangle's local x, y in [-1, 1]; texel row 0 at y = +1 (the bitmap's v is flipped,
+    # simgap.render.mitsuba_scene.tag_bsdf)
+    x = -1.0 + 2.0 * np.arange(cols + 1) / cols
+    y = 1.0 - 2.0 * np.arange(rows + 1) / rows
+    xx, yy = np.meshgrid(x, y)
+    local = np.column_stack([xx.ravel(), yy.ravel(), np.zeros(xx.size)])
+    camera = scene.camera_model
+    points = tf.apply(cv_from_rect, local)
+    uv, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs)
+    corners = uv.reshape(rows + 1, cols + 1, 2)
+    quads = np.stack(
+        [corners[:-1, :-1], corners[:-1, 1:], corners[1:, 1:], corners[1:, :-1]], axis=2
+    ).reshape(-1, 4, 2)
+    return quads, grid.ravel().astype(np.float64)
+
+
+def print_footprint(
+    scene: FixtureScene, pixels: NDArray, tag: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Coverage and mean albedo of sticker ``tag`` over each pixel's square (module docstring).
+
+    Parameters
+    ----------
+    scene : FixtureScene
+        A posed scene for which :func:`exact_footprint_applies`.
+    pixels : ndarray of int (N, 2)
+        Full-image pixel columns and rows (px).
+    tag : int
+        The sticker's tag id.
+
+    Returns
+    -------
+    coverage : ndarray (N,)
+        Share of the pixel's square on the sticker (0-1).
+    albedo : ndarray (N,)
+        The print's mean albedo over that share (NaN where the share is 0).
+    """
+    pixels = np.asarray(pixels).reshape(-1, 2).astype(np.int64)
+    quads, albedo = projected_cells(scene, tag)
+    cell, pixel = _cell_pixel_pairs(quads, pixels)
+    area = clipped_area(quads[cell] - (pixels[pixel] - 0.5)[:, None, :])
+    n = len(pixels)
+    coverage = np.bincount(pixel, area, minlength=n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.bincount(pixel, area * albedo[cell], minlength=n) / coverage
+    return np.minimum(coverage, 1.0), np.where(coverage > 0, mean, np.nan)
+
+
+def _cell_pixel_pairs(quads: NDArray[np.float64], pixels: NDArray) -> tuple[NDArray, NDArray]:
+    """Every (cell, pixel) pair whose bounding boxes overlap, among the pixels asked for."""
+    lo = pixels.min(axis=0)
+    shape = pixels.max(axis=0) - lo + 1
+    index = np.full((shape[1], shape[0]), -1, np.int64)
+    index[pixels[:, 1] - lo[1], pixels[:, 0] - lo[0]] = np.arange(len(pixels))
+    # pixel u spans [u - 0.5, u + 0.5): the pixels a cell's bounding box touches
+    first = np.floor(quads.min(axis=1) + 0.5).astype(np.int64) - lo
+    last = np.floor(quads.max(axis=1) + 0.5).astype(np.int64) - lo
+    first, last = np.maximum(first, 0), np.minimum(last, shape - 1)
+    width, height = np.maximum(last - first + 1, 0).T
+    count = width * height
+    cell = np.repeat(np.arange(len(quads)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    du, dv = k % np.repeat(np.maximum(width, 1), count), k // np.repeat(np.maximum(width, 1), count)
+    pixel = index[first[cell, 1] + dv, first[cell, 0] + du]
+    keep = pixel >= 0
+    return cell[keep], pixel[keep]
+
+
+def clipped_area(quads: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Area of each convex quadrilateral (M, 4, 2) inside the unit square [0, 1]^2.
+
+    Sutherland-Hodgman against the square's four sides, vectorised: each polygon keeps
+    :data:`CLIPPED_VERTICES` vertices, repeating its last one where it has fewer (a repeated
+    vertex adds an edge of length zero, which the area does not see and the next clip skips).
+    """
+    quads = np.asarray(quads, np.float64)
+    area = np.empty(len(quads))
+    # most pairs need no clipping: a quadrilateral inside the square, or one that holds it
+    inside = np.all((quads >= 0.0) & (quads <= 1.0), axis=(1, 2))
+    area[inside] = _shoelace(quads[inside])
+    holds = ~inside & _holds_unit_square(quads)
+    area[holds] = 1.0
+    rest = ~inside & ~holds
+    polygon = quads[rest]
+    for axis, bound, below in ((0, 0.0, False), (0, 1.0, True), (1, 0.0, False), (1, 1.0, True)):
+        polygon = _clip(polygon, axis, bound, below)
+    area[rest] = _shoelace(polygon)
+    return area
+
+
+def _shoelace(polygon: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Area of polygons (M, K, 2) from their vertices in order (either way round)."""
+    x, y = polygon[..., 0], polygon[..., 1]
+    twice = np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)
+    return 0.5 * np.abs(twice)
+
+
+def _holds_unit_square(quads: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether each convex quadrilateral (M, 4, 2) holds all four corners of [0, 1]^2."""
+    edge = np.roll(quads, -1, axis=1) - quads  # (M, 4, 2)
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    to_corner = corners[None, None, :, :] - quads[:, :, None, :]  # (M, 4 edges, 4 corners, 2)
+    cross = edge[:, :, None, 0] * to_corner[..., 1] - edge[:, :, None, 1] * to_corner[..., 0]
+    # the same side of every edge as the quadrilateral's own turn
+    turn = np.sign(
+        np.sum(edge[:, :, 0] * np.roll(edge, -1, axis=1)[:, :, 1], axis=1)
+        - np.sum(edge[:, :, 1] * np.roll(edge, -1, axis=1)[:, :, 0], axis=1)
+    )
+    return np.all(cross * turn[:, None, None] >= 0.0, axis=(1, 2)) & (turn != 0)
+
+
+def _clip(polygon: NDArray[np.float64], axis: int, bound: float, below: bool) -> NDArray:
+    """Clip polygons (M, K, 2) to the half-plane ``coordinate <= bound`` (``below``) or ``>=``."""
+    m, k, _ = polygon.shape
+    side = polygon[..., axis] - bound
+    if not below:
+        side = -side
+    inside = side <= 0
+    following = np.roll(polygon, -1, axis=1)
+    side_next = np.roll(side, -1, axis=1)
+    # strictly: an edge that only touches the line emits its start (or its end, next), not both
+    crosses = side * side_next < 0
+    t = side / np.where(crosses, side - side_next, 1.0)
+    crossing = polygon + t[..., None] * (following - polygon)
+    # each edge emits its start where it is inside and the crossing where it leaves or enters;
+    # an edge of length zero (a repeated vertex) emits nothing: the next edge emits its start
+    moves = np.any(polygon != following, axis=2)
+    points = np.stack([polygon, crossing], axis=2).reshape(m, 2 * k, 2)
+    valid = np.stack([inside & moves, crosses], axis=2).reshape(m, 2 * k)
+    count = valid.sum(axis=1)
+    if np.any(count > CLIPPED_VERTICES):
+        raise ValueError("clipped_area: expected convex quadrilaterals")
+    # the emitted points in order, then the last one repeated; an empty polygon is all zeros
+    clipped = np.zeros((m, CLIPPED_VERTICES, 2))
+    row, col = np.nonzero(valid)
+    clipped[row, np.cumsum(valid, axis=1)[row, col] - 1] = points[row, col]
+    last = np.maximum(count - 1, 0)
+    beyond = np.arange(CLIPPED_VERTICES)[None, :] > last[:, None]
+    clipped[beyond] = np.repeat(clipped[np.arange(m), last], CLIPPED_VERTICES - 1 - last, axis=0)
+    return clipped
+
+
+def agrees(
+    coverage: NDArray[np.float64],
+    sample_sticker: NDArray,
+    sample_coverage: NDArray[np.float64],
+    tag: int,
+) -> bool:
+    """Whether the render's samples see sticker ``tag`` where its geometry puts it.
+
+    Over the same pixels: a pixel wholly on the sticker (exact ``coverage`` 1) must have all
+    its samples on it, and a pixel wholly off (0) none (its samples' sticker is another). An
+    occluder, or a geometry the renderer does not share, fails this.
+    """
+    whole = coverage >= 1.0 - WHOLE_TOLERANCE
+    none = coverage <= WHOLE_TOLERANCE
+    seen = sample_sticker == tag
+    return bool(np.all(seen[whole] & (sample_coverage[whole] >= 1.0)) and not np.any(seen[none]))
