@@ -48,7 +48,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from simgap.analysis.appearance import (
     AppearanceCandidate,
@@ -57,7 +56,8 @@ from simgap.analysis.appearance import (
     measuring_only,
 )
 from simgap.analysis.channels import detection_groups, detection_score
-from simgap.analysis.fitting import Fit, Items, on_bound
+from simgap.analysis.fitting import Fit, Items, fit_subset, on_bound
+from simgap.analysis.glint_ratio import RatioFit, fit_ratios
 from simgap.analysis.lobe import MIN_COS, beckmann, lobe_geometry
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
@@ -220,15 +220,8 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
         nan = float("nan")
         return LevelFit(np.array([0, 0, 0, 0, ALPHA[1], 0.0, 0.0]), nan, nan, nan, len(levels))
 
-    def solve(x0: np.ndarray, free: np.ndarray, lower, upper):
-        def residual(v: np.ndarray) -> np.ndarray:
-            x = x0.copy()
-            x[free] = v
-            return level_residuals(levels, x)
-
-        sol = least_squares(residual, x0[free], bounds=(lower, upper), loss="soft_l1")
-        x = x0.copy()
-        x[free] = sol.x
+    def solve(x0: np.ndarray, free: np.ndarray, lower, upper) -> tuple[np.ndarray, float]:
+        x = fit_subset(lambda v: level_residuals(levels, v), x0, free, lower, upper)
         return x, capped_rms(level_residuals(levels, x))
 
     a_scale = float(np.median(levels.sim_paper)) * 0.1  # a light of a tenth of the key at 0.3 m
@@ -287,14 +280,17 @@ class GlossCandidate(AppearanceCandidate):
         items: Items,
         params: dict[str, Any],
         fit: LevelFit,
+        ratio: RatioFit | None = None,
     ) -> float:
         """The light's intensity (W sr^-1) whose renders match the real levels best.
 
         One render with :data:`REFERENCE_INTENSITY_W_SR` gives the simulation's scales of the
         matte light and of the glint; the real ones over them give two estimates (the level
         model's nuisance lights bias them differently: on development captures each was off
-        by up to 3x, in opposite directions). The estimates, their geometric mean and a factor
-        2 beyond either are rendered, and the one whose ink, paper and contrast
+        by up to 3x, in opposite directions), and with a ``ratio`` fit the glint's scale in
+        the ink-to-paper ratios a third (:mod:`simgap.analysis.glint_ratio`). The estimates,
+        their geometric mean and a factor 2 beyond either are rendered, and the one whose ink,
+        paper and contrast
         (:func:`~simgap.analysis.appearance.evidence_misfit`) and detections
         (:func:`~simgap.analysis.channels.detection_score`, one more statistic in the mean of
         squares, capped like them) match the real best is kept: a glint too bright loses tags
@@ -318,14 +314,16 @@ class GlossCandidate(AppearanceCandidate):
             return (len(stats) * levels + detection**2) / (len(stats) + 1), rendered
 
         ref_misfit, rendered = misfit(REFERENCE_INTENSITY_W_SR)
-        ref = fit_levels(
-            TagLevels.of(rendered, items.sim_stats, runner.eye_from_tag(items)),
-            tuple(fit.x[4:7]),
-        )
+        geometry = tuple(fit.x[4:7])
+        rendered_levels = TagLevels.of(rendered, items.sim_stats, runner.eye_from_tag(items))
+        ref = fit_levels(rendered_levels, geometry)
+        scales = [(fit.glint_scale, ref.glint_scale), (fit.x[2], ref.x[2])]
+        if ratio is not None:
+            ref_ratio = fit_ratios(rendered_levels, ALPHA, OFFSET_M, geometry)
+            if ref_ratio is not None:
+                scales.append((ratio.glint_scale, ref_ratio.glint_scale))
         estimates = [
-            REFERENCE_INTENSITY_W_SR * real / sim
-            for real, sim in ((fit.glint_scale, ref.glint_scale), (fit.x[2], ref.x[2]))
-            if real > 0 and sim > 0
+            REFERENCE_INTENSITY_W_SR * real / sim for real, sim in scales if real > 0 and sim > 0
         ]
         if not estimates:
             return 0.0
@@ -344,6 +342,11 @@ class GlossCandidate(AppearanceCandidate):
         eye_from_tag = runner.eye_from_tag(items)
         levels = TagLevels.of(items.real_stats, items.sim_stats, eye_from_tag)
         fit = fit_levels(levels)
+        # the glint's geometry from the ink-to-paper ratios where enough papers are unclipped
+        # (the capture's lights cancel in them), its scales from the levels at that geometry
+        ratio = fit_ratios(levels, ALPHA, OFFSET_M)
+        if ratio is not None:
+            fit = fit_levels(levels, ratio.geometry)
         params = {
             "alpha": fit.alpha,
             "light_intensity_w_sr": 0.0,
@@ -351,9 +354,12 @@ class GlossCandidate(AppearanceCandidate):
             "light_offset_z_m": fit.offset_z_m,
             "ev": float(fit.x[0]),
         }
-        supported = bool(fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0)
+        if ratio is None:
+            supported = fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
+        else:
+            supported = ratio.gain >= GLINT_MIN_GAIN and ratio.glint_scale > 0
         if supported:
-            params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit)
+            params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit, ratio)
         top = INTENSITY_W_SR[1]
         at_bound = tuple(
             name
@@ -371,11 +377,12 @@ class GlossCandidate(AppearanceCandidate):
             params,
             time.perf_counter() - t0,
             {
-                "supported": supported,
+                "supported": bool(supported),
                 "tags": fit.tags,
                 "level_rms_exposure": fit.rms_exposure,
                 "level_rms_light": fit.rms_light,
                 "level_rms_laminate": fit.rms_laminate,
+                "ratio_gain": float("nan") if ratio is None else ratio.gain,
                 "at_bound": at_bound,
             },
         )
