@@ -40,11 +40,12 @@ from simgap.analysis.thresholds import IMAGE_FLOORS
 if TYPE_CHECKING:
     from simgap.analysis.gloss import TagLevels
 
-#: Fewest tags with unclipped ink and paper for the ratio model: its six parameters and two
-#: more. Below it (an overexposed capture whose papers clip) the level model decides alone.
+#: Fewest tags with unclipped ink and paper for the ratio model: its five fitted parameters and
+#: three more. Below it (an overexposed capture whose papers clip) the level model decides.
 MIN_TAGS = 8
-#: Starts of the glint's search: roughness x horizontal offset (m); the light's side is what
-#: the turntable's two directions tell apart.
+#: Starts of the glint's search, here and in the level model (:func:`simgap.analysis.gloss.
+#: fit_levels`): roughness x horizontal offset (m); the light's side is what the turntable's two
+#: directions tell apart.
 STARTS: tuple[tuple[float, ...], tuple[float, ...]] = ((0.05, 0.12, 0.3), (-0.05, 0.05))
 #: The light's height above the lens is not fitted (m): the turntable turns about a vertical
 #: axis, so a height only widens the lobe, as roughness does. On the 10 laminate captures of

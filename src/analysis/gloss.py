@@ -25,17 +25,25 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.def
    the floors of :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`; bounded robust least
    squares fit exposure alone, then a matte light (``a``), then the laminate (``b``,
    ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`).
-3. **Supported** where the laminate explains the levels better than a matte light by
-   :data:`GLINT_MIN_GAIN`: a glint that follows the half-angle is the laminate's signature
-   (that a level differs at all is the where step's test, which makes it a candidate). Three
-   glinting tags of nineteen are 0.95 floors RMS under exposure alone: an RMS gate on the
-   levels would miss them.
-4. **Intensity.** ``a`` and ``b`` are in the simulation's linear units; one render of the fit
+3. **Geometry from the ink-to-paper ratios** where at least
+   :data:`~simgap.analysis.glint_ratio.MIN_TAGS` tags have unclipped ink and paper
+   (:mod:`simgap.analysis.glint_ratio`: the capture's own lights cancel in a ratio, a glint
+   does not): roughness and the light's horizontal offset, its height not fitted; the level
+   model then fits only its scales at that geometry. With fewer (an overexposed capture), the
+   level model's own geometry.
+4. **Supported** where the glint explains the ratios better than flare and a constant ratio
+   by :data:`GLINT_MIN_GAIN` (with too few unclipped papers: where the laminate explains the
+   levels better than a matte light by as much): a glint that follows the half-angle is the
+   laminate's signature (that a level differs at all is the where step's test, which makes it
+   a candidate). Three glinting tags of nineteen are 0.95 floors RMS under exposure alone: an
+   RMS gate on the levels would miss them.
+5. **Intensity.** ``a`` and ``b`` are in the simulation's linear units; one render of the fit
    split with the fitted laminate and a light of :data:`REFERENCE_INTENSITY_W_SR` is fitted with
    the same roughness and offset, each scale over its rendered one estimates the intensity (a
-   glint and a light are linear in the intensity), and a few renders around the estimates pick
-   the intensity whose levels and detections match (:meth:`GlossCandidate.intensity`).
-5. **Exposure.** The candidate carries the exposure ``G`` it was fitted with (``ev``).
+   glint and a light are linear in the intensity; the ratios' glint scale gives a third), and a
+   few renders around the estimates pick the intensity whose levels and detections match
+   (:meth:`GlossCandidate.intensity`).
+6. **Exposure.** The candidate carries the exposure ``G`` it was fitted with (``ev``).
 
 Only tags near the half-angle's zero (the frontal stops) sample the lobe's width: with few of
 them roughness, offset and intensity trade off (development captures: roughness within 1.6x).
@@ -57,7 +65,7 @@ from simgap.analysis.appearance import (
 )
 from simgap.analysis.channels import detection_groups, detection_score
 from simgap.analysis.fitting import Fit, Items, fit_subset, on_bound
-from simgap.analysis.glint_ratio import RatioFit, fit_ratios
+from simgap.analysis.glint_ratio import STARTS, RatioFit, fit_ratios
 from simgap.analysis.lobe import MIN_COS, beckmann, lobe_geometry
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
@@ -242,8 +250,8 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
     best, best_rms = x_light, rms_light
     lower = (-6, -4, 0, 0, ALPHA[0], OFFSET_M[0], OFFSET_M[0])
     upper = (6, 4, inf, inf, ALPHA[1], OFFSET_M[1], OFFSET_M[1])
-    for alpha in (0.05, 0.12, 0.3):
-        for offset in (-0.05, 0.05):
+    for alpha in STARTS[0]:
+        for offset in STARTS[1]:
             start = x_light.copy()
             start[3], start[4], start[5], start[6] = a_scale * alpha, alpha, offset, 0.0
             x, rms = solve(start, np.ones(7, bool), lower, upper)

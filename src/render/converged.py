@@ -7,15 +7,18 @@ coverage over the pixel's footprint are clipped exactly from the print's cells
 (:mod:`simgap.render.print_footprint`: box filter, pinhole, nearest texture lookup, no occluder)
 or else integrated with :data:`FOOTPRINT_POINTS` primary rays of one fixed pattern
 (:func:`simgap.render.pixel_samples.footprint_samples`); either is the same for every render
-seed (:func:`edge_footprint`). Per sticker, the radiance is divided by the albedo of its own
-samples, a smooth irradiance is fitted and multiplied by the footprint's albedo
-(:func:`simgap.render.demodulate.demodulate`), which removes most of the Monte Carlo noise
-of a flat diffuse print; a print under a laminate is fitted as the albedo times a smooth
-diffuse field plus a smooth specular one. Where the smooth model is rejected (a
-shadow or highlight edge across the sticker, a sharp glint), that sticker's pixels are path
-traced again with :data:`FALLBACK_SPP_FACTOR` times the samples. Pixels off the stickers
-(node, table) keep their path-traced mean: only the detector's thresholds see them. The
-treatment of every sticker is returned so that the caller can record it.
+seed, and which one is used is decided by the first pass's samples (:func:`edge_footprint`:
+near an occluder one seed may see it and another not; on the baseline both seeds took the exact
+one at every configuration, docs/results/converged_render_step4.md). Per sticker, the
+radiance is divided by the albedo of its own samples, a smooth irradiance is fitted and
+multiplied by the footprint's albedo (:func:`simgap.render.demodulate.demodulate`), which
+removes most of the Monte Carlo noise of a flat diffuse print; a print under a laminate is
+fitted as the albedo times a smooth diffuse field plus a smooth specular one. Where the smooth
+model is rejected (a shadow or highlight edge across the sticker, a sharp glint), that
+sticker's pixels are path traced again with :data:`FALLBACK_SPP_FACTOR` times the samples.
+Pixels off the stickers (node, table) keep their path-traced mean: only the detector's
+thresholds see them. The treatment of every sticker is returned so that the caller can record
+it.
 """
 
 from __future__ import annotations
@@ -171,11 +174,14 @@ def edge_footprint(
         The first pass's sticker and coverage of these pixels (:class:`PixelSamples`).
     """
     n = len(pixels)
-    if exact_footprint_applies(scene):
+    if n and exact_footprint_applies(scene):
         sticker, coverage = np.full(n, -1), np.zeros(n)
         albedo = np.full((n, 3), np.nan)
         for tag in (int(t) for t in np.unique(sample_sticker[sample_sticker >= 0])):
-            share, mean = print_footprint(scene, pixels, tag)
+            try:
+                share, mean = print_footprint(scene, pixels, tag)
+            except ValueError:  # a degenerate projection (not a convex cell): the rays decide
+                break
             if not agrees(share, sample_sticker, sample_coverage, tag):
                 break
             more = share > coverage

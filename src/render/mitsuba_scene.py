@@ -53,15 +53,15 @@ def print_albedo(tag: TagPrint, texture: np.ndarray) -> np.ndarray:
     return np.where(texture > PAPER_THRESHOLD, tag.paper, tag.ink).astype(np.float32)
 
 
-def tag_bsdf(tag: TagPrint, texture: np.ndarray, mi: ModuleType) -> dict[str, Any]:
-    """Tag BSDF: the marker texture (uint8, one texel per cell) mapped to ink/paper albedo.
+def tag_bsdf(tag: TagPrint, albedo: np.ndarray, mi: ModuleType) -> dict[str, Any]:
+    """Tag BSDF: the print's albedo texture (:func:`print_albedo`) as a bitmap.
 
     The bitmap's v is flipped (``to_uv``): a ``rectangle`` maps uv = ((x+1)/2, (y+1)/2) while
     bitmap row 0 is the image's top (docs/conventions.md §4).
     """
     bitmap = {
         "type": "bitmap",
-        "bitmap": mi.Bitmap(print_albedo(tag, texture)[..., None]),
+        "bitmap": mi.Bitmap(np.asarray(albedo, np.float32)[..., None]),
         "raw": True,
         "filter_type": tag.texture_filter,
         "to_uv": mi.ScalarTransform4f().translate([0, 1, 0]).scale([1, -1, 1]),

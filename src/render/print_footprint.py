@@ -95,7 +95,7 @@ def print_footprint(
     scene : FixtureScene
         A posed scene for which :func:`exact_footprint_applies`.
     pixels : ndarray of int (N, 2)
-        Full-image pixel columns and rows (px).
+        Full-image pixel columns and rows (px), each once.
     tag : int
         The sticker's tag id.
 

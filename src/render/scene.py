@@ -111,7 +111,8 @@ class FixtureScene:
                 "face_normals": True,
                 "bsdf": bsdf(spec.materials[obj.material]),
             }
-        #: per tag id, the print's albedo texture the tag BSDF looks up (rows x columns)
+        #: per tag id, the print's albedo texture the tag BSDF looks up (rows x columns; one
+        #: texel per cell with nearest lookup, each cell repeated with bilinear)
         self.print_albedo: dict[int, np.ndarray] = {}
         for face in rig.tags.faces:
             texture = cv2.imread(str(assets_dir() / f"tag_{face.id}.png"), cv2.IMREAD_GRAYSCALE)
@@ -120,7 +121,7 @@ class FixtureScene:
             self.print_albedo[face.id] = print_albedo(spec.tag, texture)
             scene_dict[f"tag_{face.id}"] = {
                 "type": "rectangle",
-                "bsdf": tag_bsdf(spec.tag, texture, mi),
+                "bsdf": tag_bsdf(spec.tag, self.print_albedo[face.id], mi),
             }
         rail_from_eyepoint = rig.rail_from_eyepoint(0, errors)
         for name, light in spec.lights.items():
