@@ -15,7 +15,7 @@ lens, and where the capture's key light differs from the simulation's (another p
 cone) a glint placed elsewhere absorbed them better. On three of the four laminate captures of
 blind seed 47 it missed, the level model's best fit put the light 5-16 cm from where it was
 (once on the wrong side of the lens, once on a bound; on one, the true geometry fitted worse
-than a matte light: 1.22 floors against 1.13); the ratio found the roughness within 0.02 and
+than a matte light: 1.22 floors against 1.13); the ratio found the roughness within 9 % and
 the horizontal offset within 1 cm on two of them (the third: roughness 0.33 for 0.27, the light
 1 cm on the other side; the fourth has too few unclipped papers). On the 23 development
 captures without a laminate whose levels made it a candidate, the level model supported a glint
