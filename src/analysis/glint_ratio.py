@@ -17,7 +17,8 @@ blind seed 47 it missed, the level model's best fit put the light 5-16 cm from w
 (once on the wrong side of the lens, once on a bound; on one, the true geometry fitted worse
 than a matte light: 1.22 floors against 1.13); the ratio found the roughness within 9 % and
 the horizontal offset within 1 cm on two of them (the third: roughness 0.33 for 0.27, the light
-1 cm on the other side; the fourth has too few unclipped papers). On the 23 development
+0.9 cm on the other side of the lens, 3.9 cm from where it was; the fourth has too few
+unclipped papers). On the 23 development
 captures without a laminate whose levels made it a candidate, the level model supported a glint
 on every one (most on a bound of the offsets), the ratio on two (blind seeds 44-47, development
 data since).
