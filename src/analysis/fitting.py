@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -156,29 +155,6 @@ def project_items(rig: Rig, camera, errors, tag_scale: float, items: Items) -> n
 #: Scale of the robust (soft L1) loss of the corner fits (px): corner residuals beyond it count
 #: linearly (a tag detected with a corner off by a pixel does not lead the fit).
 CORNER_LOSS_SCALE_PX = 0.5
-
-
-def fit_subset(
-    residual: Callable[[np.ndarray], np.ndarray],
-    x0: np.ndarray,
-    free: np.ndarray,
-    lower: Sequence[float],
-    upper: Sequence[float],
-) -> np.ndarray:
-    """Robust (soft L1) bounded least squares of ``residual`` over the ``free`` entries of ``x0``.
-
-    Returns the whole parameter vector: ``x0`` with its free entries fitted.
-    """
-
-    def partial(v: np.ndarray) -> np.ndarray:
-        x = x0.copy()
-        x[free] = v
-        return residual(x)
-
-    solution = least_squares(partial, x0[free], bounds=(lower, upper), loss="soft_l1")
-    x = x0.copy()
-    x[free] = solution.x
-    return x
 
 
 def on_bound(value: float, low: float, high: float) -> bool:

@@ -34,8 +34,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simgap.analysis.appearance import capped_rms
-from simgap.analysis.fitting import fit_subset
 from simgap.analysis.lobe import MIN_COS, beckmann, lobe_geometry
+from simgap.analysis.subset_fit import fit_subset
 from simgap.analysis.thresholds import IMAGE_FLOORS
 
 if TYPE_CHECKING:

@@ -64,10 +64,11 @@ from simgap.analysis.appearance import (
     measuring_only,
 )
 from simgap.analysis.channels import detection_groups, detection_score
-from simgap.analysis.fitting import Fit, Items, fit_subset, on_bound
+from simgap.analysis.fitting import Fit, Items, on_bound
 from simgap.analysis.glint_ratio import STARTS, RatioFit, fit_ratios
 from simgap.analysis.lobe import MIN_COS, beckmann, lobe_geometry
 from simgap.analysis.runner import Runner
+from simgap.analysis.subset_fit import fit_subset
 from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
