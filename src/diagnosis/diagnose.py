@@ -46,6 +46,7 @@ from simgap.diagnosis.items import (
     simulation_experiment,
     split_items,
     subsample,
+    with_propagated_noise,
     with_render_seeds,
 )
 from simgap.diagnosis.result import (
@@ -100,10 +101,13 @@ class Diagnosis:
         real = repeats_of_simulation(real, sim)
         self.real, self.sim, self.exp = real, sim, exp
         self.field = gapmod.gap_field(real, sim)
-        self.items = build_items(real, sim, self.field)
-        self.runner = SimRunner(exp, simulator)
         self.base = exp.variant_states()[0][1]
         self.rig = exp.rig_model
+        unit_px = corner_unit(real.reproj_px.isel(variant=0).values)
+        self.items = build_items(real, sim, self.field)
+        if exp.render.mode == "converged":  # its repeats measure no noise: propagate it
+            self.items = with_propagated_noise(self.items, unit_px, self.rig, self.base)
+        self.runner = SimRunner(exp, simulator)
         fit, choose, report = split_items(
             len(self.items), settings.fit_fraction, settings.choose_fraction, settings.seed
         )
@@ -127,7 +131,7 @@ class Diagnosis:
             sim_fit_index=subsample(fit, settings.max_sim_fit_items, settings.seed),
             significant_axes=self.significant_axes,
             runner=self.runner,
-            corner_unit_px=corner_unit(real.reproj_px.isel(variant=0).values),
+            corner_unit_px=unit_px,
             steps=Steps(progress),
         )
 

@@ -17,10 +17,12 @@ import yaml
 from simgap.analysis import gap as gapmod
 from simgap.analysis.fitting import Items
 from simgap.analysis.image_evidence import repeat_median_stats
+from simgap.analysis.pose_noise import propagated_pose_noise
 from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.config import to_mapping
-from simgap.core.rig import CameraModel
+from simgap.core.rig import CameraModel, Rig
+from simgap.effects.state import VariantState
 from simgap.pipeline.experiment import Configurations, Experiment
 from simgap.pose.image_stats import STAT_NAMES
 
@@ -136,6 +138,23 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
         real_detected=field.real_detection.values[at],
         sim_detected=field.sim_detection.values[at],
     )
+
+
+def with_propagated_noise(
+    items: Items, corner_unit_px: float, rig: Rig, base: VariantState
+) -> Items:
+    """``items`` whose scale is at least each configuration's propagated pose noise.
+
+    For a simulation whose repeats measure no noise (a converged render): the corner channel's
+    unit (the gap's corner noise, both sides, :func:`simgap.analysis.channels.corner_unit`) is
+    split over the two corner coordinates (over sqrt 2) and propagated through PnP at the
+    simulated corners, or the real ones where the simulation found none
+    (:func:`simgap.analysis.pose_noise.propagated_pose_noise`).
+    """
+    found = np.isfinite(items.sim_corners).all(axis=(1, 2))
+    corners = np.where(found[:, None, None], items.sim_corners, items.real_corners)
+    noise = propagated_pose_noise(corners, corner_unit_px / np.sqrt(2.0), rig, base)
+    return dataclasses.replace(items, scale=np.fmax(items.scale, noise))
 
 
 def split_items(

@@ -175,11 +175,13 @@ def pseudo_real_experiment(
 
     The camera's effects with the hidden ones on top (a hidden sensor noise replaces the
     camera's; a hidden exposure is already the camera's total, :func:`draw_trials`), its scene
-    overrides, samples per pixel, poses and frames a pose.
+    overrides, samples per pixel (path traced), poses and frames a pose.
     """
     effects = {**camera.effects, **rendered_effects(hidden)}
+    # path traced whatever the simulation's render mode: the other camera is another generator
+    # (its supersampling, not simgap's demodulation, keeps its Monte Carlo noise low)
     return dataclasses.replace(
-        base.with_render(seed=seed, spp=camera.spp),
+        base.with_render(seed=seed, spp=camera.spp, mode="path"),
         name="pseudo_real",
         scene=deep_merge(base.scene, camera.scene),
         configurations=Configurations(tuple(camera.p), tuple(camera.theta_deg), ()),
