@@ -45,7 +45,12 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
     # its outputs are recognised as simgap's: a rerun may replace them (issue 26)
     assert DIAGNOSIS_JSON.is_ours(js) and (out / OUTPUT_MARKER).is_file()
     result = DiagnosisResult.from_json(json.loads(js.read_text()))
-    assert result.where.significant and result.where.axis_gaps["ty"].significant
+    # the ty gap (median -6.4 mm, from -3.6 mm near to -9 mm far) is the largest: on 9 items
+    # its median is 3.7 standard errors from zero converged (path traced: 5.3), as the where
+    # test's scatter (the gaps' MAD) holds the trend with distance; the trend and the corners
+    # carry the choice (docs/results/converged_diagnosis.md)
+    ty = result.where.axis_gaps["ty"]
+    assert result.where.significant and ty.median < -5e-3 and abs(ty.z_median) > 3.0
     assert result.ranking[0].effect == "focal_length"
     assert result.selected[0] == "focal_length"
     # focal length alone among the geometric and calibration effects: the generator's softer
@@ -53,9 +58,10 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
     # rode along before issue 8) nor a carriage pitch
     assert [e for e in result.selected if e in geometric_effects()] == ["focal_length"]
     assert "pose" not in result.unexplained_evidence
-    # generator: +2 %; measured fit 0.0194 (the generator's own edge bias differs from ours)
+    # generator: +2 %; measured fit 0.0194 (the generator's own edge bias differs from ours;
+    # the same converged and path traced)
     assert result.ranking[0].params["scale"] == pytest.approx(0.02, abs=0.003)
-    # measured: 93 % reduction on the report split, confirmed by re-rendering
+    # measured: 94 % reduction on the report split, confirmed by re-rendering (path 16 spp: 93 %)
     assert result.confirmed.pose_gap_reduction >= 0.7
     for name in (
         "diagnosis.md",
@@ -66,12 +72,15 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
         "abs_error_vs_distance.png",
     ):
         assert (out / name).is_file()
-    # 9 configurations: simulated at 4 render seeds, and the report says so
+    # the baseline renders converged: 9 configurations at 4 render seeds (the capture's 4
+    # frames a pose are kept), each configuration's pose noise also propagated from the
+    # capture's corner noise (measured 0.253 px per coordinate), and the report says so
     assert result.render_seeds == 4
+    assert result.propagated_corner_noise_px == pytest.approx(0.253, abs=0.03)
     report = (out / "diagnosis.md").read_text()
-    assert "rendered at 4 seeds per configuration" in report
-    # the verdict comes first, in mm: ty far is the largest gap (measured -9.36 mm; the sample's
-    # 2 % focal length moves the far tags' ty most), and what the fit leaves there (+1.73 mm)
+    assert "propagated through PnP" in report
+    # the verdict comes first, in mm: ty far is the largest gap (measured -9.16 mm; the sample's
+    # 2 % focal length moves the far tags' ty most), and what the fit leaves there (-1.06 mm)
     verdict = report.split("## Where")[0]
     assert "Largest gap: **ty far**" in verdict and " mm" in verdict
     assert "| ty | near (p 0-0) |" in verdict

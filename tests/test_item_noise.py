@@ -101,9 +101,3 @@ def test_small_captures_are_simulated_at_several_render_seeds(configurations, se
     else:
         assert seeded.repeats == seeds and seeded.render.reseed_repeats
         assert dataclasses.replace(seeded, repeats=exp.repeats, render=exp.render) == exp
-
-
-@pytest.mark.parametrize("configurations", [1, 9, 540])
-def test_a_converged_simulation_needs_one_render_seed(configurations):
-    """No Monte Carlo noise to average (docs/results/converged_render_step3.md)."""
-    assert DiagnoseSettings().render_seeds(configurations, "converged") == 1

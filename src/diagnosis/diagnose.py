@@ -105,8 +105,11 @@ class Diagnosis:
         self.rig = exp.rig_model
         unit_px = corner_unit(real.reproj_px.isel(variant=0).values)
         self.items = build_items(real, sim, self.field)
+        #: corner noise propagated to each configuration's pose noise (px; None: not)
+        self.propagated_px: float | None = None
         if exp.render.mode == "converged":  # its repeats measure no noise: propagate it
-            self.items = with_propagated_noise(self.items, unit_px, self.rig, self.base)
+            self.propagated_px = unit_px / np.sqrt(2.0)
+            self.items = with_propagated_noise(self.items, self.propagated_px, self.rig, self.base)
         self.runner = SimRunner(exp, simulator)
         fit, choose, report = split_items(
             len(self.items), settings.fit_fraction, settings.choose_fraction, settings.seed
@@ -238,7 +241,7 @@ def diagnose(
         simulator = Simulator(Path(simulator))
     t0 = time.perf_counter()
     sim_exp = simulation_experiment(real, exp)
-    seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"], sim_exp.render.mode)
+    seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"])
     sim = simulator.dataset(with_render_seeds(sim_exp, seeds))
     d = Diagnosis(real, sim, sim_exp, simulator, settings, progress)
     where = where_summary(d.real, d.sim, d.field, d.axis_gaps)
@@ -269,6 +272,7 @@ def diagnose(
             seed=settings.seed,
         ),
         render_seeds=seeds,
+        propagated_corner_noise_px=d.propagated_px,
     )
     if refused is not None:
         result.unexplained_evidence.append("corners")

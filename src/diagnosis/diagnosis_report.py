@@ -161,8 +161,15 @@ def evidence_markdown(where: Where) -> list[str]:
 
 
 def _render_seeds_sentence(result: DiagnosisResult) -> str:
-    """How the simulation of a small capture measured each configuration's noise (or "")."""
+    """How each configuration's pose noise was measured (or "" where by the per-axis noise)."""
     seeds = result.render_seeds
+    if result.propagated_corner_noise_px is not None:
+        return (
+            " The simulation is converged (no render noise to measure): each configuration's "
+            "pose noise is the larger of the per-axis noise and the pose's response to "
+            f"{result.propagated_corner_noise_px:.2f} px of corner noise per coordinate "
+            "(the capture's), propagated through PnP."
+        )
     if seeds <= 1:
         return ""
     return (

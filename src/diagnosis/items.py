@@ -140,20 +140,18 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
     )
 
 
-def with_propagated_noise(
-    items: Items, corner_unit_px: float, rig: Rig, base: VariantState
-) -> Items:
+def with_propagated_noise(items: Items, sigma_px: float, rig: Rig, base: VariantState) -> Items:
     """``items`` whose scale is at least each configuration's propagated pose noise.
 
-    For a simulation whose repeats measure no noise (a converged render): the corner channel's
-    unit (the gap's corner noise, both sides, :func:`simgap.analysis.channels.corner_unit`) is
-    split over the two corner coordinates (over sqrt 2) and propagated through PnP at the
-    simulated corners, or the real ones where the simulation found none
-    (:func:`simgap.analysis.pose_noise.propagated_pose_noise`).
+    For a simulation whose repeats measure no noise (a converged render): corner noise of
+    ``sigma_px`` per coordinate (the diagnosis takes the corner channel's unit, the gap's corner
+    noise of both sides, :func:`simgap.analysis.channels.corner_unit`, over sqrt 2: its two
+    coordinates) is propagated through PnP at the simulated corners, or the real ones where the
+    simulation found none (:func:`simgap.analysis.pose_noise.propagated_pose_noise`).
     """
     found = np.isfinite(items.sim_corners).all(axis=(1, 2))
     corners = np.where(found[:, None, None], items.sim_corners, items.real_corners)
-    noise = propagated_pose_noise(corners, corner_unit_px / np.sqrt(2.0), rig, base)
+    noise = propagated_pose_noise(corners, sigma_px, rig, base)
     return dataclasses.replace(items, scale=np.fmax(items.scale, noise))
 
 

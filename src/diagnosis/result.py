@@ -223,6 +223,9 @@ class DiagnosisResult:
     split: Split | None = None
     #: render seeds per configuration of the simulation
     render_seeds: int = 1
+    #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
+    #: noise, where the simulation's repeats measure none (a converged render); None otherwise
+    propagated_corner_noise_px: float | None = None
     combined: Combined | None = None
     confirmed: Confirmed | None = None
     seconds: float = 0.0

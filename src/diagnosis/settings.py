@@ -39,16 +39,17 @@ class DiagnoseSettings:
     #: Most render seeds per configuration.
     max_render_seeds: int = 4
 
-    def render_seeds(self, configurations: int, render_mode: str = "path") -> int:
+    def render_seeds(self, configurations: int) -> int:
         """Render seeds for the simulation of a capture of ``configurations`` configurations.
 
-        One for a ``converged`` render (``render.mode``): its demodulated sticker pixels carry
-        almost no Monte Carlo noise to average (two render seeds of the baseline sweep differ by
-        0.085 mm in ty and 0.25-0.41 mrad in rotation; docs/results/converged_render_step3.md),
-        so the simulation's noise is the modelled camera's. A sticker that falls back to path
-        tracing, and the pixels off the stickers, keep their path-traced noise.
+        The same rule for a ``converged`` render (``render.mode``), although its seeds differ
+        little (0.09 mm in ty over the baseline, docs/results/converged_render_step4.md): a
+        capture's frames are compared with as many simulated repeats only
+        (:func:`simgap.diagnosis.items.repeats_of_simulation`), so one seed kept only the first
+        of the public sample-focal's 4 frames a pose, and its 6 mm ty gap fell to 3.8 standard
+        errors (4 frames: 5.3; docs/results/converged_diagnosis.md). Its per-configuration pose
+        noise comes from the corners instead (:func:`simgap.diagnosis.items.
+        with_propagated_noise`). A capture of 36 configurations or more gets one seed.
         """
-        if render_mode == "converged":
-            return 1
         wanted = -(-self.min_simulated_frames // max(configurations, 1))
         return int(min(max(wanted, 1), self.max_render_seeds))
