@@ -20,9 +20,16 @@ detector, PnP):
   the wall time of the seed-0 sweep and the two seeds' mean |difference| (ty in mm, rotations in
   mrad). The issue's bars: 0.1 mm and 1 mrad between seeds, converged at most half the 16-spp
   time.
+- **The naive way**: the whole frame (1920 x 1080) path traced at the samples that give the
+  stickers the converged render's noise (16 spp x (path 16-spp noise / converged noise)^2, both
+  measured on the baseline variant above), for ``--naive-configs`` configurations of the sweep.
+  That count is thousands, so the frame is timed at 64 and 256 spp and the time extrapolated
+  along the straight line through them (the time of a path tracer grows linearly with its
+  samples: the two points' time per sample is printed). Against the converged sweep's wall
+  time per configuration (which also detects and solves the pose). The issue's bar: 100x.
 
 Usage: ``python benchmarks/converged_render.py [--configs 3] [--ref-spp 1024] [--spp 4]
-[--sweep-configs 540] [--variants baseline,glossy_tags]``
+[--sweep-configs 540] [--naive-configs 1] [--variants baseline,glossy_tags]``
 """
 
 from __future__ import annotations
@@ -68,9 +75,12 @@ def compare(ds: xr.Dataset, ref: xr.Dataset, label: str) -> None:
     )
 
 
-def render_noise(exp: Experiment, spp: int) -> None:
+def render_noise(exp: Experiment, spp: int) -> dict[str, tuple[float, float]]:
     """Per variant: two render seeds' difference / sqrt 2 on fully covered sticker pixels (DN of
-    the sRGB encoding, not rounded), converged at ``spp`` and path traced at 16 spp."""
+    the sRGB encoding, not rounded), converged at ``spp`` and path traced at 16 spp.
+
+    Returns the RMS (DN) per variant: (converged, path 16 spp).
+    """
     import colour
 
     from simgap.pipeline.sweep import experiment_pipelines
@@ -82,6 +92,7 @@ def render_noise(exp: Experiment, spp: int) -> None:
         return 255.0 * colour.cctf_encoding(np.clip(linear, 0.0, 1.0), function="sRGB")
 
     p_all, theta_all, _ = exp.configuration_axes()
+    out = {}
     with tempfile.TemporaryDirectory(prefix="simgap-bench-") as cache:
         pipes = experiment_pipelines(exp.with_render(spp=spp, mode="converged"), Path(cache))
         for pipe, spec in zip(pipes, exp.variant_specs(), strict=True):
@@ -101,11 +112,36 @@ def render_noise(exp: Experiment, spp: int) -> None:
                     a = converged_pixels(scene, pixels, 0).values[inside]
                     b = converged_pixels(scene, pixels, 1).values[inside]
                     converged.append(dn(a) - dn(b))
-            row = []
+            row, rms = [], []
             for label, diffs in ((f"converged {spp} spp", converged), ("path 16 spp", path)):
                 d = np.abs(np.concatenate(diffs)) / np.sqrt(2)
-                row.append(f"{label} median {np.median(d):.2f} RMS {np.sqrt(np.mean(d**2)):.2f}")
+                rms.append(float(np.sqrt(np.mean(d**2))))
+                row.append(f"{label} median {np.median(d):.2f} RMS {rms[-1]:.2f}")
+            out[spec.name] = (rms[0], rms[1])
             print(f"  {spec.name}: render noise (DN) " + "; ".join(row), flush=True)
+    return out
+
+
+def naive_full_frame(exp: Experiment, spp: int, configurations: int, seed: int) -> float:
+    """Seconds per configuration to path trace the whole frame at ``spp`` (no cache, no IO)."""
+    from simgap.pipeline.sweep import experiment_pipelines
+
+    p_all, theta_all, _ = exp.configuration_axes()
+    rng = np.random.default_rng(seed)
+    picks = [(int(rng.choice(p_all)), float(rng.choice(theta_all))) for _ in range(configurations)]
+    with tempfile.TemporaryDirectory(prefix="simgap-bench-") as cache:
+        pipe = experiment_pipelines(exp.with_render(spp=spp, mode="path"), Path(cache))[0]
+        scene = pipe.scene()
+        w, h = pipe.image_size
+        rows, cols = np.mgrid[0:h, 0:w]
+        pixels = np.stack([cols.ravel(), rows.ravel()], axis=1)
+        scene.set_pose(*picks[0])
+        scene.render_pixels(pixels[:4096], 0)  # compile the kernel outside the timing
+        t0 = time.perf_counter()
+        for p, theta in picks:
+            scene.set_pose(p, theta)
+            scene.render_pixels(pixels, 0)
+        return (time.perf_counter() - t0) / configurations
 
 
 def drawn(base: Experiment, n: int, seed: int) -> Experiment:
@@ -130,6 +166,7 @@ def main() -> None:
     parser.add_argument("--ref-spp", type=int, default=1024)
     parser.add_argument("--spp", type=int, default=4)
     parser.add_argument("--sweep-configs", type=int, default=540)
+    parser.add_argument("--naive-configs", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--experiment", default="experiments/baseline.yaml")
     parser.add_argument("--accuracy-experiment", default="experiments/rendering_options.yaml")
@@ -148,8 +185,9 @@ def main() -> None:
     exp = drawn(options, args.configs, args.seed)
     n = len(exp.configuration_axes()[0]) * len(exp.configuration_axes()[1])
     print(f"accuracy: {exp.configurations}, {len(exp.variant_specs())} variants x {n}", flush=True)
-    ref, _ = run(exp.with_render(spp=args.ref_spp), f"reference: path {args.ref_spp} spp")
-    path, _ = run(exp.with_render(spp=16), "path 16 spp")
+    reference = exp.with_render(spp=args.ref_spp, mode="path")
+    ref, _ = run(reference, f"reference: path {args.ref_spp} spp")
+    path, _ = run(exp.with_render(spp=16, mode="path"), "path 16 spp")
     conv, _ = run(exp.with_render(spp=args.spp, mode="converged"), f"converged {args.spp} spp")
     for variant in [s.name for s in exp.variant_specs()] + [None]:
         pick = (lambda d: d) if variant is None else (lambda d, v=variant: d.sel(variant=v))
@@ -157,14 +195,14 @@ def main() -> None:
         compare(pick(path), pick(ref), "path 16 spp")
         compare(pick(conv), pick(ref), f"converged {args.spp} spp")
     print("render noise:", flush=True)
-    render_noise(exp, args.spp)
+    noise = render_noise(exp, args.spp)
 
     # about --sweep-configs configurations: as many pin holes as angles
     sweep = drawn(base, int(np.ceil(np.sqrt(args.sweep_configs))), args.seed + 1)
     print(f"seeds and speed: {sweep.configurations}", flush=True)
     seconds = {}
     modes = {
-        "path 16 spp": {"spp": 16},
+        "path 16 spp": {"spp": 16, "mode": "path"},
         f"converged {args.spp} spp": {"spp": args.spp, "mode": "converged"},
     }
     for label, settings in modes.items():
@@ -176,6 +214,22 @@ def main() -> None:
         compare(seeds[1], seeds[0], f"{label}: render seed 1 against seed 0")
     path_s, conv_s = seconds.values()
     print(f"speed: converged / path 16 spp = {conv_s / path_s:.2f} (bar: <= 0.5)")
+
+    converged_noise, path_noise = noise.get("baseline", next(iter(noise.values())))
+    equal_spp = 16.0 * (path_noise / converged_noise) ** 2
+    timed = {n: naive_full_frame(sweep, n, args.naive_configs, args.seed) for n in (64, 256)}
+    per_sample = (timed[256] - timed[64]) / (256 - 64)
+    naive_s = timed[64] + per_sample * (equal_spp - 64)
+    n_sweep = len(sweep.configuration_axes()[0]) * len(sweep.configuration_axes()[1])
+    print(
+        f"naive full frame: 64 spp {timed[64]:.1f} s, 256 spp {timed[256]:.1f} s a configuration "
+        f"({timed[64] / 64 * 1e3:.1f} and {timed[256] / 256 * 1e3:.1f} ms a sample per pixel); "
+        f"the converged noise at {equal_spp:.0f} spp: {naive_s:.0f} s a configuration"
+    )
+    print(
+        f"speed-up over the naive way: {naive_s / (conv_s / n_sweep):.0f}x "
+        f"(converged sweep {conv_s / n_sweep:.3f} s a configuration; bar: >= 100x)"
+    )
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Fewer samples at equal accuracy? The sweep at fewer samples or pixels against the baseline's.
+"""Fewer samples at equal accuracy? The path-traced sweep at fewer samples or pixels (issue 11).
 
 For each sample count and each render margin (:mod:`simgap.pipeline.region`: pixels within that
 distance of a sticker are rendered), one sequential pass over the experiment's configurations (every
@@ -79,7 +79,7 @@ def main() -> None:
     configs = [(int(p), float(t)) for p in ps for t in thetas][:: args.every]
 
     def at(spp: int, seed: int, margin: int = args.reference_margin):
-        return base.with_render(spp=spp, seed=seed, margin_px=margin)
+        return base.with_render(spp=spp, seed=seed, margin_px=margin, mode="path")
 
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()

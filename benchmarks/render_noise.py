@@ -5,8 +5,9 @@ the camera pipeline, is below a stated fraction of an 8-bit step. Whether that s
 depends on where the baseline's sample count lies against that floor, which this script measures.
 
 For ``--configs`` configurations of the experiment (drawn with a fixed seed), the stickers' own
-pixels (:func:`simgap.pipeline.region.sticker_region` with no margin) are rendered twice at the
-experiment's sample count with two render seeds, and once more at ``--factor`` times the samples.
+pixels (:func:`simgap.pipeline.region.sticker_region` with no margin) are path traced twice at
+``--spp`` samples (default 16) with two render seeds, and once more at ``--factor`` times the
+samples.
 Each render is encoded as the detector sees it (8-bit sRGB, grey); the per-pixel render noise is
 the standard deviation of the two renders' difference over sqrt(2). Printed per sample count:
 
@@ -19,7 +20,7 @@ the standard deviation of the two renders' difference over sqrt(2). Printed per 
   noise and the 1/sqrt(samples) law, which the ``--factor`` row checks).
 
 Usage: ``python benchmarks/render_noise.py [--experiment experiments/baseline.yaml]
-[--configs 8] [--factor 4] [--target 0.5]``
+[--configs 8] [--spp 16] [--factor 4] [--target 0.5]``
 """
 
 from __future__ import annotations
@@ -73,11 +74,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--experiment", type=Path, default=Path("experiments/baseline.yaml"))
     ap.add_argument("--configs", type=int, default=8)
+    ap.add_argument("--spp", type=int, default=16, help="path-traced samples per pixel")
     ap.add_argument("--factor", type=int, default=4)
     ap.add_argument("--target", type=float, default=0.5, help="render noise to reach (DN)")
     args = ap.parse_args()
 
-    exp = load_experiment(args.experiment)
+    # path traced (the baseline renders converged since issue 28: benchmarks/converged_render.py)
+    exp = load_experiment(args.experiment).with_render(spp=args.spp, mode="path")
     with tempfile.TemporaryDirectory() as tmp:
         pipe = experiment_pipelines(exp, Path(tmp))[0]
         scene = pipe.scene()

@@ -4,14 +4,14 @@
 per pixel with its primary hit's sticker and print albedo (:func:`simgap.render.pixel_samples.
 sample_pixels`). On the pixels on a print edge or the sticker's border, the print's albedo and
 coverage over the pixel's footprint are clipped exactly from the print's cells
-(:mod:`simgap.render.print_footprint`: box filter, pinhole, nearest texture lookup, no occluder)
-or else integrated with :data:`FOOTPRINT_POINTS` primary rays of one fixed pattern
-(:func:`simgap.render.pixel_samples.footprint_samples`); either is the same for every render
-seed, and which one is used is decided by the first pass's samples (:func:`edge_footprint`:
-near an occluder one seed may see it and another not; on the baseline both seeds took the exact
-one at every configuration, docs/results/converged_render_step4.md). Per sticker, the
-radiance is divided by the albedo of its own samples, a smooth irradiance is fitted and
-multiplied by the footprint's albedo (:func:`simgap.render.demodulate.demodulate`), which
+(:mod:`simgap.render.print_footprint`: box filter, nearest texture lookup, no occluder; a thin
+lens's averaged over its aperture) or else integrated with :data:`FOOTPRINT_POINTS` primary
+rays of one fixed pattern (:func:`simgap.render.pixel_samples.footprint_samples`); either is the
+same for every render seed, and which one is used is decided by the first pass's samples
+(:func:`edge_footprint`: near an occluder one seed may see it and another not; on the baseline
+both seeds took the exact one at every configuration, docs/results/converged_render_step4.md).
+Per sticker, the radiance is divided by the albedo of its own samples, a smooth irradiance is
+fitted and multiplied by the footprint's albedo (:func:`simgap.render.demodulate.demodulate`), which
 removes most of the Monte Carlo noise of a flat diffuse print; a print under a laminate is
 fitted as the albedo times a smooth diffuse field plus a smooth specular one. Where the smooth
 model is rejected (a shadow or highlight edge across the sticker, a sharp glint), that
@@ -31,19 +31,25 @@ import numpy as np
 
 from simgap.render.demodulate import StickerSamples, Treatment, demodulate
 from simgap.render.pixel_samples import PixelSamples, footprint_samples, sample_pixels
-from simgap.render.print_footprint import agrees, exact_footprint_applies, print_footprint
+from simgap.render.print_footprint import (
+    agrees,
+    defocus_reach_px,
+    exact_footprint_applies,
+    print_footprint,
+)
 
 if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
 #: Part of the render key of a converged render: bump when what it holds changes.
-#: 5: exact footprints; 4: coated fits keep the darkest pixels; 3: laminates demodulated.
-CONVERGED_VERSION = "exact-5"
+#: 6: thin-lens footprints; 5: exact footprints; 4: coated fits keep the darkest pixels; 3:
+#: laminates demodulated.
+CONVERGED_VERSION = "exact-6"
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
 #: Primary rays per pixel of the footprint pass where the exact footprint does not apply (a tent
-#: or Gaussian filter, a thin lens, bilinear texture lookup, an occluder) or disagrees,
+#: or Gaussian filter, bilinear texture lookup, an occluder) or disagrees,
 #: a fixed Sobol' pattern (:func:`simgap.render.pixel_samples.footprint_pattern`): its points are
 #: stratified in 1/64 px along each pixel axis, so under a box filter an edge along an axis is
 #: placed to within 1/64 px (0.0064 px RMS over the edge's sub-pixel position). 256 points took
@@ -95,6 +101,11 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     # neighbour's (an edge that cuts a corner of a pixel, or crosses it near its side, misses
     # all of its few samples, but then lies between it and a neighbour that does not look alike)
     near = edge_pixels(pixels, samples)
+    if scene.lens[0] > 0.0 and exact_footprint_applies(scene):
+        # a thin lens spreads a print edge over a disc: every pixel within its radius of an
+        # edge pixel may hold some of the edge, whether or not its few samples saw it
+        reach = max((defocus_reach_px(scene, tag) for tag in tags), default=0.0)
+        near = widened(pixels, near, reach)
     footprint = edge_footprint(scene, pixels[near], samples.sticker[near], samples.coverage[near])
     footprint_albedo, footprint_coverage = samples.albedo.copy(), samples.coverage.copy()
     footprint_sticker = samples.sticker.copy()
@@ -158,10 +169,11 @@ def edge_footprint(
 ) -> Footprint:
     """The footprint of edge pixels: exact where the scene allows it and its samples agree.
 
-    Exact (:func:`simgap.render.print_footprint.print_footprint`) under a box filter, a pinhole
-    and nearest texture lookup, for every sticker the first pass saw, if each agrees with the
-    first pass's samples (:func:`simgap.render.print_footprint.agrees`: no occluder); otherwise
-    from :data:`FOOTPRINT_POINTS` primary rays of a fixed pattern
+    Exact (:func:`simgap.render.print_footprint.print_footprint`) under a box filter and
+    nearest texture lookup (a thin lens: averaged over points of its aperture), for every
+    sticker the first pass saw, if each agrees with the first pass's samples
+    (:func:`simgap.render.print_footprint.agrees`: no occluder); otherwise from
+    :data:`FOOTPRINT_POINTS` primary rays of a fixed pattern
     (:func:`simgap.render.pixel_samples.footprint_samples`).
 
     Parameters
@@ -190,6 +202,17 @@ def edge_footprint(
             return Footprint(sticker, coverage, albedo, exact=True)
     rays = footprint_samples(scene, pixels, FOOTPRINT_POINTS)
     return Footprint(rays.sticker, rays.coverage, rays.albedo, exact=False)
+
+
+def widened(pixels: np.ndarray, mask: np.ndarray, radius_px: float) -> np.ndarray:
+    """``mask`` over ``pixels`` (N, 2) grown by a disc of ``radius_px`` plus one pixel."""
+    r = int(np.ceil(radius_px)) + 1
+    lo = pixels.min(axis=0)
+    u, v = (pixels - lo).T
+    grid = np.zeros((int(v.max()) + 1, int(u.max()) + 1), np.uint8)
+    grid[v[mask], u[mask]] = 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    return cv2.dilate(grid, kernel)[v, u].astype(bool)
 
 
 def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:

@@ -1,14 +1,23 @@
 """Exact pixel footprints of a print: the pixel square clipped against its cells (issue 28).
 
 The converged render multiplies a smooth irradiance by the print's albedo averaged over each
-pixel's footprint (:mod:`simgap.render.demodulate`). Under a ``box`` pixel filter, a pinhole (no
-thin lens) and ``nearest`` texture lookup that average has a closed form: the print is a grid of
+pixel's footprint (:mod:`simgap.render.demodulate`). Under a ``box`` pixel filter, a pinhole and
+``nearest`` texture lookup that average has a closed form: the print is a grid of
 cells of one albedo each on the sticker's plane; the camera maps each cell to a convex
 quadrilateral in the image (a homography), and the share of a pixel that a cell covers is the
 area of that quadrilateral clipped to the pixel's square (Sutherland-Hodgman, vectorised over
 cell-pixel pairs). The albedo and the sticker's coverage are then exact, with no rays and none
 of a point pattern's quadrature error (1/64 px along an edge at 64 points,
 docs/results/converged_render_step3.md).
+
+A **thin lens** keeps it exact per point of the aperture: the ray from lens point ``L`` through
+a print point ``X`` (camera frame) meets the focus plane ``z = focus`` where the pinhole ray of
+normalised coordinates ``(X_xy + L (X_z / focus - 1)) / X_z`` does (:meth:`simgap.render.camera`'s
+``ray_through``), a homography of the print's plane for each ``L``. A pixel's footprint is then
+the mean of the clipped footprints over :data:`LENS_POINTS` fixed points of the aperture disc
+(:func:`lens_points`): the pixel's square is integrated exactly and only the aperture with a
+quadrature, against the 4-D point pattern's quadrature of both (docs/results/
+converged_render_step5.md).
 
 Two things this geometry does not hold, and how they are handled:
 
@@ -41,19 +50,66 @@ CLIPPED_VERTICES = 8
 #: A pixel whose exact coverage is within this of 1 (or of 0) is wholly on (off) the sticker:
 #: float64 round-off of the clipped areas is about 1e-15 (dimensionless).
 WHOLE_TOLERANCE = 1e-9
+#: Points of the aperture disc a thin lens's footprint is averaged over (a power of two: the
+#: first points of an Owen-scrambled Sobol' sequence, mapped to the disc as Mitsuba maps its
+#: aperture samples). Chosen against 1024 points (docs/results/converged_render_step5.md).
+LENS_POINTS = 64
+#: Scrambling seed of :func:`lens_points` (any fixed value: every render seed shares them).
+LENS_PATTERN_SEED = 28
+#: Largest blur radius (px) of a thin lens whose footprint is clipped: the pixels it is
+#: computed on grow with the blur (a band of its radius around every print edge) and each
+#: costs :data:`LENS_POINTS` clippings (1.2-3.0 s a configuration of the defocus variant at
+#: 1.1-2.0 px, docs/results/converged_render_step5.md); beyond it the 64 rays decide.
+LENS_REACH_MAX_PX = 4.0
 
 
 def exact_footprint_applies(scene: FixtureScene) -> bool:
-    """Whether :func:`print_footprint` is exact for ``scene`` (box filter, pinhole, nearest)."""
+    """Whether :func:`print_footprint` holds for posed ``scene`` (box filter, nearest lookup).
+
+    Exact for a pinhole; for a thin lens, up to the aperture's quadrature (:data:`LENS_POINTS`),
+    and only while its blur is at most :data:`LENS_REACH_MAX_PX` on every sticker.
+    """
     return (
         scene.spec.rfilter["type"] == "box"
-        and scene.lens[0] == 0.0
         and scene.spec.tag.texture_filter == "nearest"
+        and all(defocus_reach_px(scene, tag) <= LENS_REACH_MAX_PX for tag in scene.print_albedo)
     )
 
 
-def projected_cells(scene: FixtureScene, tag: int) -> tuple[NDArray[np.float64], NDArray]:
+def lens_points(scene: FixtureScene) -> NDArray[np.float64]:
+    """The aperture points (K, 2) of the footprint, in the lens plane (m; camera frame x, y).
+
+    One point at the centre for a pinhole; else :data:`LENS_POINTS` of a fixed Sobol' pattern on
+    the unit square, mapped to the disc by Mitsuba's own concentric warp (as the camera maps its
+    aperture samples) and scaled by the aperture's radius.
+    """
+    radius = scene.lens[0]
+    if radius == 0.0:
+        return np.zeros((1, 2))
+    from scipy.stats import qmc
+
+    mi = scene.mi
+    square = qmc.Sobol(d=2, scramble=True, seed=LENS_PATTERN_SEED).random_base2(
+        int(LENS_POINTS).bit_length() - 1
+    )
+    disc = mi.warp.square_to_uniform_disk_concentric(mi.Point2f(square[:, 0], square[:, 1]))
+    return radius * np.column_stack([np.asarray(disc.x, np.float64), np.asarray(disc.y)])
+
+
+def projected_cells(
+    scene: FixtureScene, tag: int, lens_point: tuple[float, float] = (0.0, 0.0)
+) -> tuple[NDArray[np.float64], NDArray]:
     """The print's cells of sticker ``tag`` as image quadrilaterals, and their albedo.
+
+    Parameters
+    ----------
+    scene : FixtureScene
+        A posed scene.
+    tag : int
+        The sticker's tag id.
+    lens_point : tuple of float
+        The point of the thin lens's aperture the print is seen through (m, camera frame x and
+        y; the centre for a pinhole): module docstring.
 
     Returns
     -------
@@ -77,6 +133,11 @@ def projected_cells(scene: FixtureScene, tag: int) -> tuple[NDArray[np.float64],
     local = np.column_stack([xx.ravel(), yy.ravel(), np.zeros(xx.size)])
     camera = scene.camera_model
     points = tf.apply(cv_from_rect, local)
+    if any(lens_point):  # where the ray through the lens point meets the focus plane
+        depth = points[:, 2:]
+        points = np.column_stack(
+            [points[:, :2] + np.asarray(lens_point) * (depth / scene.lens[1] - 1.0), depth]
+        )
     uv, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs)
     corners = uv.reshape(rows + 1, cols + 1, 2)
     quads = np.stack(
@@ -93,7 +154,8 @@ def print_footprint(
     Parameters
     ----------
     scene : FixtureScene
-        A posed scene for which :func:`exact_footprint_applies`.
+        A posed scene for which :func:`exact_footprint_applies` (a thin lens: averaged over
+        :func:`lens_points`).
     pixels : ndarray of int (N, 2)
         Full-image pixel columns and rows (px), each once.
     tag : int
@@ -107,14 +169,36 @@ def print_footprint(
         The print's mean albedo over that share (NaN where the share is 0).
     """
     pixels = np.asarray(pixels).reshape(-1, 2).astype(np.int64)
-    quads, albedo = projected_cells(scene, tag)
-    cell, pixel = _cell_pixel_pairs(quads, pixels)
-    area = clipped_area(quads[cell] - (pixels[pixel] - 0.5)[:, None, :])
     n = len(pixels)
-    coverage = np.bincount(pixel, area, minlength=n)
+    coverage, weighted = np.zeros(n), np.zeros(n)
+    lens = lens_points(scene)
+    for point in lens:
+        quads, albedo = projected_cells(scene, tag, tuple(point))
+        cell, pixel = _cell_pixel_pairs(quads, pixels)
+        area = clipped_area(quads[cell] - (pixels[pixel] - 0.5)[:, None, :])
+        coverage += np.bincount(pixel, area, minlength=n)
+        weighted += np.bincount(pixel, area * albedo[cell], minlength=n)
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.bincount(pixel, area * albedo[cell], minlength=n) / coverage
-    return np.minimum(coverage, 1.0), np.where(coverage > 0, mean, np.nan)
+        mean = weighted / coverage
+    return np.minimum(coverage / len(lens), 1.0), np.where(coverage > 0, mean, np.nan)
+
+
+def defocus_reach_px(scene: FixtureScene, tag: int) -> float:
+    """Radius of the thin lens's blur disc on sticker ``tag`` at its widest (px; 0: pinhole).
+
+    A point at depth ``z`` is spread over a disc of radius ``f r |1 / focus - 1 / z|`` (focal
+    length ``f`` in px, aperture radius ``r``), taken at the sticker's corners (a plane's
+    extreme depths are at its corners).
+    """
+    radius, focus = scene.lens
+    if radius == 0.0:
+        return 0.0
+    world = pose_transforms(scene.rig, *scene.pose, scene.errors, scene.tag_scale)
+    cv_from_rect = np.linalg.inv(world["camera"]) @ world[f"tag_{tag}"]
+    corners = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
+    depth = tf.apply(cv_from_rect, corners)[:, 2]
+    f = max(scene.camera_model.fx, scene.camera_model.fy)
+    return float(f * radius * np.max(np.abs(1.0 / focus - 1.0 / depth)))
 
 
 def _cell_pixel_pairs(quads: NDArray[np.float64], pixels: NDArray) -> tuple[NDArray, NDArray]:
