@@ -48,7 +48,7 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
     # the ty gap (median -6.4 mm, from -3.6 mm near to -9 mm far) is the largest: on 9 items
     # its median is 3.7 standard errors from zero converged (path traced: 5.3), as the where
     # test's scatter (the gaps' MAD) holds the trend with distance; the trend and the corners
-    # carry the choice (docs/results/converged_diagnosis.md)
+    # carry the choice (docs/results/converged_render_step5.md)
     ty = result.where.axis_gaps["ty"]
     assert result.where.significant and ty.median < -5e-3 and abs(ty.z_median) > 3.0
     assert result.ranking[0].effect == "focal_length"

@@ -47,7 +47,7 @@ class DiagnoseSettings:
         capture's frames are compared with as many simulated repeats only
         (:func:`simgap.diagnosis.items.repeats_of_simulation`), so one seed kept only the first
         of the public sample-focal's 4 frames a pose, and its 6 mm ty gap fell to 3.8 standard
-        errors (4 frames: 5.3; docs/results/converged_diagnosis.md). Its per-configuration pose
+        errors (4 frames: 5.3; docs/results/converged_render_step5.md). Its per-configuration pose
         noise comes from the corners instead (:func:`simgap.diagnosis.items.
         with_propagated_noise`). A capture of 36 configurations or more gets one seed.
         """
