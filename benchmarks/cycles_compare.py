@@ -245,8 +245,8 @@ def main() -> None:
         ]
     )
     print(f"configurations          {len(configs)} of {exp.name}, crops as simgap renders them")
-    print(f"simgap (Mitsuba 3)      {exp.render.spp:3d} spp  {simgap_s:6.2f} s/config  "
-          f"paper noise {simgap_noise:.2%}")  # fmt: skip
+    print(f"simgap (Mitsuba 3)      {exp.render.spp:3d} spp {exp.render.mode}  "
+          f"{simgap_s:6.2f} s/config  paper noise {simgap_noise:.2%}")  # fmt: skip
     rows = []
     worst_px, agree = 0.0, True
     for s in spp:

@@ -10,7 +10,9 @@ Prints
   kernel cache): wall time and rate;
 - the same sweep served from cache;
 - the naive way on a subset: full-frame render with ``mi.load_dict`` per pose, then detection
-  and PnP; its per-configuration time, extrapolated to the full sweep, and the speed ratio.
+  and PnP; its per-configuration time, extrapolated to the full sweep, and the speed ratio. It
+  path traces at the experiment's samples per pixel, which for a converged experiment is not
+  its noise: ``benchmarks/converged_render.py`` times the naive way at the converged noise.
 
 Usage: ``python benchmarks/sweep_speed.py [--experiment experiments/baseline.yaml] [--subset 8]``
 """
@@ -142,7 +144,10 @@ def main() -> None:
     facing = [(p, t) for p in ps for t in thetas if projected_sticker_boxes(exp.rig_model, p, t)]
     subset = [facing[i] for i in rng.choice(len(facing), args.subset, replace=False)]
     per_naive = naive(exp, subset)
-    print(f"experiment            {exp.name}: {n} configurations, spp {exp.render.spp}")
+    print(
+        f"experiment            {exp.name}: {n} configurations, {exp.render.mode} "
+        f"{exp.render.spp} spp (naive: path traced at {exp.render.spp} spp)"
+    )
     print(f"sweep, empty cache    {fast:8.1f} s   {n / fast:7.2f} configurations/s")
     print(f"sweep, from cache     {cached:8.2f} s   {n / cached:7.1f} configurations/s")
     print(f"naive, {len(subset)} configs     {per_naive:8.2f} s per configuration (facing a tag)")

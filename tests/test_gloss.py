@@ -97,12 +97,14 @@ def test_a_rendered_laminate_under_a_lens_side_light_is_named_with_its_roughness
     # measured: supported (the ratios' glint gains 1.47 floors; the levels at its geometry fit
     # within 0.06 floors against the matte light's 1.36), alpha 0.112, intensity 0.33 W/sr,
     # offset 0.027 m (height not fitted: 0); with the geometry from the levels (before the
-    # ratios): alpha 0.108, 0.36 W/sr, offset (0.034, -0.069) m. The roughness, the light's
-    # place and its intensity trade off where few tags sample the lobe (module docstring): 30 %
-    # with a margin
+    # ratios): alpha 0.108, 0.36 W/sr, offset (0.034, -0.069) m; all path traced at 16 spp.
+    # Rendered converged (the baseline's since issue 28): alpha 0.118, 0.40 W/sr, offset 0.016
+    # m (the laminate's ink levels 0-6 % above a 64-spp path render's, its paper within 3 %).
+    # The roughness, the light's place and its intensity trade off where few tags sample the
+    # lobe (module docstring): 30 % on the roughness, 40 % on the intensity
     assert fit.extra["supported"] and fit.extra["at_bound"] == ()
     assert fit.params["alpha"] == pytest.approx(0.1, rel=0.3)
-    assert fit.params["light_intensity_w_sr"] == pytest.approx(0.3, rel=0.3)
+    assert fit.params["light_intensity_w_sr"] == pytest.approx(0.3, rel=0.4)
 
 
 def _lit_otherwise(

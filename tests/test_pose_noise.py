@@ -7,6 +7,7 @@ import pytest
 
 from simgap.analysis.fitting import Items, project_items
 from simgap.analysis.pose_noise import propagated_pose_noise
+from simgap.diagnosis.items import with_propagated_noise
 from simgap.pipeline.experiment import load_experiment
 
 #: near (p 0) and far (p 14) tag 0, frontal and turned by 50 deg
@@ -42,8 +43,28 @@ def test_far_configurations_are_noisier_and_noise_scales_with_the_corners():
     np.testing.assert_array_equal(small, propagated_pose_noise(corners, 0.1, rig, base))
 
 
-def test_missing_corners_give_nan():
+def test_missing_corners_give_nan_and_leave_the_others_as_they_were():
     corners, rig, base = _corners()
+    full = propagated_pose_noise(corners, 0.1, rig, base)
     corners[1] = np.nan
     out = propagated_pose_noise(corners, 0.1, rig, base)
-    assert np.isnan(out[1]).all() and np.isfinite(out[[0, 2, 3]]).all()
+    assert np.isnan(out[1]).all()
+    # each configuration takes its own draws whichever others have corners
+    np.testing.assert_array_equal(out[[0, 2, 3]], full[[0, 2, 3]])
+
+
+def test_items_take_the_larger_scale_and_the_real_corners_where_the_simulation_has_none():
+    corners, rig, base = _corners()
+    n = len(CONFIGS)
+    sim = corners.copy()
+    sim[2] = np.nan  # not detected in the simulation: the real corners stand in
+    floor = np.full(6, 1e-4)
+    items = Items(
+        tag=np.zeros(n, int), p=np.array([c[1] for c in CONFIGS]),
+        theta=np.array([c[2] for c in CONFIGS]), real_err=np.zeros((n, 6)),
+        sim_err=np.zeros((n, 6)), real_corners=corners, sim_corners=sim, scale=floor,
+    )  # fmt: skip
+    noise = propagated_pose_noise(corners, 0.1, rig, base)
+    out = with_propagated_noise(items, 0.1, rig, base)
+    np.testing.assert_array_equal(out.scale, np.fmax(floor, noise))
+    assert np.isfinite(out.scale).all()

@@ -100,8 +100,11 @@ def test_the_exact_footprint_is_the_rendered_print():
         samples = sample_pixels(scene, pixels, seed=3)
         near = edge_pixels(pixels, samples)
         rays = footprint_samples(scene, pixels[near], 256)
-        coverage, albedo = print_footprint(scene, pixels[near], 0)
-        assert agrees(coverage, samples.sticker[near], samples.coverage[near], 0)
+        clipped = print_footprint(scene, pixels[near], 0)
+        coverage, albedo = clipped.coverage, clipped.albedo
+        assert agrees(clipped, samples.sticker[near], samples.coverage[near], 0)
+        # a pinhole sees every pixel through one point: its coverage is its extremes
+        assert np.array_equal(clipped.least, coverage) and np.array_equal(clipped.most, coverage)
         on = rays.sticker == 0
         assert on.sum() > 1000
         dc = coverage[on] - rays.coverage[on]
@@ -126,8 +129,8 @@ def test_a_geometry_the_render_does_not_share_falls_back_to_rays():
     near = edge_pixels(pixels, samples)
     camera = scene.camera_model
     scene.camera_model = dataclasses.replace(camera, fx=camera.fx * 1.02, fy=camera.fy * 1.02)
-    coverage, _ = print_footprint(scene, pixels[near], 0)
-    assert not agrees(coverage, samples.sticker[near], samples.coverage[near], 0)
+    clipped = print_footprint(scene, pixels[near], 0)
+    assert not agrees(clipped, samples.sticker[near], samples.coverage[near], 0)
     footprint = edge_footprint(scene, pixels[near], samples.sticker[near], samples.coverage[near])
     assert not footprint.exact
 
@@ -145,8 +148,12 @@ def test_a_thin_lens_footprint_is_the_rendered_print():
     samples = sample_pixels(scene, pixels, seed=3)
     band = widened(pixels, edge_pixels(pixels, samples), defocus_reach_px(scene, 0))
     rays = footprint_samples(scene, pixels[band], 1024)
-    coverage, albedo = print_footprint(scene, pixels[band], 0)
-    assert agrees(coverage, samples.sticker[band], samples.coverage[band], 0)
+    clipped = print_footprint(scene, pixels[band], 0)
+    coverage, albedo = clipped.coverage, clipped.albedo
+    assert np.all(clipped.least <= coverage + 1e-12) and np.all(clipped.most >= coverage - 1e-12)
+    for seed in (3, 4, 5):  # whole and empty pixels told by the rim: no seed sees otherwise
+        other = sample_pixels(scene, pixels[band], seed=seed)
+        assert agrees(clipped, other.sticker, other.coverage, 0)
     on = rays.sticker == 0
     dc, da = coverage[on] - rays.coverage[on], albedo[on] - rays.albedo[on, 0]
     assert np.sqrt(np.mean(dc**2)) < 0.0021 and np.abs(dc).max() < 0.016

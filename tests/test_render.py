@@ -303,7 +303,7 @@ def test_a_soft_pixel_filter_widens_the_rendered_edges(session_cache):
     from simgap.pipeline.simulator import Simulator
     from simgap.pose.image_stats import STAT_INDEX
 
-    base = load_experiment("experiments/baseline.yaml").with_render(spp=64)
+    base = load_experiment("experiments/baseline.yaml").with_render(spp=64, mode="path")
     base = dataclasses.replace(base, configurations=Configurations((3,), (0.0,), (0,)))
     sim = Simulator(session_cache, show_progress=False)
     widths = {}

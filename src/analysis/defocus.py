@@ -52,7 +52,9 @@ class DefocusCandidate(AppearanceCandidate):
     #: multijitter sampler takes it). At 36 spp that noise decided against the lens in two of
     #: three defocus trials of development seed 23 (choose-split corners 0.36-0.52 px against the
     #: blur's 0.27-0.36 px, while the lens fitted the aperture within 5-9 % and lowered the
-    #: pose gap more).
+    #: pose gap more). Path tracing only: a converged render's thin-lens stickers carry no such
+    #: noise (their footprints are clipped per aperture point, docs/results/
+    #: converged_render_step5.md), so it keeps the simulation's samples.
     SPP = 64
 
     def __init__(self) -> None:
@@ -60,8 +62,10 @@ class DefocusCandidate(AppearanceCandidate):
         super().__init__("defocus", stats, "aperture_radius_m", (0.0, 0.005), 0.0)
 
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
-        """The state with the thin lens, rendered at :data:`SPP` samples per pixel."""
+        """The state with the thin lens, path traced at :data:`SPP` samples per pixel."""
         state = super().apply(base, params)
+        if state.scene.quality.mode != "path":
+            return state
         quality = dataclasses.replace(
             state.scene.quality, spp=max(state.scene.quality.spp, self.SPP)
         )

@@ -107,7 +107,7 @@ class Diagnosis:
         self.items = build_items(real, sim, self.field)
         #: corner noise propagated to each configuration's pose noise (px; None: not)
         self.propagated_px: float | None = None
-        if exp.render.mode == "converged":  # its repeats measure no noise: propagate it
+        if self.base.scene.quality.mode == "converged":  # its repeats measure no noise
             self.propagated_px = unit_px / np.sqrt(2.0)
             self.items = with_propagated_noise(self.items, self.propagated_px, self.rig, self.base)
         self.runner = SimRunner(exp, simulator)

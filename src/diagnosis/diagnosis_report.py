@@ -164,11 +164,13 @@ def _render_seeds_sentence(result: DiagnosisResult) -> str:
     """How each configuration's pose noise was measured (or "" where by the per-axis noise)."""
     seeds = result.render_seeds
     if result.propagated_corner_noise_px is not None:
+        frames = f" at {seeds} seeds per configuration (all the capture's frames a pose)"
         return (
-            " The simulation is converged (no render noise to measure): each configuration's "
-            "pose noise is the larger of the per-axis noise and the pose's response to "
-            f"{result.propagated_corner_noise_px:.2f} px of corner noise per coordinate "
-            "(the capture's), propagated through PnP."
+            " The simulation is converged" + (frames if seeds > 1 else "") + ": each "
+            "configuration's pose noise is the larger of the per-axis noise and the pose's "
+            f"response to {result.propagated_corner_noise_px:.2f} px of corner noise a "
+            "coordinate (the corner channel's unit over sqrt 2: the capture's and the "
+            "simulation's, one frame each), propagated through PnP."
         )
     if seeds <= 1:
         return ""

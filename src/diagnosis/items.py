@@ -54,8 +54,10 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
 def with_render_seeds(exp: Experiment, seeds: int) -> Experiment:
     """``exp`` with at least ``seeds`` repeats, each rendered with its own seed (one: unchanged).
 
-    The simulation's render noise at each configuration is then measured by its repeats
-    (:func:`simgap.analysis.gap.configuration_noise`), and their mean carries less of it.
+    Path traced, the simulation's render noise at each configuration is then measured by its
+    repeats (:func:`simgap.analysis.gap.configuration_noise`), and their mean carries less of
+    it; converged, its repeats differ little, and the capture keeps as many frames a pose
+    (:func:`repeats_of_simulation`).
     """
     if seeds <= 1:
         return exp

@@ -53,8 +53,11 @@ AMBIENT_RADIANCE = (0.03, 0.4)
 #: (px), Gaussian of this standard deviation (px). The simulation's is a box.
 TENT_RADIUS_PX = (0.6, 1.3)
 GAUSSIAN_STDDEV_PX = (0.25, 0.6)
-#: Samples per pixel of the other camera's renders (supersampling; squares, as multijitter takes
-#: them): a real camera has no render noise, so it is rendered with more samples than simgap's.
+#: Samples per pixel of the other camera's renders, path traced (supersampling; squares, as
+#: multijitter takes them): a real camera has no render noise, so it is rendered with more
+#: samples than simgap's path-traced study had (16). Its Monte Carlo noise (about 1.5-1.9 DN on
+#: the stickers) is still above a converged simulation's (0.2-0.5 DN): the other camera's noise
+#: is then a little more than its sensor's, as a real camera's is (fixed pattern, compression).
 SPP_CHOICES = (49, 64, 81)
 #: Sensor: full well (e-, log-uniform) and read noise (e-); linear 1.0 is the full well.
 FULL_WELL_E = (1000.0, 20000.0)

@@ -29,12 +29,14 @@ class DiagnoseSettings:
     #: Re-run the full pipeline with the selected effects to confirm the reduction.
     confirm: bool = True
     #: A capture with fewer configurations is simulated at several render seeds, until it has
-    #: this many simulated frames (at most ``max_render_seeds`` per configuration): the render
-    #: noise of each configuration is then measured, and a far, oblique tag whose pose moves
-    #: millimetres with its render noise no longer decides the choice between effects (measured
-    #: on the 9-configuration public sample: docs/results/sample_focal_render_seeds.md). Larger
-    #: captures are simulated with the experiment's own repeats (usually one); their medians
-    #: over many items are robust to one noisy configuration.
+    #: this many simulated frames (at most ``max_render_seeds`` per configuration): path
+    #: traced, the render noise of each configuration is then measured, and a far, oblique tag
+    #: whose pose moves millimetres with its render noise no longer decides the choice between
+    #: effects (measured on the 9-configuration public sample:
+    #: docs/results/sample_focal_render_seeds.md); converged, the seeds keep the capture's frames
+    #: a pose (:meth:`render_seeds`). Larger captures are simulated with the experiment's own
+    #: repeats (usually one); their medians over many items are robust to one noisy
+    #: configuration.
     min_simulated_frames: int = 36
     #: Most render seeds per configuration.
     max_render_seeds: int = 4

@@ -179,7 +179,7 @@ def pseudo_real_experiment(
     """
     effects = {**camera.effects, **rendered_effects(hidden)}
     # path traced whatever the simulation's render mode: the other camera is another generator
-    # (its supersampling, not simgap's demodulation, keeps its Monte Carlo noise low)
+    # (supersampled, not demodulated: nuisance.SPP_CHOICES)
     return dataclasses.replace(
         base.with_render(seed=seed, spp=camera.spp, mode="path"),
         name="pseudo_real",

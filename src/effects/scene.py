@@ -225,7 +225,11 @@ class TagScale(Effect, name="tag_scale", stage="scene"):
 
 
 class SamplingQuality(Effect, name="render_quality", stage="scene"):
-    """Renderer quality: samples per pixel, sampler and maximum path depth."""
+    """Renderer quality: samples per pixel, sampler, maximum path depth and render mode.
+
+    Every parameter not given takes its default here, not the experiment's: ``render_quality:
+    {spp: 64}`` path traces at 64 spp whatever the experiment's ``render.mode``.
+    """
 
     class Params(EffectParams):
         """Integrator and sampling settings."""

@@ -49,7 +49,8 @@ CONVERGED_VERSION = "exact-6"
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
 #: Primary rays per pixel of the footprint pass where the exact footprint does not apply (a tent
-#: or Gaussian filter, bilinear texture lookup, an occluder) or disagrees,
+#: or Gaussian filter, bilinear texture lookup, a thin lens blurring more than
+#: :data:`~simgap.render.print_footprint.LENS_REACH_MAX_PX`, an occluder) or disagrees,
 #: a fixed Sobol' pattern (:func:`simgap.render.pixel_samples.footprint_pattern`): its points are
 #: stratified in 1/64 px along each pixel axis, so under a box filter an edge along an axis is
 #: placed to within 1/64 px (0.0064 px RMS over the edge's sub-pixel position). 256 points took
@@ -191,11 +192,12 @@ def edge_footprint(
         albedo = np.full((n, 3), np.nan)
         for tag in (int(t) for t in np.unique(sample_sticker[sample_sticker >= 0])):
             try:
-                share, mean = print_footprint(scene, pixels, tag)
+                clipped = print_footprint(scene, pixels, tag)
             except ValueError:  # a degenerate projection (not a convex cell): the rays decide
                 break
-            if not agrees(share, sample_sticker, sample_coverage, tag):
+            if not agrees(clipped, sample_sticker, sample_coverage, tag):
                 break
+            share, mean = clipped.coverage, clipped.albedo
             more = share > coverage
             sticker[more], coverage[more], albedo[more] = tag, share[more], mean[more, None]
         else:

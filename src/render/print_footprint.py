@@ -33,6 +33,7 @@ Two things this geometry does not hold, and how they are handled:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import cv2
@@ -54,6 +55,10 @@ WHOLE_TOLERANCE = 1e-9
 #: first points of an Owen-scrambled Sobol' sequence, mapped to the disc as Mitsuba maps its
 #: aperture samples). Chosen against 1024 points (docs/results/converged_render_step5.md).
 LENS_POINTS = 64
+#: Points on the aperture's rim that tell a thin lens's whole and empty pixels (:func:`agrees`):
+#: the mean over :data:`LENS_POINTS` calls a pixel whole that a sample through the rim may see
+#: partly off (the 64 points reach 0.88-0.98 of the radius).
+RIM_POINTS = 16
 #: Scrambling seed of :func:`lens_points` (any fixed value: every render seed shares them).
 LENS_PATTERN_SEED = 28
 #: Largest blur radius (px) of a thin lens whose footprint is clipped: the pixels it is
@@ -146,9 +151,31 @@ def projected_cells(
     return quads, grid.ravel().astype(np.float64)
 
 
-def print_footprint(
-    scene: FixtureScene, pixels: NDArray, tag: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+@dataclass(frozen=True)
+class ClippedFootprint:
+    """Sticker ``tag``'s print over each pixel's square (:func:`print_footprint`).
+
+    Attributes
+    ----------
+    coverage : ndarray (N,)
+        Share of the pixel's footprint on the sticker (0-1; a thin lens: the mean over
+        :func:`lens_points`).
+    albedo : ndarray (N,)
+        The print's mean albedo over that share (NaN where the share is 0).
+    least, most : ndarray (N,)
+        The least and most coverage the pixel's square has through any point of the aperture
+        (the pinhole's: ``coverage``; a thin lens: over :data:`RIM_POINTS` points on its rim,
+        where they lie, since the aperture points that see a pixel wholly on a convex sticker
+        form a convex set), which :func:`agrees` tells whole and empty pixels by.
+    """
+
+    coverage: NDArray[np.float64]
+    albedo: NDArray[np.float64]
+    least: NDArray[np.float64]
+    most: NDArray[np.float64]
+
+
+def print_footprint(scene: FixtureScene, pixels: NDArray, tag: int) -> ClippedFootprint:
     """Coverage and mean albedo of sticker ``tag`` over each pixel's square (module docstring).
 
     Parameters
@@ -160,27 +187,43 @@ def print_footprint(
         Full-image pixel columns and rows (px), each once.
     tag : int
         The sticker's tag id.
-
-    Returns
-    -------
-    coverage : ndarray (N,)
-        Share of the pixel's square on the sticker (0-1).
-    albedo : ndarray (N,)
-        The print's mean albedo over that share (NaN where the share is 0).
     """
     pixels = np.asarray(pixels).reshape(-1, 2).astype(np.int64)
     n = len(pixels)
     coverage, weighted = np.zeros(n), np.zeros(n)
     lens = lens_points(scene)
     for point in lens:
-        quads, albedo = projected_cells(scene, tag, tuple(point))
-        cell, pixel = _cell_pixel_pairs(quads, pixels)
-        area = clipped_area(quads[cell] - (pixels[pixel] - 0.5)[:, None, :])
-        coverage += np.bincount(pixel, area, minlength=n)
-        weighted += np.bincount(pixel, area * albedo[cell], minlength=n)
+        share, albedo = _clipped(scene, pixels, tag, point)
+        coverage += share
+        weighted += albedo
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = weighted / coverage
-    return np.minimum(coverage / len(lens), 1.0), np.where(coverage > 0, mean, np.nan)
+        mean = np.where(coverage > 0, weighted / coverage, np.nan)
+    coverage = np.minimum(coverage / len(lens), 1.0)
+    if scene.lens[0] == 0.0:
+        return ClippedFootprint(coverage, mean, coverage, coverage)
+    rim = np.stack([_clipped(scene, pixels, tag, point)[0] for point in rim_points(scene)])
+    return ClippedFootprint(coverage, mean, np.minimum(rim.min(axis=0), 1.0), rim.max(axis=0))
+
+
+def _clipped(
+    scene: FixtureScene, pixels: NDArray, tag: int, lens_point: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Through one aperture point: each pixel's area on the sticker and its albedo-weighted area."""
+    quads, albedo = projected_cells(scene, tag, (float(lens_point[0]), float(lens_point[1])))
+    cell, pixel = _cell_pixel_pairs(quads, pixels)
+    area = clipped_area(quads[cell] - (pixels[pixel] - 0.5)[:, None, :])
+    n = len(pixels)
+    weighted = np.bincount(pixel, area * albedo[cell], minlength=n)
+    return np.bincount(pixel, area, minlength=n), weighted
+
+
+def rim_points(scene: FixtureScene) -> NDArray[np.float64]:
+    """:data:`RIM_POINTS` points evenly spaced on the aperture's rim (m; camera frame x, y).
+
+    Their polygon misses the disc by at most ``1 - cos(pi / RIM_POINTS)`` of its radius (2 %).
+    """
+    angle = 2.0 * np.pi * (np.arange(RIM_POINTS) + 0.5) / RIM_POINTS
+    return scene.lens[0] * np.column_stack([np.cos(angle), np.sin(angle)])
 
 
 def defocus_reach_px(scene: FixtureScene, tag: int) -> float:
@@ -193,6 +236,8 @@ def defocus_reach_px(scene: FixtureScene, tag: int) -> float:
     radius, focus = scene.lens
     if radius == 0.0:
         return 0.0
+    if scene.pose is None:
+        raise RuntimeError("set_pose() must be called before the footprint")
     world = pose_transforms(scene.rig, *scene.pose, scene.errors, scene.tag_scale)
     cv_from_rect = np.linalg.inv(world["camera"]) @ world[f"tag_{tag}"]
     corners = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
@@ -296,18 +341,19 @@ def _clip(polygon: NDArray[np.float64], axis: int, bound: float, below: bool) ->
 
 
 def agrees(
-    coverage: NDArray[np.float64],
+    footprint: ClippedFootprint,
     sample_sticker: NDArray,
     sample_coverage: NDArray[np.float64],
     tag: int,
 ) -> bool:
     """Whether the render's samples see sticker ``tag`` where its geometry puts it.
 
-    Over the same pixels: a pixel wholly on the sticker (exact ``coverage`` 1) must have all
-    its samples on it, and a pixel wholly off (0) none (its samples' sticker is another). An
-    occluder, or a geometry the renderer does not share, fails this.
+    Over the same pixels: a pixel wholly on the sticker through every point of the aperture
+    (``footprint.least`` 1) must have all its samples on it, and a pixel wholly off through
+    every point (``footprint.most`` 0) none (its samples' sticker is another). An occluder, or a
+    geometry the renderer does not share, fails this.
     """
-    whole = coverage >= 1.0 - WHOLE_TOLERANCE
-    none = coverage <= WHOLE_TOLERANCE
+    whole = footprint.least >= 1.0 - WHOLE_TOLERANCE
+    none = footprint.most <= WHOLE_TOLERANCE
     seen = sample_sticker == tag
     return bool(np.all(seen[whole] & (sample_coverage[whole] >= 1.0)) and not np.any(seen[none]))
