@@ -19,7 +19,8 @@ detector, PnP):
   540) path traced at 16 spp and converged at ``--spp``, each at render seeds 0 and 1. Per mode:
   the wall time of the seed-0 sweep and the two seeds' mean |difference| (ty in mm, rotations in
   mrad). The issue's bars: 0.1 mm and 1 mrad between seeds, converged at most half the 16-spp
-  time.
+  time. Then the sweep path traced at ``--spp`` alone (seed 0): the cost of tracing every
+  region pixel at the converged render's samples, with no demodulation.
 - **The naive way**: the whole frame (1920 x 1080) path traced at the samples that give the
   stickers the converged render's noise (16 spp x (path 16-spp noise / converged noise)^2, both
   measured on the baseline variant above), for ``--naive-configs`` configurations of the sweep.
@@ -214,6 +215,12 @@ def main() -> None:
         compare(seeds[1], seeds[0], f"{label}: render seed 1 against seed 0")
     path_s, conv_s = seconds.values()
     print(f"speed: converged / path 16 spp = {conv_s / path_s:.2f} (bar: <= 0.5)")
+    # the floor of any render that path traces every region pixel at the converged samples
+    _, floor_s = run(sweep.with_render(spp=args.spp, mode="path"), f"path {args.spp} spp")
+    print(
+        f"path {args.spp} spp alone / path 16 spp = {floor_s / path_s:.2f}; converged / path "
+        f"{args.spp} spp = {conv_s / floor_s:.2f}"
+    )
 
     converged_noise, path_noise = noise.get("baseline", next(iter(noise.values())))
     equal_spp = 16.0 * (path_noise / converged_noise) ** 2
