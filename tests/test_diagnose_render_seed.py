@@ -25,9 +25,8 @@ def test_public_sample_reads_as_focal_length_at_another_render_seed(session_cach
     Path traced, before each configuration's own noise was measured (4 render seeds for a
     9-configuration capture), this seed read as a camera mount: one far, oblique tag's depth
     moved 9 mm with the render noise and decided the choice
-    (docs/results/sample_focal_render_seeds.md). Converged (the baseline's since issue 28),
-    still 4 render seeds (the capture's 4 frames a pose are kept), with each configuration's
-    pose noise propagated from the corners (docs/results/converged_render_step5.md).
+    (docs/results/sample_focal_render_seeds.md). The diagnosis path traces its simulation
+    although the baseline renders converged (``DiagnoseSettings.converged_simulation``).
     """
     exp = load_experiment("experiments/baseline.yaml")
     exp = dataclasses.replace(exp, render=dataclasses.replace(exp.render, seed=5))

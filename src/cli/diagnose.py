@@ -90,6 +90,11 @@ def diagnose(
     json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
     cache: CacheOption = None,
     seed: int = typer.Option(0, "--seed", help="Seed of the fit / choose / report split."),
+    converged_simulation: bool = typer.Option(
+        False,
+        "--converged-simulation",
+        help="Simulate a converged experiment converged (default: path traced at 16 spp).",
+    ),
     progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
     overwrite: OverwriteOption = False,
@@ -109,7 +114,7 @@ def diagnose(
     check_outputs(outputs, [("REAL", real)] + simulation_inputs(sim, "--sim"), overwrite)
     data = read_netcdf(real)
     exp = read_simulation(sim)
-    settings = DiagnoseSettings(seed=seed)
+    settings = DiagnoseSettings(seed=seed, converged_simulation=converged_simulation)
     simulator = Simulator(cache or default_cache_dir(), scheduler, show_progress=progress)
     with StepBars(progress) as bars:
         result, state = run_diagnosis(data, exp, simulator, settings, progress=bars)
@@ -148,6 +153,11 @@ def validate(
         help="Comma-separated hidden effects to draw from, e.g. sensor_noise (default: all); "
         "then every trial hides one of them (two when several are given, as often as usual).",
     ),
+    converged_simulation: bool = typer.Option(
+        False,
+        "--converged-simulation",
+        help="Diagnose with a converged simulation (default: path traced at 16 spp).",
+    ),
     overwrite: OverwriteOption = False,
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores.
@@ -168,7 +178,9 @@ def validate(
     k, _, n = shard.partition("/")
     if not (k.isdigit() and n.isdigit()):
         raise ValueError(f"--shard: expected K/N (two whole numbers, e.g. 0/4), got {shard!r}")
-    settings = ValidateSettings(trials=trials, seed=seed, shard=(int(k), int(n)))
+    settings = ValidateSettings(
+        trials=trials, seed=seed, shard=(int(k), int(n)), converged_simulation=converged_simulation
+    )
     if effects:
         names = tuple(e.strip() for e in effects.split(",") if e.strip())
         pair = settings.p_pair if len(names) > 1 else 0.0

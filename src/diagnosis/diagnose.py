@@ -240,7 +240,7 @@ def diagnose(
     if not isinstance(simulator, Simulator):
         simulator = Simulator(Path(simulator))
     t0 = time.perf_counter()
-    sim_exp = simulation_experiment(real, exp)
+    sim_exp = settings.simulation(simulation_experiment(real, exp))
     seeds = settings.render_seeds(real.sizes["p"] * real.sizes["theta"])
     sim = simulator.dataset(with_render_seeds(sim_exp, seeds))
     d = Diagnosis(real, sim, sim_exp, simulator, settings, progress)
@@ -272,6 +272,7 @@ def diagnose(
             seed=settings.seed,
         ),
         render_seeds=seeds,
+        simulation_render=f"{sim_exp.render.mode} {sim_exp.render.spp} spp",
         propagated_corner_noise_px=d.propagated_px,
     )
     if refused is not None:

@@ -161,6 +161,12 @@ def evidence_markdown(where: Where) -> list[str]:
 
 
 def _render_seeds_sentence(result: DiagnosisResult) -> str:
+    """How the simulation was rendered and each configuration's pose noise measured."""
+    rendered = f" Simulated {result.simulation_render}." if result.simulation_render else ""
+    return rendered + _pose_noise_sentence(result)
+
+
+def _pose_noise_sentence(result: DiagnosisResult) -> str:
     """How each configuration's pose noise was measured (or "" where by the per-axis noise)."""
     seeds = result.render_seeds
     if result.propagated_corner_noise_px is not None:

@@ -223,6 +223,8 @@ class DiagnosisResult:
     split: Split | None = None
     #: render seeds per configuration of the simulation
     render_seeds: int = 1
+    #: how the simulation was rendered: ``render.mode`` and samples per pixel, e.g. "path 16 spp"
+    simulation_render: str = ""
     #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
     #: noise, where the simulation's repeats measure none (a converged render); None otherwise
     propagated_corner_noise_px: float | None = None

@@ -45,6 +45,7 @@ from simgap.diagnosis.nuisance import (
     with_exposure,
 )
 from simgap.diagnosis.result_json import jsonable, write_json
+from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.trial import Trial
 from simgap.diagnosis.validation_report import confusion, summarize_scores, validation_markdown
 from simgap.pipeline.capture import ingest, write_capture
@@ -94,6 +95,9 @@ class ValidateSettings:
         Hidden effects drawn from (default: all of :data:`HIDDEN`).
     shard : (int, int)
         ``(K, N)``: run only the trials whose index is K modulo N (processes side by side).
+    converged_simulation : bool
+        Diagnose with a converged simulation
+        (:attr:`simgap.diagnosis.settings.DiagnoseSettings.converged_simulation`).
     """
 
     trials: int = 30
@@ -107,6 +111,7 @@ class ValidateSettings:
     p_outside: float = 0.1
     effects: tuple[str, ...] = tuple(HIDDEN)
     shard: tuple[int, int] = (0, 1)
+    converged_simulation: bool = False
 
     def __post_init__(self) -> None:
         k, n = self.shard
@@ -261,7 +266,8 @@ def run_validation(
         exp = pseudo_real_experiment(base, hidden, camera, 1000 + settings.seed * 1000 + i)
         render_capture(exp, simulator, folder, hidden)
         real = ingest(folder, rig)
-        result, _ = diagnose(real, base, simulator)
+        diagnose_settings = DiagnoseSettings(converged_simulation=settings.converged_simulation)
+        result, _ = diagnose(real, base, simulator, diagnose_settings)
         trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig)
         record = trial.record()
         write_json(record, path)
