@@ -14,17 +14,24 @@ from simgap.pipeline.experiment import load_experiment
 CONFIGS = [(0, 0, 0.0), (0, 14, 0.0), (0, 14, np.deg2rad(50.0)), (0, 0, np.deg2rad(50.0))]
 
 
+def _items(real_corners=None, sim_corners=None, scale=None) -> Items:
+    """The items of :data:`CONFIGS` (errors zero; corners zero unless given)."""
+    tag, p, theta = (np.array(x) for x in zip(*CONFIGS, strict=True))
+    zeros = np.zeros((len(CONFIGS), 4, 2))
+    return Items(
+        tag=tag, p=p, theta=theta, real_err=np.zeros((len(tag), 6)),
+        sim_err=np.zeros((len(tag), 6)),
+        real_corners=zeros if real_corners is None else real_corners,
+        sim_corners=zeros if sim_corners is None else sim_corners,
+        scale=np.ones(6) if scale is None else scale,
+    )  # fmt: skip
+
+
 def _corners():
     exp = load_experiment("experiments/baseline.yaml")
     base, rig = exp.variant_states()[0][1], exp.rig_model
-    tag, p, theta = (np.array(x) for x in zip(*CONFIGS, strict=True))
-    n = len(CONFIGS)
-    items = Items(
-        tag=tag, p=p, theta=theta, real_err=np.zeros((n, 6)), sim_err=np.zeros((n, 6)),
-        real_corners=np.zeros((n, 4, 2)), sim_corners=np.zeros((n, 4, 2)), scale=np.ones(6),
-    )  # fmt: skip
     s = base.scene
-    return project_items(rig, s.camera, s.errors, s.tag_scale, items), rig, base
+    return project_items(rig, s.camera, s.errors, s.tag_scale, _items()), rig, base
 
 
 def test_far_configurations_are_noisier_and_noise_scales_with_the_corners():
@@ -55,15 +62,10 @@ def test_missing_corners_give_nan_and_leave_the_others_as_they_were():
 
 def test_items_take_the_larger_scale_and_the_real_corners_where_the_simulation_has_none():
     corners, rig, base = _corners()
-    n = len(CONFIGS)
     sim = corners.copy()
     sim[2] = np.nan  # not detected in the simulation: the real corners stand in
     floor = np.full(6, 1e-4)
-    items = Items(
-        tag=np.zeros(n, int), p=np.array([c[1] for c in CONFIGS]),
-        theta=np.array([c[2] for c in CONFIGS]), real_err=np.zeros((n, 6)),
-        sim_err=np.zeros((n, 6)), real_corners=corners, sim_corners=sim, scale=floor,
-    )  # fmt: skip
+    items = _items(corners, sim, floor)
     noise = propagated_pose_noise(corners, 0.1, rig, base)
     out = with_propagated_noise(items, 0.1, rig, base)
     np.testing.assert_array_equal(out.scale, np.fmax(floor, noise))

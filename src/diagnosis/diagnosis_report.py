@@ -1,4 +1,6 @@
-"""The diagnosis report: where the gap lies, the effect ranking, before/after, figures, JSON.
+"""The diagnosis report: the effect ranking, before/after, figures, JSON.
+
+Where the gap lies, its markdown, is :mod:`simgap.diagnosis.where_report`.
 
 The gap heatmap reuses the comparison figure (:mod:`simgap.analysis.report.figures`): the
 simulation and the real data are put into one dataset as two variants, so the signed shift of
@@ -21,7 +23,6 @@ from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
 from simgap.analysis.report.figures import plot_change_heatmap
 from simgap.analysis.report.output import save_figure, save_text
-from simgap.analysis.report.tables import markdown_table
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL, GEOMETRY_CORNER_GAP_PX
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.diagnose import Diagnosis
@@ -31,8 +32,9 @@ from simgap.diagnosis.engineering import (
     plot_abs_error_vs_distance,
     plot_gap_by_distance,
 )
-from simgap.diagnosis.result import DiagnosisResult, Where
+from simgap.diagnosis.result import DiagnosisResult
 from simgap.diagnosis.result_json import write_json
+from simgap.diagnosis.where_report import where_markdown
 
 
 def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
@@ -47,117 +49,6 @@ def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
     both["visible"] = visible
     both["expected"] = real.expected
     return both
-
-
-def where_markdown(where: Where) -> list[str]:
-    """Markdown lines for the 'where' part."""
-    lines = [
-        "## Where",
-        "",
-        f"Comparable configurations (visible, detected in both): "
-        f"{where.comparable_configurations}. "
-        f"Significant gap: **{'yes' if where.significant else 'no'}**.",
-        "",
-        "| axis | n | median gap | RMS gap | trend per pin hole | noise | z (median) | z (trend) "
-        "| significant |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for axis in AXES:
-        a = where.axis_gaps[axis]
-        if not a.n:
-            lines.append(f"| {axis} | 0 | | | | | | | no |")
-            continue
-        unit, k = display_unit(axis)
-        lines.append(
-            f"| {axis} | {a.n} | {a.median * k:+.3f} {unit} | {a.rms * k:.3f} {unit} | "
-            f"{a.slope_per_pin * k:+.4f} {unit} | {a.noise * k:.3f} {unit} | "
-            f"{a.z_median:+.1f} | {a.z_slope:+.1f} | {_yes(a.significant)} |"
-        )
-    det = where.detection
-    lines += [
-        "",
-        f"Detection rate over visible configurations: real {det.real:.1%}, "
-        f"simulation {det.sim:.1%} ({det.visible_configurations} configurations).",
-        "",
-    ]
-    lines += evidence_markdown(where)
-    if where.regions:
-        lines += ["Significant regions (median gap, z-score):", ""]
-        for r in where.regions:
-            unit, k = display_unit(r.axis)
-            lines.append(
-                f"- {r.axis}, {r.region}: {r.median * k:+.3f} {unit} (z = {r.z:+.1f}, n = {r.n})"
-            )
-        lines.append("")
-    return lines
-
-
-def _yes(flag: bool) -> str:
-    return "**yes**" if flag else "no"
-
-
-def evidence_markdown(where: Where) -> list[str]:
-    """Markdown lines for the scatter, detection and image-evidence tests."""
-    found = where.significant_evidence
-    lines = [
-        "Evidence with a significant gap: "
-        + (", ".join(f"**{name}**" for name in found) if found else "none")
-        + " (pose means, pose scatter, detection rate, image statistics).",
-        "",
-    ]
-    scatter = [t for t in where.scatter_tests if t.significant]
-    if scatter:
-        rows = []
-        for t in scatter:
-            unit, k = display_unit(t.axis)
-            rows.append(
-                [
-                    t.axis,
-                    t.region,
-                    f"{t.real_scatter * k:.3f} {unit}",
-                    f"{t.sim_scatter * k:.3f} {unit}",
-                    f"{t.ratio:.2f}",
-                    f"{t.p_value:.2g}",
-                ]
-            )
-        header = ["axis", "region", "real", "simulation", "ratio", "p"]
-        lines += ["Pose scatter (Brown-Forsythe, robust scales):", ""]
-        lines += markdown_table(header, rows) + [""]
-    if where.detection_tests:
-        header = ["region", "real", "simulation", "difference", "p", "test", "significant"]
-        rows = [
-            [
-                t.region,
-                f"{t.real_detected}/{t.real_attempts}",
-                f"{t.sim_detected}/{t.sim_attempts}",
-                f"{t.difference:+.1%}",
-                f"{t.p_value:.2g}",
-                t.test,
-                _yes(t.significant),
-            ]
-            for t in where.detection_tests
-        ]
-        title = "Detection (Boschloo's exact test; the overall one planned, regions by Holm):"
-        lines += [title, ""]
-        lines += markdown_table(header, rows) + [""]
-    if where.image_tests:
-        header = ["statistic", "real median", "simulation median", "median difference"]
-        header += ["floor", "p", "significant"]
-        rows = [
-            [
-                t.stat,
-                f"{t.real_median:.4g}",
-                f"{t.sim_median:.4g}",
-                f"{t.median_difference:+.3g} ({t.compared_as})",
-                "-" if t.floor is None else str(t.floor),
-                f"{t.p_value:.2g}",
-                _yes(t.significant),
-            ]
-            for t in where.image_tests
-        ]
-        lines += ["Image evidence (median real - simulated per tag, Wilcoxon signed-rank):", ""]
-        lines += markdown_table(header, rows) + [""]
-    return lines
 
 
 def _render_seeds_sentence(result: DiagnosisResult) -> str:

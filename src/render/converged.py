@@ -206,12 +206,17 @@ def edge_footprint(
     return Footprint(rays.sticker, rays.coverage, rays.albedo, exact=False)
 
 
+def _grid_coordinates(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """Columns and rows of ``pixels`` (N, 2) on their bounding grid, and its shape (rows, cols)."""
+    u, v = (pixels - pixels.min(axis=0)).T
+    return u, v, (int(v.max()) + 1, int(u.max()) + 1)
+
+
 def widened(pixels: np.ndarray, mask: np.ndarray, radius_px: float) -> np.ndarray:
     """``mask`` over ``pixels`` (N, 2) grown by a disc of ``radius_px`` plus one pixel."""
     r = int(np.ceil(radius_px)) + 1
-    lo = pixels.min(axis=0)
-    u, v = (pixels - lo).T
-    grid = np.zeros((int(v.max()) + 1, int(u.max()) + 1), np.uint8)
+    u, v, shape = _grid_coordinates(pixels)
+    grid = np.zeros(shape, np.uint8)
     grid[v[mask], u[mask]] = 1
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     return cv2.dilate(grid, kernel)[v, u].astype(bool)
@@ -224,9 +229,7 @@ def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:
     two 8-neighbours that differ in their samples' albedo or sticker (one of them is then on a
     sticker).
     """
-    lo = pixels.min(axis=0)
-    u, v = (pixels - lo).T
-    shape = (int(v.max()) + 1, int(u.max()) + 1)
+    u, v, shape = _grid_coordinates(pixels)
     kernel = np.ones((3, 3), np.uint8)
     differs = np.zeros(len(pixels), bool)
     albedo = np.where(samples.sticker[:, None] >= 0, samples.albedo, -1.0)

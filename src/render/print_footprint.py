@@ -101,54 +101,70 @@ def lens_points(scene: FixtureScene) -> NDArray[np.float64]:
     return radius * np.column_stack([np.asarray(disc.x, np.float64), np.asarray(disc.y)])
 
 
-def projected_cells(
-    scene: FixtureScene, tag: int, lens_point: tuple[float, float] = (0.0, 0.0)
-) -> tuple[NDArray[np.float64], NDArray]:
-    """The print's cells of sticker ``tag`` as image quadrilaterals, and their albedo.
+def _cv_from_rect(scene: FixtureScene, tag: int) -> NDArray[np.float64]:
+    """The transform (4, 4) from sticker ``tag``'s rectangle to the OpenCV camera frame."""
+    if scene.pose is None:
+        raise RuntimeError("set_pose() must be called before the footprint")
+    world = pose_transforms(scene.rig, *scene.pose, scene.errors, scene.tag_scale)
+    return np.linalg.inv(world["camera"]) @ world[f"tag_{tag}"]
 
-    Parameters
-    ----------
-    scene : FixtureScene
-        A posed scene.
-    tag : int
-        The sticker's tag id.
-    lens_point : tuple of float
-        The point of the thin lens's aperture the print is seen through (m, camera frame x and
-        y; the centre for a pinhole): module docstring.
+
+def cell_corners(scene: FixtureScene, tag: int) -> tuple[NDArray[np.float64], NDArray]:
+    """The corners of sticker ``tag``'s print cells in the camera frame, and the cells' albedo.
 
     Returns
     -------
-    quads : ndarray (C, 4, 2)
-        Full-image pixel coordinates (px; pixel centres at integers) of each cell's corners,
-        in order around the cell.
-    albedo : ndarray (C,)
-        The cell's print albedo (linear, dimensionless).
+    points : ndarray (rows + 1, cols + 1, 3)
+        The cell grid's corners (m, OpenCV camera frame).
+    albedo : ndarray (rows, cols)
+        Each cell's print albedo (linear, dimensionless).
     """
-    if scene.pose is None:
-        raise RuntimeError("set_pose() must be called before the footprint")
     grid = scene.print_albedo[tag]
     rows, cols = grid.shape
-    world = pose_transforms(scene.rig, *scene.pose, scene.errors, scene.tag_scale)
-    cv_from_rect = np.linalg.inv(world["camera"]) @ world[f"tag_{tag}"]
     # the rectangle's local x, y in [-1, 1]; texel row 0 at y = +1 (the bitmap's v is flipped,
     # simgap.render.mitsuba_scene.tag_bsdf)
     x = -1.0 + 2.0 * np.arange(cols + 1) / cols
     y = 1.0 - 2.0 * np.arange(rows + 1) / rows
     xx, yy = np.meshgrid(x, y)
     local = np.column_stack([xx.ravel(), yy.ravel(), np.zeros(xx.size)])
-    camera = scene.camera_model
-    points = tf.apply(cv_from_rect, local)
-    if any(lens_point):  # where the ray through the lens point meets the focus plane
+    points = tf.apply(_cv_from_rect(scene, tag), local)
+    return points.reshape(rows + 1, cols + 1, 3), grid
+
+
+def projected_cells(
+    scene: FixtureScene, points: NDArray[np.float64], lens_point: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The print's cells as image quadrilaterals, seen through one point of the aperture.
+
+    Parameters
+    ----------
+    scene : FixtureScene
+        A posed scene (its camera and thin lens).
+    points : ndarray (rows + 1, cols + 1, 3)
+        The cells' corners in the camera frame (:func:`cell_corners`).
+    lens_point : ndarray (2,)
+        The point of the thin lens's aperture the print is seen through (m, camera frame x and
+        y; the centre for a pinhole): module docstring.
+
+    Returns
+    -------
+    ndarray (C, 4, 2)
+        Full-image pixel coordinates (px; pixel centres at integers) of each cell's corners,
+        in order around the cell.
+    """
+    rows, cols = points.shape[0] - 1, points.shape[1] - 1
+    points = points.reshape(-1, 3)
+    if np.any(lens_point):  # where the ray through the lens point meets the focus plane
         depth = points[:, 2:]
         points = np.column_stack(
             [points[:, :2] + np.asarray(lens_point) * (depth / scene.lens[1] - 1.0), depth]
         )
+    camera = scene.camera_model
     uv, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs)
     corners = uv.reshape(rows + 1, cols + 1, 2)
-    quads = np.stack(
+    return np.stack(
         [corners[:-1, :-1], corners[:-1, 1:], corners[1:, 1:], corners[1:, :-1]], axis=2
     ).reshape(-1, 4, 2)
-    return quads, grid.ravel().astype(np.float64)
 
 
 @dataclass(frozen=True)
@@ -190,31 +206,33 @@ def print_footprint(scene: FixtureScene, pixels: NDArray, tag: int) -> ClippedFo
     """
     pixels = np.asarray(pixels).reshape(-1, 2).astype(np.int64)
     n = len(pixels)
+    points, grid = cell_corners(scene, tag)
+    albedo = grid.ravel().astype(np.float64)
+    index = _PixelIndex.of(pixels)
+
+    def clipped(lens_point: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        """Through one aperture point: each pixel's area on the sticker, and times albedo."""
+        quads = projected_cells(scene, points, lens_point)
+        cell, pixel = index.pairs(quads)
+        area = clipped_area(quads[cell] - (pixels[pixel] - 0.5)[:, None, :])
+        return (
+            np.bincount(pixel, area, minlength=n),
+            np.bincount(pixel, area * albedo[cell], minlength=n),
+        )
+
     coverage, weighted = np.zeros(n), np.zeros(n)
     lens = lens_points(scene)
     for point in lens:
-        share, albedo = _clipped(scene, pixels, tag, point)
+        share, shaded = clipped(point)
         coverage += share
-        weighted += albedo
+        weighted += shaded
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(coverage > 0, weighted / coverage, np.nan)
     coverage = np.minimum(coverage / len(lens), 1.0)
     if scene.lens[0] == 0.0:
         return ClippedFootprint(coverage, mean, coverage, coverage)
-    rim = np.stack([_clipped(scene, pixels, tag, point)[0] for point in rim_points(scene)])
+    rim = np.stack([clipped(point)[0] for point in rim_points(scene)])
     return ClippedFootprint(coverage, mean, np.minimum(rim.min(axis=0), 1.0), rim.max(axis=0))
-
-
-def _clipped(
-    scene: FixtureScene, pixels: NDArray, tag: int, lens_point: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Through one aperture point: each pixel's area on the sticker and its albedo-weighted area."""
-    quads, albedo = projected_cells(scene, tag, (float(lens_point[0]), float(lens_point[1])))
-    cell, pixel = _cell_pixel_pairs(quads, pixels)
-    area = clipped_area(quads[cell] - (pixels[pixel] - 0.5)[:, None, :])
-    n = len(pixels)
-    weighted = np.bincount(pixel, area * albedo[cell], minlength=n)
-    return np.bincount(pixel, area, minlength=n), weighted
 
 
 def rim_points(scene: FixtureScene) -> NDArray[np.float64]:
@@ -236,34 +254,44 @@ def defocus_reach_px(scene: FixtureScene, tag: int) -> float:
     radius, focus = scene.lens
     if radius == 0.0:
         return 0.0
-    if scene.pose is None:
-        raise RuntimeError("set_pose() must be called before the footprint")
-    world = pose_transforms(scene.rig, *scene.pose, scene.errors, scene.tag_scale)
-    cv_from_rect = np.linalg.inv(world["camera"]) @ world[f"tag_{tag}"]
     corners = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
-    depth = tf.apply(cv_from_rect, corners)[:, 2]
+    depth = tf.apply(_cv_from_rect(scene, tag), corners)[:, 2]
     f = max(scene.camera_model.fx, scene.camera_model.fy)
     return float(f * radius * np.max(np.abs(1.0 / focus - 1.0 / depth)))
 
 
-def _cell_pixel_pairs(quads: NDArray[np.float64], pixels: NDArray) -> tuple[NDArray, NDArray]:
-    """Every (cell, pixel) pair whose bounding boxes overlap, among the pixels asked for."""
-    lo = pixels.min(axis=0)
-    shape = pixels.max(axis=0) - lo + 1
-    index = np.full((shape[1], shape[0]), -1, np.int64)
-    index[pixels[:, 1] - lo[1], pixels[:, 0] - lo[0]] = np.arange(len(pixels))
-    # pixel u spans [u - 0.5, u + 0.5): the pixels a cell's bounding box touches
-    first = np.floor(quads.min(axis=1) + 0.5).astype(np.int64) - lo
-    last = np.floor(quads.max(axis=1) + 0.5).astype(np.int64) - lo
-    first, last = np.maximum(first, 0), np.minimum(last, shape - 1)
-    width, height = np.maximum(last - first + 1, 0).T
-    count = width * height
-    cell = np.repeat(np.arange(len(quads)), count)
-    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    du, dv = k % np.repeat(np.maximum(width, 1), count), k // np.repeat(np.maximum(width, 1), count)
-    pixel = index[first[cell, 1] + dv, first[cell, 0] + du]
-    keep = pixel >= 0
-    return cell[keep], pixel[keep]
+@dataclass(frozen=True)
+class _PixelIndex:
+    """The pixels asked for on their bounding grid: where each one is in the list (-1: none)."""
+
+    lo: NDArray
+    shape: NDArray
+    index: NDArray
+
+    @classmethod
+    def of(cls, pixels: NDArray) -> _PixelIndex:
+        """The index of full-image pixels (N, 2), each once."""
+        lo = pixels.min(axis=0)
+        shape = pixels.max(axis=0) - lo + 1
+        index = np.full((shape[1], shape[0]), -1, np.int64)
+        index[pixels[:, 1] - lo[1], pixels[:, 0] - lo[0]] = np.arange(len(pixels))
+        return cls(lo, shape, index)
+
+    def pairs(self, quads: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        """Every (cell, pixel) pair whose bounding boxes overlap, among the pixels indexed."""
+        lo, shape = self.lo, self.shape
+        # pixel u spans [u - 0.5, u + 0.5): the pixels a cell's bounding box touches
+        first = np.floor(quads.min(axis=1) + 0.5).astype(np.int64) - lo
+        last = np.floor(quads.max(axis=1) + 0.5).astype(np.int64) - lo
+        first, last = np.maximum(first, 0), np.minimum(last, shape - 1)
+        width, height = np.maximum(last - first + 1, 0).T
+        count = width * height
+        cell = np.repeat(np.arange(len(quads)), count)
+        k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        step = np.repeat(np.maximum(width, 1), count)
+        pixel = self.index[first[cell, 1] + k // step, first[cell, 0] + k % step]
+        keep = pixel >= 0
+        return cell[keep], pixel[keep]
 
 
 def clipped_area(quads: NDArray[np.float64]) -> NDArray[np.float64]:
