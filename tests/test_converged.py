@@ -11,7 +11,7 @@ from simgap.pipeline.experiment import load_experiment
 from simgap.pipeline.experiment_settings import RenderSettings
 from simgap.pipeline.region import sticker_region
 from simgap.render import imaging
-from simgap.render.converged import converged_pixels
+from simgap.render.converged import converged_pixels, pooled_background
 from simgap.render.pixel_samples import (
     footprint_pattern,
     footprint_samples,
@@ -70,6 +70,29 @@ def test_per_pixel_statistics_of_samples():
     assert out.background[1, 0] == pytest.approx(5.0)  # the samples that left the sticker
     assert out.mean[1, 0] == pytest.approx(4.0)
     assert out.variance[1, 0] == pytest.approx(np.var([1, 3, 5, 7], ddof=1))
+
+
+def test_a_border_pixel_background_is_pooled_from_its_neighbours_samples():
+    """A row of pixels: off the sticker (4 background samples each), a border pixel whose own
+    samples all landed on the sticker (no background of its own), and the sticker. The border
+    pixel takes the sample-weighted mean of its neighbours' background; under a wider reach the
+    square grows (exact arithmetic: equal weights of known values)."""
+    pixels = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [4, 0]])
+    samples = reduce_samples(
+        np.array([[[v] * 3] * 4 for v in (1.0, 3.0, 9.0, 9.0, 9.0)]),
+        np.array([[-1] * 4, [0, -1, -1, -1], [0] * 4, [0] * 4, [0] * 4]),
+        np.full((5, 4, 3), 0.5),
+    )
+    assert np.isnan(samples.background[2]).all()  # the border pixel saw no background
+    pooled = pooled_background(pixels, samples, reach_px=0.0)
+    # pixel 2's square holds pixels 1-3: three background samples of radiance 3
+    assert pooled[2, 0] == pytest.approx(3.0)
+    # pixel 1's square holds pixels 0-2: 4 samples of 1 and 3 of 3
+    assert pooled[1, 0] == pytest.approx((4 * 1.0 + 3 * 3.0) / 7)
+    assert np.isnan(pooled[4]).all()  # no background sample within one pixel
+    wide = pooled_background(pixels, samples, reach_px=1.5)  # square of 3 px either side
+    assert wide[4, 0] == pytest.approx(3.0)
+    assert np.isfinite(wide).all()
 
 
 def test_a_converged_sticker_from_4_spp_is_within_the_noise_of_256_spp():

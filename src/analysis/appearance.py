@@ -281,6 +281,17 @@ class JpegCandidate(AppearanceCandidate):
         return {self.param: int(round(float(x)))}
 
 
+def capture_jpeg_quality(real_stats: np.ndarray) -> int | None:
+    """The libjpeg quality of the DC quantiser the capture's tags agree on, or None.
+
+    ``real_stats`` (N, S): the capture's image statistics (:func:`agreed_dc_step` on its
+    ``jpeg_dc_step_dn``). None where no step is agreed: no compression, or one too fine to read
+    (quality above about 85).
+    """
+    step, tags = agreed_dc_step(real_stats[:, STAT_INDEX["jpeg_dc_step_dn"]])
+    return quality_for_dc_step(step) if tags else None
+
+
 def agreed_dc_step(steps: np.ndarray) -> tuple[float, int]:
     """The DC quantisation step the tags agree on (DN), and how many tags show it.
 

@@ -15,7 +15,12 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import least_squares
 
-from simgap.analysis.appearance import AppearanceCandidate, misfit_rms, signature_supported
+from simgap.analysis.appearance import (
+    AppearanceCandidate,
+    capture_jpeg_quality,
+    misfit_rms,
+    signature_supported,
+)
 from simgap.analysis.fitting import Fit, Items, on_bound
 from simgap.analysis.runner import Runner
 from simgap.effects.state import VariantState
@@ -81,6 +86,21 @@ class SensorNoiseCandidate(AppearanceCandidate):
     subtracted), and ``c`` alone on the spatial variance: over the narrow range of paper levels
     of one capture the spatial noise cannot tell shot noise from ``c`` (seed 25: full wells
     1.4-2.2x too large from one frame).
+
+    A compressed capture's noise is not its sensor's: the quantiser rounds most of the sensor's
+    noise away, and the blocks' steps read as spatial noise. On eight synthetic tags through the
+    camera pipeline, one frame compressed at qualities 35-80 (a DC step the tags agree on), the
+    fit read full wells 1.9-15x the sensor's (1500 e- read 22 735; 2000 e- at quality 80 read
+    8464; tests/test_appearance_fit.py), and on rendered captures the other way: a converged
+    simulation compressed at quality 69 alone had more paper noise than the capture (0.0085
+    against 0.0075; dev seed 904 trial 0). A fit through the compression (the simulation's
+    noise compressed and matched) did not converge: the quantiser kept 5-56 % of the noise
+    variance between two noise levels of the same tags. Where the capture shows a JPEG
+    quantiser (its tags agree on a DC step,
+    :func:`~simgap.analysis.appearance.capture_jpeg_quality`) the fit is therefore not
+    supported: the noise is explained by the JPEG candidate, whose prediction compresses the
+    simulation, or left unexplained (blind seed 49: three of six JPEG captures were answered
+    with a sensor noise that took the compression's noise, and the JPEG was left out).
     """
 
     n_params = 2
@@ -130,16 +150,18 @@ class SensorNoiseCandidate(AppearanceCandidate):
                 return cls.excess_variance((1.0 / fw, (read / fw) ** 2, 0.0), level)
         return np.zeros_like(level)
 
-    def fit(self, runner: Runner | None, base: VariantState, items: Items) -> Fit:
-        """Photon transfer fit of the capture's noise (temporal where it has two frames a pose)."""
-        t0 = time.perf_counter()
+    def _photon_transfer(self, base: VariantState, items: Items) -> tuple[np.ndarray, bool] | None:
+        """The photon transfer ``(1 / full well, (read / full well)^2, c)`` of the capture's noise.
+
+        Returned with whether shot and read noise came from the temporal noise; None with fewer
+        than 4 cells.
+        """
         # the capture's own spatial variance: a camera has no render noise, so the simulation's
         # (its Monte Carlo noise, measured at the simulation's level, not the capture's) is not
         # subtracted (see the class doc)
         mu, var = self._samples(items, NOISE_PAIRS)
         if mu.size < 4:
-            none = {"full_well_e": FULL_WELL_BOUNDS_E[1], "read_noise_e": 0.0}
-            return Fit(self.effect, none, 0.0, {})
+            return None
         # c is the camera's multiplicative variance: its photo-response non-uniformity and the
         # print's texture, at most PRNU_MAX^2
         c_bounds = (0.0, PRNU_MAX**2)
@@ -167,17 +189,38 @@ class SensorNoiseCandidate(AppearanceCandidate):
                 bounds=c_bounds,
                 loss="soft_l1",
             ).x
-            x = np.concatenate([shot_read, c])
-        else:
-            x = least_squares(
-                lambda x: (self.excess_variance(x, mu) - var) / var,
-                x0=[1e-3, 1e-5, 0.5 * sum(c_bounds)],
-                x_scale=[1e-3, 1e-4, 1e-3],
-                bounds=([slope_lo, 0.0, c_bounds[0]], [slope_hi, 1e-2, c_bounds[1]]),
-                loss="soft_l1",
-            ).x
+            return np.concatenate([shot_read, c]), temporal
+        x = least_squares(
+            lambda x: (self.excess_variance(x, mu) - var) / var,
+            x0=[1e-3, 1e-5, 0.5 * sum(c_bounds)],
+            x_scale=[1e-3, 1e-4, 1e-3],
+            bounds=([slope_lo, 0.0, c_bounds[0]], [slope_hi, 1e-2, c_bounds[1]]),
+            loss="soft_l1",
+        ).x
+        return x, temporal
+
+    @staticmethod
+    def _params(x: np.ndarray) -> dict[str, float]:
+        """Effect parameters of ``x`` = (1 / full well, (read / full well)^2, c), in range."""
         full_well = float(np.clip(1.0 / x[0], *FULL_WELL_BOUNDS_E))
         read = float(min(np.sqrt(x[1]) * full_well, READ_NOISE_MAX_E))
+        return {"full_well_e": full_well, "read_noise_e": read}
+
+    def fit(self, runner: Runner | None, base: VariantState, items: Items) -> Fit:
+        """Photon transfer fit of the capture's noise (temporal where it has two frames a pose).
+
+        Not supported where the capture shows a JPEG quantiser (class doc).
+        """
+        t0 = time.perf_counter()
+        fitted = self._photon_transfer(base, items)
+        if fitted is None:
+            none = {"full_well_e": FULL_WELL_BOUNDS_E[1], "read_noise_e": 0.0}
+            return Fit(self.effect, none, 0.0, {})
+        x, temporal = fitted
+        # a compressed capture's noise is not its sensor's (class doc)
+        quality = capture_jpeg_quality(items.real_stats)
+        params = self._params(x)
+        full_well, read = params["full_well_e"], params["read_noise_e"]
         # on a bound: no shot noise at all (the full well at 10^6 e) or 10 e-, or read noise at
         # its cap (none, at zero, is a value, not a bound); the full well's range spans five
         # decades, so it is judged on a log scale
@@ -200,14 +243,15 @@ class SensorNoiseCandidate(AppearanceCandidate):
         rms_after = misfit_rms(stats, items.real_stats, pred)
         return Fit(
             self.effect,
-            {"full_well_e": full_well, "read_noise_e": read},
+            params,
             time.perf_counter() - t0,
             {
                 "slope_per_level": float(x[0]),
                 "intercept": float(x[1]),
                 "multiplicative_variance": float(x[2]),
                 "temporal": temporal,
-                "supported": signature_supported(rms_before, rms_after),
+                "jpeg_quality": quality,
+                "supported": signature_supported(rms_before, rms_after) and quality is None,
                 "at_bound": at_bound,
             },
         )

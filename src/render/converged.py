@@ -16,9 +16,11 @@ removes most of the Monte Carlo noise of a flat diffuse print; a print under a l
 fitted as the albedo times a smooth diffuse field plus a smooth specular one. Where the smooth
 model is rejected (a shadow or highlight edge across the sticker, a sharp glint), that
 sticker's pixels are path traced again with :data:`FALLBACK_SPP_FACTOR` times the samples.
-Pixels off the stickers (node, table) keep their path-traced mean: only the detector's
-thresholds see them. The treatment of every sticker is returned so that the caller can record
-it.
+A border pixel mixes the sticker's converged radiance by its footprint coverage with the
+background around it, pooled from its own and its neighbours' samples that left the sticker
+(:func:`pooled_background`). Pixels off the stickers (node, table) keep their path-traced
+mean: only the detector's thresholds see them. The treatment of every sticker is returned so
+that the caller can record it.
 """
 
 from __future__ import annotations
@@ -42,9 +44,10 @@ if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
 #: Part of the render key of a converged render: bump when what it holds changes.
-#: 6: thin-lens footprints; 5: exact footprints; 4: coated fits keep the darkest pixels; 3:
-#: laminates demodulated.
-CONVERGED_VERSION = "exact-6"
+#: 7: a border pixel's background pooled from its neighbours' samples; 6: thin-lens
+#: footprints; 5: exact footprints; 4: coated fits keep the darkest pixels; 3: laminates
+#: demodulated.
+CONVERGED_VERSION = "exact-7"
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
@@ -102,11 +105,13 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     # neighbour's (an edge that cuts a corner of a pixel, or crosses it near its side, misses
     # all of its few samples, but then lies between it and a neighbour that does not look alike)
     near = edge_pixels(pixels, samples)
+    reach = 0.0
     if scene.lens[0] > 0.0 and exact_footprint_applies(scene):
         # a thin lens spreads a print edge over a disc: every pixel within its radius of an
         # edge pixel may hold some of the edge, whether or not its few samples saw it
         reach = max((defocus_reach_px(scene, tag) for tag in tags), default=0.0)
         near = widened(pixels, near, reach)
+    background = pooled_background(pixels, samples, reach)
     footprint = edge_footprint(scene, pixels[near], samples.sticker[near], samples.coverage[near])
     footprint_albedo, footprint_coverage = samples.albedo.copy(), samples.coverage.copy()
     footprint_sticker = samples.sticker.copy()
@@ -125,7 +130,7 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
                 albedo=samples.albedo[on],
                 coverage=samples.coverage[on],
                 albedo_variance=samples.albedo_variance[on],
-                background=samples.background[on],
+                background=background[on],
                 footprint_albedo=np.where(own[:, None], footprint_albedo[on], samples.albedo[on]),
                 footprint_coverage=np.where(own, footprint_coverage[on], samples.coverage[on]),
                 coated=coated,
@@ -220,6 +225,39 @@ def widened(pixels: np.ndarray, mask: np.ndarray, radius_px: float) -> np.ndarra
     grid[v[mask], u[mask]] = 1
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     return cv2.dilate(grid, kernel)[v, u].astype(bool)
+
+
+def pooled_background(pixels: np.ndarray, samples: PixelSamples, reach_px: float) -> np.ndarray:
+    """The background radiance near each pixel from its own and its neighbours' samples (N, 3).
+
+    A pixel on a sticker's border mixes the sticker with what lies around it. Its own samples
+    that left the sticker are few (one of four, or none: a pixel whose exact coverage is 0.9 has
+    all four samples on the sticker about two times in three, and under a thin lens a band of
+    pixels several wide), so their mean alone keeps the noise of one sample, or is missing and the
+    pixel kept its raw value (the defocused sticker's render noise: 0.93 DN, three times the
+    others', docs/results/converged_render_step5.md). The background around a sticker is the
+    face it is stuck on, smooth over a few pixels: every background sample within a square of
+    ``ceil(reach_px) + 1`` px (the pixel's 8-neighbours; under a thin lens, the spread of its
+    aperture's disc and one more) is pooled, weighted by how many of a pixel's samples it holds
+    (linear; NaN where no sample in the square left a sticker).
+    """
+    r = int(np.ceil(reach_px)) + 1
+    u, v, shape = _grid_coordinates(pixels)
+    count = np.round((1.0 - samples.coverage) * samples.spp)
+    count = np.where(np.isfinite(samples.background).all(axis=1), count, 0.0)
+    weighted = np.nan_to_num(samples.background) * count[:, None]
+    pooled = np.empty_like(weighted)
+    size = (2 * r + 1, 2 * r + 1)
+    totals = np.zeros(shape, np.float64)
+    totals[v, u] = count
+    n = cv2.boxFilter(totals, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)[v, u]
+    for c in range(weighted.shape[1]):
+        grid = np.zeros(shape, np.float64)
+        grid[v, u] = weighted[:, c]
+        summed = cv2.boxFilter(grid, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pooled[:, c] = np.where(n > 0, summed[v, u] / n, np.nan)
+    return pooled
 
 
 def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:

@@ -89,8 +89,9 @@ class StickerSamples:
         paper at random, which dominates the noise of pixels that straddle a print edge; with it
         the noise model is per pixel (module docstring), without it pooled in albedo bins.
     background : ndarray of float (N, C), optional
-        The background part of a mixed pixel: the mean of the pixel's own samples whose primary
-        ray left the sticker (linear; NaN where none did). Without it (or where NaN) a mixed
+        The background radiance at a mixed pixel: the mean of the samples whose primary ray left
+        the sticker, the pixel's own or pooled with its neighbours' (linear; NaN where none did;
+        :func:`simgap.render.converged.pooled_background`). Without it (or where NaN) a mixed
         pixel keeps its rendered value: unbiased, but not denoised.
     footprint_albedo : ndarray of float (N, C), optional
         The albedo over the sticker part of the footprint from many more primary rays than the
