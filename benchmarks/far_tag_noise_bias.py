@@ -48,7 +48,8 @@ def main() -> None:
                 ds = run_experiment(
                     exp.with_render(**render, seed=seed), Path(cache), show_progress=False
                 )
-                error = ds["error"].sel(tag=args.tag).values.reshape(-1)[: len(AXES)] * 1e3
+                error = ds["error"].sel(tag=args.tag).isel(variant=0, repeat=0)
+                error = error.squeeze(drop=True).values * 1e3  # (axis,), m and rad -> mm, mrad
                 cells = " | ".join(f"{v:.2f}" for v in np.asarray(error, float))
                 print(f"| {label} | {seed} | {cells} |", flush=True)
 

@@ -342,9 +342,10 @@ def test_a_compressed_capture_noise_is_not_read_as_its_sensor(
     full_well_e, read_noise_e, quality, measured_e
 ):
     """Sensor noise then JPEG on eight synthetic tags: the photon transfer of the compressed
-    frame reads full wells 2-15x the sensor's (measured, here and in the class doc), so where
-    the tags agree on a DC step the sensor-noise fit is not supported. Uncompressed, the same
-    noise is read within 5 % (1500 e- read 1456) and supported."""
+    frame reads full wells 2.5-15x the sensor's in these three cases (measured: 22 735, 12 312
+    and 8 464 e-; 1.9-15x over the class doc's eight), so where the tags agree on a DC step the
+    sensor-noise fit is not supported. Uncompressed, the same noise is read within 5 % (1500 e-
+    read 1456) and supported."""
     from simgap.analysis.candidates import CANDIDATES
     from simgap.effects import make_effect
 
@@ -359,7 +360,9 @@ def test_a_compressed_capture_noise_is_not_read_as_its_sensor(
     fit = SensorNoiseCandidate().fit(runner, base, items)
     assert fit.extra["jpeg_quality"] in (quality - 1, quality, quality + 1)  # the DC step's
     assert not fit.extra["supported"]
-    assert fit.params["full_well_e"] == pytest.approx(measured_e, rel=0.01)
+    # the compressed frame's noise is no sensor's: read at least twice the sensor's full well
+    assert fit.params["full_well_e"] > 2.0 * full_well_e
+    assert fit.params["full_well_e"] == pytest.approx(measured_e, rel=0.2)  # measured, above
     if quality == 35:
         items.real_stats = runner.stats(noisy, items)
         plain = SensorNoiseCandidate().fit(runner, base, items)

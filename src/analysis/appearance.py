@@ -265,15 +265,17 @@ class JpegCandidate(AppearanceCandidate):
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
         """The quality of the capture's DC step, or whose blockiness matches (see class doc)."""
         t0 = time.perf_counter()
+        step, tags = agreed_dc_step(items.real_stats[:, STAT_INDEX["jpeg_dc_step_dn"]])
+        if tags:
+            # the quantiser read back; the capture's noise is then no sensor's to add
+            # (simgap.analysis.sensor_noise: not supported under a JPEG quantiser)
+            quality = quality_for_dc_step(step)
+            fun = self.misfit(runner, base, items, quality)
+            return self.fitted(items, quality, fun, t0, dc_step_dn=step, tags=tags)
         if self.noise is not None:
             noise = self.noise.fit(runner, base, items)
             if noise.extra.get("supported", False):
                 base = self.noise.apply(base, noise.params)
-        step, tags = agreed_dc_step(items.real_stats[:, STAT_INDEX["jpeg_dc_step_dn"]])
-        if tags:
-            quality = quality_for_dc_step(step)
-            fun = self.misfit(runner, base, items, quality)
-            return self.fitted(items, quality, fun, t0, dc_step_dn=step, tags=tags)
         return super().fit(runner, base, items)
 
     def params(self, x: float) -> dict[str, Any]:
@@ -284,9 +286,19 @@ class JpegCandidate(AppearanceCandidate):
 def capture_jpeg_quality(real_stats: np.ndarray) -> int | None:
     """The libjpeg quality of the DC quantiser the capture's tags agree on, or None.
 
-    ``real_stats`` (N, S): the capture's image statistics (:func:`agreed_dc_step` on its
-    ``jpeg_dc_step_dn``). None where no step is agreed: no compression, or one too fine to read
-    (quality above about 85).
+    Parameters
+    ----------
+    real_stats : ndarray (N, S)
+        The capture's image statistics; its ``jpeg_dc_step_dn`` (DN) per tag is read
+        (:func:`agreed_dc_step`).
+
+    Returns
+    -------
+    int or None
+        The quality (libjpeg scale, 1-100) of the agreed step
+        (:func:`simgap.pose.jpeg_blocks.quality_for_dc_step`); None where no step is agreed: no
+        compression, or one finer than the smallest step read
+        (:data:`simgap.pose.jpeg_blocks.DC_STEPS`).
     """
     step, tags = agreed_dc_step(real_stats[:, STAT_INDEX["jpeg_dc_step_dn"]])
     return quality_for_dc_step(step) if tags else None

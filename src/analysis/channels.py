@@ -24,8 +24,8 @@ from simgap.analysis.gap_size import corner_score, gap_score
 from simgap.analysis.thresholds import CORNER_UNIT_PX, DETECTION_UNIT, IMAGE_FLOORS, RESIDUAL_CAP
 from simgap.pose.image_stats import STAT_INDEX
 
-#: Noise statistics: only stochastic effects change them (see
-#: :meth:`simgap.analysis.selection.ModelSearch.evaluate`).
+#: Noise statistics: on a path-traced simulation only stochastic effects change them (see
+#: :meth:`simgap.analysis.simulation_chain.SimulationChain.changes`).
 NOISE_STATS = [
     STAT_INDEX[s]
     for s in ("noise_ink_dn", "noise_paper_dn", "noise_ink_linear", "noise_paper_linear")

@@ -151,10 +151,22 @@ class SensorNoiseCandidate(AppearanceCandidate):
         return np.zeros_like(level)
 
     def _photon_transfer(self, base: VariantState, items: Items) -> tuple[np.ndarray, bool] | None:
-        """The photon transfer ``(1 / full well, (read / full well)^2, c)`` of the capture's noise.
+        """The photon transfer of the capture's noise (class doc).
 
-        Returned with whether shot and read noise came from the temporal noise; None with fewer
-        than 4 cells.
+        Parameters
+        ----------
+        base : VariantState
+            The simulation's state (its own sensor noise, if any, is subtracted from the
+            temporal noise).
+        items : Items
+            The capture's cells: their levels and noise (linear).
+
+        Returns
+        -------
+        (ndarray (3,), bool) or None
+            ``(1 / full well, (read / full well)^2, c)`` (per electron, squared, and the
+            multiplicative variance; linear 1.0 = the full well) and whether shot and read noise
+            came from the temporal noise; None with fewer than 4 cells.
         """
         # the capture's own spatial variance: a camera has no render noise, so the simulation's
         # (its Monte Carlo noise, measured at the simulation's level, not the capture's) is not
@@ -201,7 +213,11 @@ class SensorNoiseCandidate(AppearanceCandidate):
 
     @staticmethod
     def _params(x: np.ndarray) -> dict[str, float]:
-        """Effect parameters of ``x`` = (1 / full well, (read / full well)^2, c), in range."""
+        """Effect parameters of ``x`` = (1 / full well, (read / full well)^2, c).
+
+        Returns ``full_well_e`` (e-, within :data:`FULL_WELL_BOUNDS_E`) and ``read_noise_e``
+        (e-, at most :data:`READ_NOISE_MAX_E`).
+        """
         full_well = float(np.clip(1.0 / x[0], *FULL_WELL_BOUNDS_E))
         read = float(min(np.sqrt(x[1]) * full_well, READ_NOISE_MAX_E))
         return {"full_well_e": full_well, "read_noise_e": read}
@@ -213,12 +229,11 @@ class SensorNoiseCandidate(AppearanceCandidate):
         """
         t0 = time.perf_counter()
         fitted = self._photon_transfer(base, items)
-        if fitted is None:
-            none = {"full_well_e": FULL_WELL_BOUNDS_E[1], "read_noise_e": 0.0}
-            return Fit(self.effect, none, 0.0, {})
-        x, temporal = fitted
-        # a compressed capture's noise is not its sensor's (class doc)
         quality = capture_jpeg_quality(items.real_stats)
+        if fitted is None:  # nothing to fit on: no noise found
+            none = {"full_well_e": FULL_WELL_BOUNDS_E[1], "read_noise_e": 0.0}
+            return Fit(self.effect, none, 0.0, {"supported": False, "jpeg_quality": quality})
+        x, temporal = fitted
         params = self._params(x)
         full_well, read = params["full_well_e"], params["read_noise_e"]
         # on a bound: no shot noise at all (the full well at 10^6 e) or 10 e-, or read noise at

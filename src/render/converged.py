@@ -236,10 +236,12 @@ def pooled_background(pixels: np.ndarray, samples: PixelSamples, reach_px: float
     pixels several wide), so their mean alone keeps the noise of one sample, or is missing and the
     pixel kept its raw value (the defocused sticker's render noise: 0.93 DN, three times the
     others', docs/results/converged_render_step5.md). The background around a sticker is the
-    face it is stuck on, smooth over a few pixels: every background sample within a square of
-    ``ceil(reach_px) + 1`` px (the pixel's 8-neighbours; under a thin lens, the spread of its
-    aperture's disc and one more) is pooled, weighted by how many of a pixel's samples it holds
-    (linear; NaN where no sample in the square left a sticker).
+    face it is stuck on, smooth over a few pixels: every background sample within
+    ``ceil(reach_px) + 1`` px along each axis (a square of side twice that plus one: the pixel's
+    8-neighbours; under a thin lens, the spread of its aperture's disc and one more) is pooled,
+    weighted by how many of a pixel's samples it holds (linear; NaN where no sample in the
+    square left a sticker). The caller passes the largest reach of the region's stickers (one or
+    two tags at similar depths); a wider square only assumes the face smooth over more pixels.
     """
     r = int(np.ceil(reach_px)) + 1
     u, v, shape = _grid_coordinates(pixels)

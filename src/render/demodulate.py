@@ -234,6 +234,6 @@ def demodulate(samples: StickerSamples, alpha: float = ALPHA) -> DemodulationRes
         cov = coverage[mixed, None]
         background = np.asarray(samples.background, np.float64)[mixed]
         blended = cov * sticker[mixed] + (1.0 - cov) * background
-        # no sample of the pixel left the sticker: nothing to estimate the background from
+        # no sample within the pooling square left the sticker: no background to blend with
         out[mixed] = np.where(np.isfinite(background), blended, raw[mixed])
     return DemodulationResult(out, Treatment.SMOOTH, tuple(fits))
