@@ -46,13 +46,12 @@ class DiagnoseSettings:
     #: Most render seeds per configuration.
     max_render_seeds: int = 4
     #: Simulate an experiment that renders converged (the baseline's) converged too. Off by
-    #: default: it is then path traced at :data:`PATH_SIMULATION_SPP`. Converged, the
-    #: simulation has no noise of its own, and the capture's sensor noise model took the noise a
-    #: JPEG compression adds (a flat noise curve: read noise 13-34 e-) and left its blockiness
-    #: unexplained: blind seed 49 named a JPEG in
-    #: 3 of its 6 single trials (path traced, seeds 45, 46 and 48: 8 of 8), while it was as right
-    #: as path traced elsewhere (90 % top-1; magnitudes' median error 1.4 %, 90th percentile 17.8 %;
-    #: docs/results/converged_render_step5.md).
+    #: default: it is then path traced at :data:`PATH_SIMULATION_SPP`. Converged, blind seed 50
+    #: got 95 % top-1 and every single trial right (docs/results/converged_render_step6.md), but
+    #: a noise-free simulation compares a noisy capture's far, oblique tags with poses the
+    #: capture cannot have (PnP biases their depth under corner noise: +10 mm at 16 spp,
+    #: benchmarks/far_tag_noise_bias.py), and the public sample-focal's ty gap fell below
+    #: significance (3.7 standard errors; path traced 5.3).
     converged_simulation: bool = False
 
     def simulation(self, exp: Experiment) -> Experiment:
