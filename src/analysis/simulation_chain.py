@@ -144,9 +144,12 @@ class SimulationChain:
         if stats is not None:
             full_stats = runner.stats(full, items)
             stats = np.nan_to_num(full_stats - runner.stats(base, items))
-            noise = full_stats[:, NOISE_STATS] - runner.stats(deterministic, items)[:, NOISE_STATS]
             if base.scene.quality.mode != "converged":  # the noise is partly Monte Carlo
-                stats[:, NOISE_STATS] = np.nan_to_num(noise) if stochastic else 0.0
+                noise = 0.0
+                if stochastic:
+                    smoothed = runner.stats(deterministic, items)[:, NOISE_STATS]
+                    noise = np.nan_to_num(full_stats[:, NOISE_STATS] - smoothed)
+                stats[:, NOISE_STATS] = noise
             detected = np.nan_to_num(runner.detected(full, items) - runner.detected(base, items))
         return corners, stats, detected
 

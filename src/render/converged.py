@@ -247,19 +247,16 @@ def pooled_background(pixels: np.ndarray, samples: PixelSamples, reach_px: float
     u, v, shape = _grid_coordinates(pixels)
     count = np.round((1.0 - samples.coverage) * samples.spp)
     count = np.where(np.isfinite(samples.background).all(axis=1), count, 0.0)
-    weighted = np.nan_to_num(samples.background) * count[:, None]
-    pooled = np.empty_like(weighted)
+    # the sample-weighted radiance (3 channels) and the sample count, summed over the square at
+    # once (OpenCV filters up to 4 channels in one pass)
+    grid = np.zeros((*shape, 4), np.float64)
+    grid[v, u, :3] = np.nan_to_num(samples.background) * count[:, None]
+    grid[v, u, 3] = count
     size = (2 * r + 1, 2 * r + 1)
-    totals = np.zeros(shape, np.float64)
-    totals[v, u] = count
-    n = cv2.boxFilter(totals, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)[v, u]
-    for c in range(weighted.shape[1]):
-        grid = np.zeros(shape, np.float64)
-        grid[v, u] = weighted[:, c]
-        summed = cv2.boxFilter(grid, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            pooled[:, c] = np.where(n > 0, summed[v, u] / n, np.nan)
-    return pooled
+    summed = cv2.boxFilter(grid, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)[v, u]
+    n = summed[:, 3:]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, summed[:, :3] / n, np.nan)
 
 
 def edge_pixels(pixels: np.ndarray, samples: PixelSamples) -> np.ndarray:
