@@ -14,6 +14,7 @@ import pytest
 
 from simgap.analysis.candidates import geometric_effects
 from simgap.diagnosis.diagnose import diagnose
+from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.pipeline.capture import ingest
 from simgap.pipeline.experiment import load_experiment
 
@@ -25,12 +26,13 @@ def test_public_sample_reads_as_focal_length_at_another_render_seed(session_cach
     Path traced, before each configuration's own noise was measured (4 render seeds for a
     9-configuration capture), this seed read as a camera mount: one far, oblique tag's depth
     moved 9 mm with the render noise and decided the choice
-    (docs/results/sample_focal_render_seeds.md). The diagnosis path traces its simulation
-    although the baseline renders converged (``DiagnoseSettings.converged_simulation``).
+    (docs/results/sample_focal_render_seeds.md). Path traced here
+    (``DiagnoseSettings.converged_simulation`` off): a converged render's seeds differ little.
     """
     exp = load_experiment("experiments/baseline.yaml")
     exp = dataclasses.replace(exp, render=dataclasses.replace(exp.render, seed=5))
-    result, _ = diagnose(ingest(sample), exp, session_cache)
+    settings = DiagnoseSettings(converged_simulation=False)
+    result, _ = diagnose(ingest(sample), exp, session_cache, settings)
     assert result.render_seeds == 4
     assert [e for e in result.selected if e in geometric_effects()] == ["focal_length"]
     # measured at this seed: 0.0193 (0.0194 at seed 0)

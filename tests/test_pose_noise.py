@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from simgap.analysis.fitting import Items, project_items
-from simgap.analysis.pose_noise import propagated_pose_noise
-from simgap.diagnosis.items import with_propagated_noise
+from simgap.analysis.pose_noise import SHIFT_DRAWS, noise_shift, propagated_pose_noise
+from simgap.core.axes import AXES
+from simgap.diagnosis.items import with_noise_shift, with_propagated_noise
 from simgap.pipeline.experiment import load_experiment
 
 #: near (p 0) and far (p 14) tag 0, frontal and turned by 50 deg
@@ -70,3 +72,63 @@ def test_items_take_the_larger_scale_and_the_real_corners_where_the_simulation_h
     out = with_propagated_noise(items, 0.1, rig, base)
     np.testing.assert_array_equal(out.scale, np.fmax(floor, noise))
     assert np.isfinite(out.scale).all()
+
+
+def test_corner_noise_shifts_a_far_tags_pose_not_only_spreads_it():
+    """The median pose under corner noise moves at the far tag, by more than its standard error."""
+    corners, rig, base = _corners()
+    small = noise_shift(corners, 0.1, rig, base)
+    large = noise_shift(corners, 0.2, rig, base)
+    spread = propagated_pose_noise(corners, 0.2, rig, base)
+    # measured ty shift (mm) at 0.1 / 0.2 px: near frontal +0.05 / +0.10, far frontal -0.73 /
+    # -1.54, far at 50 deg +0.01 / +0.01; the far frontal one is 6 standard errors of a median
+    # of SHIFT_DRAWS draws (1.25 sd / sqrt(64), sd 1.6 mm at 0.2 px) and grows with the noise
+    se = 1.25 * spread[1, 1] / np.sqrt(SHIFT_DRAWS)
+    assert large[1, 1] < -4 * se and large[1, 1] < small[1, 1] < 0.0
+    assert abs(large[1, 1]) > 5 * abs(large[0, 1])
+    # no noise, no shift; same corners and noise, the same shift (seeded draws)
+    np.testing.assert_array_equal(noise_shift(corners, 0.0, rig, base), np.zeros((4, 6)))
+    np.testing.assert_array_equal(small, noise_shift(corners, 0.1, rig, base))
+
+
+def _dataset(corners: np.ndarray, reproj_px: float) -> xr.Dataset:
+    """A one-variant, one-repeat dataset of the configurations of :data:`CONFIGS`: tag 0, p 0
+    and 14, theta 0 and 50 deg; errors 1e-3 everywhere (m, rad)."""
+    grid = np.full((1, 2, 2, 4, 2), np.nan)
+    for (_, p, theta), c in zip(CONFIGS, corners, strict=True):
+        grid[0, p // 14, int(theta > 0)] = c
+    coords = {"tag": [0], "p": [0, 14], "theta": [0.0, np.deg2rad(50.0)], "axis": list(AXES)}
+    dims = ("variant", "repeat", "tag", "p", "theta")
+    return xr.Dataset(
+        {
+            "error": (dims + ("axis",), np.full((1, 1, 1, 2, 2, 6), 1e-3)),
+            "corners": (dims + ("corner", "uv"), grid[None, None]),
+            "reproj_px": (dims, np.full((1, 1, 1, 2, 2), reproj_px)),
+        },
+        coords=coords,
+    )  # fmt: skip
+
+
+def test_a_converged_simulation_reads_its_poses_with_the_captures_extra_noise():
+    """Each simulated error moves by the shift under the capture's noise beyond the simulation's:
+    median reprojection 0.1 px (capture) and 0.06 px (simulation): 2 sqrt(0.1^2 - 0.06^2) = 0.16
+    px a coordinate (:func:`simgap.analysis.channels.frame_corner_noise`)."""
+    corners, rig, base = _corners()
+    sim_corners = corners.copy()
+    sim_corners[3] = np.nan  # not detected in the simulation: its error is left as it was
+    real, sim = _dataset(corners, 0.1), _dataset(sim_corners, 0.06)
+    shifted, shift = with_noise_shift(real, sim, rig, base)
+    assert shift.corner_px == pytest.approx(0.16) and shift.frames == 1
+    grid_order = [0, 3, 1, 2]  # CONFIGS in the dataset's (p, theta) order: the draws' order
+    expected = np.empty((4, 6))
+    expected[grid_order] = noise_shift(sim_corners[grid_order], 0.16, rig, base)
+    items = _items(corners, sim_corners)
+    np.testing.assert_allclose(shift.at(items)[:3], expected[:3])
+    moved = shifted.error.isel(variant=0, repeat=0).sel(tag=0).values  # p, theta, axis
+    for (_, p, theta), e in zip(CONFIGS[:3], expected[:3], strict=True):
+        np.testing.assert_allclose(moved[p // 14, int(theta > 0)], 1e-3 + e)
+    np.testing.assert_array_equal(moved[0, 1], np.full(6, 1e-3))
+    # a capture no noisier than the simulation: nothing moves
+    same, none = with_noise_shift(_dataset(corners, 0.05), sim, rig, base)
+    assert none.corner_px == 0.0
+    np.testing.assert_array_equal(same.error.values, sim.error.values)

@@ -66,16 +66,26 @@ def corner_unit(reproj_px: np.ndarray) -> float:
     """Unit of the corner channel (px) for a capture with these PnP reprojection errors.
 
     The RMS reprojection error of four corners fitted by a 6-parameter pose keeps 2 of 8 degrees
-    of freedom, so a corner's noise is about twice the median reprojection error; a residual of
+    of freedom, so a corner's noise is about twice the median reprojection error
+    (:func:`frame_corner_noise`); a residual of
     real against simulated corners carries it from both sides (sqrt 2). The unit is that, or
     :data:`~simgap.analysis.thresholds.CORNER_UNIT_PX` (the detector's own bias on ideal
     renders) when larger: on a blurred or noisy capture corner residuals of a pixel are noise,
     not evidence.
     """
+    return max(CORNER_UNIT_PX, np.sqrt(2.0) * frame_corner_noise(reproj_px))
+
+
+def frame_corner_noise(reproj_px: np.ndarray) -> float:
+    """A frame's corner noise (px, one coordinate) from its PnP reprojection errors (px).
+
+    The RMS reprojection error of four corners fitted by a 6-parameter pose keeps 2 of 8 degrees
+    of freedom: its square is a quarter of the corner noise's variance, so the noise is twice the
+    median reprojection error (0 where none is finite).
+    """
     r = np.asarray(reproj_px, float)
     r = r[np.isfinite(r)]
-    noise = 2.0 * np.sqrt(2.0) * float(np.median(r)) if r.size else 0.0
-    return max(CORNER_UNIT_PX, noise)
+    return 2.0 * float(np.median(r)) if r.size else 0.0
 
 
 def finite_or_zero(v: float | np.ndarray) -> float | np.ndarray:

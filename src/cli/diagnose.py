@@ -91,9 +91,9 @@ def diagnose(
     cache: CacheOption = None,
     seed: int = typer.Option(0, "--seed", help="Seed of the fit / choose / report split."),
     converged_simulation: bool = typer.Option(
-        False,
-        "--converged-simulation",
-        help="Simulate a converged experiment converged (default: path traced at 16 spp).",
+        True,
+        "--converged-simulation/--path-simulation",
+        help="Simulate a converged experiment converged (the default), or path traced at 16 spp.",
     ),
     progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
@@ -154,9 +154,9 @@ def validate(
         "then every trial hides one of them (two when several are given, as often as usual).",
     ),
     converged_simulation: bool = typer.Option(
-        False,
-        "--converged-simulation",
-        help="Diagnose with a converged simulation (default: path traced at 16 spp).",
+        True,
+        "--converged-simulation/--path-simulation",
+        help="Diagnose with a converged simulation (the default), or path traced at 16 spp.",
     ),
     overwrite: OverwriteOption = False,
 ) -> None:

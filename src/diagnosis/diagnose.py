@@ -41,11 +41,13 @@ from simgap.analysis.selection import ModelSearch
 from simgap.core.axes import AXES
 from simgap.core.progress import ProgressCallback, Steps
 from simgap.diagnosis.items import (
+    NoiseShift,
     build_items,
     repeats_of_simulation,
     simulation_experiment,
     split_items,
     subsample,
+    with_noise_shift,
     with_propagated_noise,
     with_render_seeds,
 )
@@ -99,15 +101,21 @@ class Diagnosis:
     ) -> None:
         self.settings = settings
         real = repeats_of_simulation(real, sim)
-        self.real, self.sim, self.exp = real, sim, exp
-        self.field = gapmod.gap_field(real, sim)
         self.base = exp.variant_states()[0][1]
         self.rig = exp.rig_model
+        converged = self.base.scene.quality.mode == "converged"  # its repeats measure no noise
+        #: the pose shift the capture's corner noise gives the converged simulation (None: path
+        #: traced, whose own render noise shifts its poses)
+        self.noise_shift: NoiseShift | None = None
+        if converged:
+            sim, self.noise_shift = with_noise_shift(real, sim, self.rig, self.base)
+        self.real, self.sim, self.exp = real, sim, exp
+        self.field = gapmod.gap_field(real, sim)
         unit_px = corner_unit(real.reproj_px.isel(variant=0).values)
         self.items = build_items(real, sim, self.field)
         #: corner noise propagated to each configuration's pose noise (px; None: not)
         self.propagated_px: float | None = None
-        if self.base.scene.quality.mode == "converged":  # its repeats measure no noise
+        if converged:
             self.propagated_px = unit_px / np.sqrt(2.0)
             self.items = with_propagated_noise(self.items, self.propagated_px, self.rig, self.base)
         self.runner = SimRunner(exp, simulator)
@@ -151,6 +159,8 @@ class Diagnosis:
         t0 = time.perf_counter()
         self.search.steps.start("confirmation re-render", len(self.items))
         errors = self.runner.errors(state, self.items, self.search.steps.advance)
+        if self.noise_shift is not None:  # as the simulation's own errors (with_noise_shift)
+            errors = errors + np.nan_to_num(self.noise_shift.at(self.items))
         self.fitted_errors, self.fitted_confirmed = errors, True
         pred = self.fitted_errors[self.report_index]
         before = gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes)
@@ -274,6 +284,7 @@ def diagnose(
         render_seeds=seeds,
         simulation_render=f"{sim_exp.render.mode} {sim_exp.render.spp} spp",
         propagated_corner_noise_px=d.propagated_px,
+        noise_shift_corner_px=None if d.noise_shift is None else d.noise_shift.corner_px,
     )
     if refused is not None:
         result.unexplained_evidence.append("corners")

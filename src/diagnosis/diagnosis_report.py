@@ -57,6 +57,17 @@ def _render_seeds_sentence(result: DiagnosisResult) -> str:
     return rendered + _pose_noise_sentence(result)
 
 
+def _noise_shift_sentence(result: DiagnosisResult) -> str:
+    """How the converged simulation's poses were shifted by the capture's noise (or "")."""
+    if result.noise_shift_corner_px is None:
+        return ""
+    return (
+        " Each simulated pose is the median pose under the capture's corner noise beyond the "
+        f"simulation's ({result.noise_shift_corner_px:.2f} px a coordinate): PnP shifts a far, "
+        "oblique tag's pose under noise, and the capture's pose carries that shift."
+    )
+
+
 def _pose_noise_sentence(result: DiagnosisResult) -> str:
     """How each configuration's pose noise was measured (or "" where by the per-axis noise)."""
     seeds = result.render_seeds
@@ -68,7 +79,7 @@ def _pose_noise_sentence(result: DiagnosisResult) -> str:
             f"response to {result.propagated_corner_noise_px:.2f} px of corner noise a "
             "coordinate (the corner channel's unit over sqrt 2: the capture's and the "
             "simulation's, one frame each), propagated through PnP."
-        )
+        ) + _noise_shift_sentence(result)
     if seeds <= 1:
         return ""
     return (

@@ -9,15 +9,17 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
 import yaml
 
 from simgap.analysis import gap as gapmod
+from simgap.analysis.channels import frame_corner_noise
 from simgap.analysis.fitting import Items
 from simgap.analysis.image_evidence import repeat_median_stats
-from simgap.analysis.pose_noise import propagated_pose_noise
+from simgap.analysis.pose_noise import noise_shift, propagated_pose_noise
 from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.config import to_mapping
@@ -185,3 +187,71 @@ def subsample(index: np.ndarray, k: int, seed: int) -> np.ndarray:
     if index.size <= k:
         return index
     return np.sort(np.random.default_rng(seed + 1).choice(index, k, replace=False))
+
+
+@dataclass(frozen=True)
+class NoiseShift:
+    """The pose shift a capture's corner noise gives a noise-free simulation.
+
+    Made by :func:`with_noise_shift`.
+
+    Attributes
+    ----------
+    corner_px : float
+        The capture's corner noise beyond the simulation's (px, one coordinate of one frame).
+    frames : int
+        Frames a pose the capture's repeat mean averages.
+    shift : xarray.DataArray
+        Median pose under that noise minus the undisturbed pose (tag, p, theta, axis) (m, rad),
+        on the real dataset's configurations; NaN where the simulation found no corners.
+    """
+
+    corner_px: float
+    frames: int
+    shift: xr.DataArray
+
+    def at(self, items: Items) -> np.ndarray:
+        """The shift (N, 6) at each of ``items`` (m, rad)."""
+        where = {
+            "tag": xr.DataArray(items.tag, dims="item"),
+            "p": xr.DataArray(items.p, dims="item"),
+            "theta": xr.DataArray(items.theta, dims="item"),
+        }
+        return self.shift.sel(where).transpose("item", "axis").values
+
+
+def with_noise_shift(
+    real: xr.Dataset, sim: xr.Dataset, rig: Rig, base: VariantState
+) -> tuple[xr.Dataset, NoiseShift]:
+    """A converged ``sim`` whose errors are the poses it would read with ``real``'s corner noise.
+
+    At a far, oblique tag PnP turns corner noise into a one-sided shift of the pose
+    (:func:`simgap.analysis.pose_noise.noise_shift`): the capture's pose there carries it, a
+    noise-free simulation's does not. Each simulated configuration's error (every variant and
+    repeat) is moved by the median shift under the capture's corner noise beyond the
+    simulation's own, both from their median PnP reprojection errors (sqrt(real^2 - sim^2),
+    :func:`simgap.analysis.channels.frame_corner_noise`), with as many frames a draw as the
+    capture averages (``real`` has the simulation's repeats:
+    :func:`repeats_of_simulation`). ``sim`` is returned aligned to ``real``
+    (:func:`simgap.analysis.gap.align`).
+    """
+    real, sim = gapmod.align(real, sim)
+    real_px = frame_corner_noise(real.reproj_px.isel(variant=0).values)
+    sim_px = frame_corner_noise(sim.reproj_px.isel(variant=0).values)
+    sigma = float(np.sqrt(max(real_px**2 - sim_px**2, 0.0)))
+    frames = int(real.sizes["repeat"])
+    with warnings.catch_warnings():  # never-detected configurations are all-NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        corners = sim.corners.isel(variant=0).mean("repeat", skipna=True)
+    corners = corners.transpose("tag", "p", "theta", "corner", "uv")
+    grid = corners.shape[:3]
+    shift = noise_shift(corners.values.reshape(-1, 4, 2), sigma, rig, base, frames)
+    coords = {"tag": sim.tag.values, "p": sim.p.values, "theta": sim.theta.values}
+    shift_da = xr.DataArray(
+        shift.reshape(grid + (len(AXES),)),
+        coords=coords | {"axis": list(AXES)},
+        dims=("tag", "p", "theta", "axis"),
+        attrs={"units": "m or rad"},
+    )
+    error = (sim.error + shift_da.fillna(0.0)).transpose(*sim.error.dims)
+    return sim.assign(error=error), NoiseShift(sigma, frames, shift_da)

@@ -228,6 +228,10 @@ class DiagnosisResult:
     #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
     #: noise, where the simulation's repeats measure none (a converged render); None otherwise
     propagated_corner_noise_px: float | None = None
+    #: corner noise (px per coordinate of one frame) of the capture beyond the simulation's,
+    #: whose pose shift moved each converged simulated pose
+    #: (:func:`simgap.diagnosis.items.with_noise_shift`); None where path traced
+    noise_shift_corner_px: float | None = None
     combined: Combined | None = None
     confirmed: Confirmed | None = None
     seconds: float = 0.0

@@ -45,17 +45,18 @@ class DiagnoseSettings:
     min_simulated_frames: int = 36
     #: Most render seeds per configuration.
     max_render_seeds: int = 4
-    #: Simulate an experiment that renders converged (the baseline's) converged too. Off by
-    #: default: it is then path traced at :data:`PATH_SIMULATION_SPP`. Converged, blind seed 50
-    #: got 95 % top-1 and every single trial right (docs/results/converged_render_step6.md), but
-    #: a noise-free simulation compares a noisy capture's far, oblique tags with poses the
-    #: capture cannot have (PnP biases their depth under corner noise: +10 mm at 16 spp,
-    #: benchmarks/far_tag_noise_bias.py), and the public sample-focal's ty gap fell below
-    #: significance (3.7 standard errors; path traced 5.3).
-    converged_simulation: bool = False
+    #: Simulate an experiment that renders converged (the baseline's) converged too; off: path
+    #: traced at :data:`PATH_SIMULATION_SPP` (every blind seed up to 49 ran so). A noise-free
+    #: simulation would compare a noisy capture's far, oblique tags with poses the capture
+    #: cannot have (PnP shifts their depth under corner noise: +10 mm at 16 spp,
+    #: benchmarks/far_tag_noise_bias.py), so each converged simulated pose is moved by the
+    #: shift the capture's corner noise gives it (:func:`simgap.diagnosis.items.
+    #: with_noise_shift`; the public sample-focal's ty gap: 3.7 standard errors without it,
+    #: 4.7 with it, 5.3 path traced). Blind seeds: docs/validation.md.
+    converged_simulation: bool = True
 
     def simulation(self, exp: Experiment) -> Experiment:
-        """``exp`` as the diagnosis simulates it: path traced unless :attr:`converged_simulation`.
+        """``exp`` as the diagnosis simulates it (see :attr:`converged_simulation`).
 
         An experiment that already path traces is left as it is.
         """

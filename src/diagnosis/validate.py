@@ -111,7 +111,7 @@ class ValidateSettings:
     p_outside: float = 0.1
     effects: tuple[str, ...] = tuple(HIDDEN)
     shard: tuple[int, int] = (0, 1)
-    converged_simulation: bool = False
+    converged_simulation: bool = True
 
     def __post_init__(self) -> None:
         k, n = self.shard
