@@ -43,6 +43,39 @@ def rig():
     return load_rig()
 
 
+@pytest.fixture
+def count_renders(monkeypatch) -> list[tuple]:
+    """The renders of configurations made while the test runs, in either render mode.
+
+    One entry (the scene's pose, the pixel count) per call of the pipeline's renderer: the
+    converged render (:func:`simgap.render.converged.converged_pixels`, whose own path-traced
+    samples are part of it) or the path tracer (``FixtureScene.render_pixels``).
+    """
+    import simgap.pipeline.variant as variant
+    from simgap.render.scene import FixtureScene
+
+    calls: list[tuple] = []
+    inside = []  # a converged render in progress: its own samples are not renders of their own
+    path, converged = FixtureScene.render_pixels, variant.converged_pixels
+
+    def spy_path(self, pixels, seed=0):
+        if not inside:
+            calls.append((self.pose, len(pixels)))
+        return path(self, pixels, seed)
+
+    def spy_converged(scene, pixels, *args, **kwargs):
+        calls.append((scene.pose, len(pixels)))
+        inside.append(True)
+        try:
+            return converged(scene, pixels, *args, **kwargs)
+        finally:
+            inside.pop()
+
+    monkeypatch.setattr(FixtureScene, "render_pixels", spy_path)
+    monkeypatch.setattr(variant, "converged_pixels", spy_converged)
+    return calls
+
+
 def _session_folder(tmp_path_factory, worker_id: str, name: str) -> Path:
     """A folder of this test session that every xdist worker sees (made if missing)."""
     base = tmp_path_factory.getbasetemp()

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 import yaml
 from typer.testing import CliRunner
 
 from simgap.cli import app
 from simgap.pipeline.experiment import load_experiment
 from simgap.pipeline.sweep import run_experiment
-from simgap.render.scene import FixtureScene, projected_sticker_boxes
+from simgap.render.scene import projected_sticker_boxes
 from simgap.results.dataset import read_netcdf
 
 
@@ -24,19 +23,6 @@ def _write(tmp_path, name, **overrides):
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data))
     return load_experiment(path)
-
-
-@pytest.fixture
-def count_renders(monkeypatch):
-    calls = []
-    original = FixtureScene.render_pixels
-
-    def spy(self, pixels, seed=0):
-        calls.append((self.pose, len(pixels)))
-        return original(self, pixels, seed)
-
-    monkeypatch.setattr(FixtureScene, "render_pixels", spy)
-    return calls
 
 
 def test_sweep_dataset_contract_and_cache_reuse(tmp_path, count_renders):

@@ -78,20 +78,17 @@ def test_circular_inheritance_is_an_error(tmp_path):
 
 
 @pytest.fixture
-def spies(monkeypatch):
-    calls = {"render": 0, "pipeline": 0}
-    render, pipeline = FixtureScene.render_pixels, variant.run_pipeline
-
-    def spy_render(self, *a, **k):
-        calls["render"] += 1
-        return render(self, *a, **k)
+def spies(monkeypatch, count_renders):
+    """Renders (either mode, :func:`count_renders`) and image pipelines run."""
+    calls = {"pipeline": 0}
+    pipeline = variant.run_pipeline
 
     def spy_pipeline(*a, **k):
         calls["pipeline"] += 1
         return pipeline(*a, **k)
 
-    monkeypatch.setattr(FixtureScene, "render_pixels", spy_render)
     monkeypatch.setattr(variant, "run_pipeline", spy_pipeline)
+    calls["renders"] = count_renders
     return calls
 
 
@@ -115,7 +112,7 @@ def test_variants_reuse_upstream_stages(tmp_path, spies):
     ds = sweep.run_experiment(exp, tmp_path / "cache", show_progress=False)
     assert list(ds.variant.values) == ["baseline", "blur", "refine_none", "gloss", "noise"]
     # 2 configurations: renders only for the 2 distinct scenes (baseline, gloss)
-    assert spies["render"] == 2 * 2
+    assert len(spies["renders"]) == 2 * 2
     # frames: baseline, blur, gloss once each; noise once per repeat; refine_none reuses baseline
     assert spies["pipeline"] == 2 * (3 + 2)
     det = ds.detected.sel(variant="baseline").values

@@ -8,7 +8,7 @@ An experiment YAML holds (all optional but ``name``)::
     rig: {...}              # overrides of the packaged rig.yaml
     scene: {...}            # overrides of mitsuba_scenes/pass_fixture.yaml
     configurations: {p: [0, 7, 14], theta_deg: [0, 30, 180], tags: [0, 1]}
-    render: {spp: 16, sampler: multijitter, seed: 0, margin_px: 24}
+    render: {mode: converged, spp: 4, sampler: multijitter, seed: 0, margin_px: 24}
     image: {exposure: 1.0, encoding: srgb}
     detector: {corner_refinement: SUBPIX, ...}
     pnp: {method: IPPE_SQUARE}

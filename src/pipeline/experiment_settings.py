@@ -7,7 +7,7 @@ their own values on construction.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Final, Literal
 
 from simgap.core.config import require
 
@@ -21,12 +21,19 @@ class Configurations:
     tags: tuple[int, ...] = ()
 
 
+#: Samples per pixel where an experiment names none, per render mode: converged, 4 (two render
+#: seeds of the baseline differ by 0.09 mm in ty, docs/results/converged_render_step4.md); path
+#: traced, 16 (the study's setting before issue 28).
+DEFAULT_SPP: Final[dict[str, int]] = {"converged": 4, "path": 16}
+
+
 @dataclass(frozen=True)
 class RenderSettings:
     """How the renderer samples each configuration (the experiment's ``render:`` block)."""
 
-    #: Samples per pixel.
-    spp: int = 16
+    #: Samples per pixel; default: :data:`DEFAULT_SPP` of the :attr:`mode` (4 converged, 16
+    #: path traced).
+    spp: int | None = None
     #: Mitsuba sampler.
     sampler: Literal["multijitter", "ldsampler", "stratified", "independent", "orthogonal"] = (
         "multijitter"
@@ -46,12 +53,15 @@ class RenderSettings:
     #: Render each repeat with its own seed (Monte Carlo over render noise too; costs a render
     #: per repeat). Otherwise repeats differ only in image-stage noise.
     reseed_repeats: bool = False
-    #: ``path``: every pixel the mean of its path-traced samples; ``converged``: each diffuse
-    #: sticker demodulated by its print albedo, with more samples where a shadow or highlight
-    #: edge crosses it (:mod:`simgap.render.converged`; needs spp >= 2).
-    mode: Literal["path", "converged"] = "path"
+    #: ``converged`` (the default since issue 28): each diffuse sticker demodulated by its
+    #: print albedo, with more samples where a shadow or highlight edge crosses it
+    #: (:mod:`simgap.render.converged`; needs spp >= 2); ``path``: every pixel the mean of its
+    #: path-traced samples (the study's before issue 28, for comparison studies).
+    mode: Literal["path", "converged"] = "converged"
 
     def __post_init__(self) -> None:
+        if self.spp is None:
+            object.__setattr__(self, "spp", DEFAULT_SPP[self.mode])
         require(self.spp >= 1, f"spp: expected an integer >= 1, got {self.spp}")
         require(self.max_depth >= 2 or self.max_depth == -1, "max_depth: expected >= 2 or -1")
         require(self.margin_px >= 4, "margin_px: expected an integer >= 4 (px)")
