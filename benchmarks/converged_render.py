@@ -83,11 +83,18 @@ def compare(ds: xr.Dataset, ref: xr.Dataset, label: str) -> None:
 
 
 def mean_pose(refs: list[xr.Dataset]) -> xr.Dataset:
-    """The mean over ``refs`` of each estimated pose and detected corner (detected in all)."""
+    """The mean over ``refs`` of each estimated pose and detected corner (detected in all).
+
+    The pose's rotation vectors are averaged element by element, which holds while they agree;
+    a detection whose references differ by more than 0.5 rad on a rotation axis (a flip of the
+    planar ambiguity, or the rotation vector's other branch near pi) is left out.
+    """
     out = refs[0].copy()
     for name in ("estimated", "corners"):
         out[name] = (refs[0][name].dims, np.mean([r[name].values for r in refs], axis=0))
-    detected = np.logical_and.reduce([r["detected"].values for r in refs])
+    rotations = np.stack([r["estimated"].values[..., 3:] for r in refs])
+    agree = np.nan_to_num(np.ptp(rotations, axis=0), nan=0.0).max(-1) <= 0.5
+    detected = np.logical_and.reduce([r["detected"].values for r in refs]) & agree
     out["detected"] = (refs[0]["detected"].dims, detected)
     return out
 
@@ -200,6 +207,8 @@ def main() -> None:
         default="baseline,light_point,light_spot_3000K,glossy_tags,distortion_uncalibrated,defocus",
     )
     args = parser.parse_args()
+    if args.ref_seeds < 1:
+        parser.error("--ref-seeds: expected an integer >= 1")
     base = load_experiment(args.experiment)
 
     names = args.variants.split(",")

@@ -10,8 +10,12 @@ Before each configuration's own pose noise was measured, 2 of 8 seeds read sampl
 camera mount (docs/results/sample_focal_render_seeds.md); `tests/test_diagnose_render_seed.py`
 (marked slow) checks seed 5, one of those two.
 
+The simulation is the diagnosis's default (converged for the baseline, each pose read with the
+capture's corner noise); ``--path-simulation`` path traces it at 16 spp, as every diagnosis did
+before issue 28.
+
 Usage: ``python benchmarks/render_seed_stability.py [--seeds 0,5] [--experiment
-experiments/baseline.yaml] [--captures ../shared/captures] [--cache DIR]``
+experiments/baseline.yaml] [--captures ../shared/captures] [--cache DIR] [--path-simulation]``
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from pathlib import Path
 
 from simgap.analysis.candidates import geometric_effects
 from simgap.diagnosis.diagnose import diagnose
+from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.pipeline.capture import ingest
 from simgap.pipeline.experiment import load_experiment
 
@@ -36,8 +41,10 @@ def main() -> None:
     ap.add_argument("--experiment", type=Path, default=Path("experiments/baseline.yaml"))
     ap.add_argument("--captures", type=Path, default=Path("../shared/captures"))
     ap.add_argument("--cache", type=Path, default=None, help="simgap cache (default: a new one)")
+    ap.add_argument("--path-simulation", action="store_true", help="path trace at 16 spp")
     args = ap.parse_args()
 
+    settings = DiagnoseSettings(converged_simulation=not args.path_simulation)
     base = load_experiment(args.experiment)
     reals = {name: ingest(args.captures / name, base.rig_model) for name in EXPECTED}
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -48,7 +55,7 @@ def main() -> None:
             exp = base.with_render(seed=seed)
             for name, real in reals.items():
                 t0 = time.perf_counter()
-                result, _ = diagnose(real, exp, cache)
+                result, _ = diagnose(real, exp, cache, settings)
                 geometric = [e for e in result.selected if e in geometric_effects()]
                 as_expected[name] += geometric == EXPECTED[name]
                 top = result.ranking[0]

@@ -105,7 +105,7 @@ def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sam
 def test_public_sample_with_a_path_traced_simulation(session_cache, sample):
     """sample-focal against a path-traced simulation (``--path-simulation``, 16 spp).
 
-    Every blind seed up to 49 diagnosed so. Its render noise is measured by its 4 render seeds
+    Every blind seed up to 48 diagnosed so. Its render noise is measured by its 4 render seeds
     (docs/results/sample_focal_render_seeds.md) and shifts its far tags' poses as the capture's
     noise does: nothing is propagated or shifted.
     """

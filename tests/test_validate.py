@@ -42,6 +42,10 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     summary = run_validation(exp, tmp_path, session_cache, settings, log=ran.append)
     assert len(ran) == 2  # resumed: nothing ran again
     assert summary["trials"] == 2 and summary["trials_planned"] == 2
+    # the same trials diagnosed path traced would mix two simulations in one summary: refused
+    with pytest.raises(ValueError, match="diagnosed with a converged simulation"):
+        path_traced = replace(settings, converged_simulation=False)
+        run_validation(exp, tmp_path, session_cache, path_traced, log=ran.append)
     kept = tmp_path / "trials" / "trial_000.json"  # as if made by another seed: refused
     kept.write_text(json.dumps(dict(json.loads(kept.read_text()), params={"x": {"v": 1}})))
     with pytest.raises(ValueError, match="other hidden effects or another camera"):

@@ -77,11 +77,21 @@ def corner_unit(reproj_px: np.ndarray) -> float:
 
 
 def frame_corner_noise(reproj_px: np.ndarray) -> float:
-    """A frame's corner noise (px, one coordinate) from its PnP reprojection errors (px).
+    """A frame's corner noise from its PnP reprojection errors.
 
     The RMS reprojection error of four corners fitted by a 6-parameter pose keeps 2 of 8 degrees
     of freedom: its square is a quarter of the corner noise's variance, so the noise is twice the
-    median reprojection error (0 where none is finite).
+    median reprojection error.
+
+    Parameters
+    ----------
+    reproj_px : ndarray
+        RMS reprojection errors of the detections, any shape (px); NaN where none.
+
+    Returns
+    -------
+    float
+        Standard deviation of one corner coordinate (px); 0 where no error is finite.
     """
     r = np.asarray(reproj_px, float)
     r = r[np.isfinite(r)]

@@ -116,10 +116,25 @@ def pose_draws(
 def propagated_pose_noise(
     corners: np.ndarray, sigma_px: float, rig: Rig, base: VariantState
 ) -> np.ndarray:
-    """Standard deviation (N, 6) of the pose under corner noise of ``sigma_px`` (m, rad).
+    """Standard deviation of the pose under corner noise of ``sigma_px``.
 
-    Over :data:`DRAWS` draws of one frame (:func:`pose_draws`, flips left out), ``ddof=1``; NaN
-    where fewer than two draws solved.
+    Over :data:`DRAWS` draws of one frame (:func:`pose_draws`, flips left out), ``ddof=1``.
+
+    Parameters
+    ----------
+    corners : ndarray (N, 4, 2)
+        Detected corners of each configuration (px); NaN where none.
+    sigma_px : float
+        Standard deviation of each corner coordinate (px).
+    rig : Rig
+        The fixture (the tag's size, m).
+    base : VariantState
+        The simulation's state: its assumed calibration and PnP settings solve the poses.
+
+    Returns
+    -------
+    ndarray (N, 6)
+        The standard deviation per axis (m, rad); NaN where fewer than two draws solved.
     """
     moved = pose_draws(corners, sigma_px, rig, base, DRAWS, SEED)
     n = np.isfinite(moved).all(-1).sum(-1)
@@ -132,10 +147,27 @@ def propagated_pose_noise(
 def noise_shift(
     corners: np.ndarray, sigma_px: float, rig: Rig, base: VariantState, frames: int = 1
 ) -> np.ndarray:
-    """Median (N, 6) of the pose under corner noise minus the undisturbed pose (m, rad).
+    """Median of the pose under corner noise minus the undisturbed pose.
 
-    Over :data:`SHIFT_DRAWS` draws, each the mean of ``frames`` frames (:func:`pose_draws`); 0
-    where ``sigma_px`` is 0, NaN where the corners are.
+    Over :data:`SHIFT_DRAWS` draws, each the mean of ``frames`` frames (:func:`pose_draws`).
+
+    Parameters
+    ----------
+    corners : ndarray (N, 4, 2)
+        Detected corners of each configuration (px); NaN where none.
+    sigma_px : float
+        Standard deviation of each corner coordinate in one frame (px).
+    rig : Rig
+        The fixture (the tag's size, m).
+    base : VariantState
+        The simulation's state: its assumed calibration and PnP settings solve the poses.
+    frames : int
+        Frames averaged in each draw.
+
+    Returns
+    -------
+    ndarray (N, 6)
+        The shift per axis (m, rad): 0 where ``sigma_px`` is 0, NaN where the corners are.
     """
     corners = np.asarray(corners, float)
     if sigma_px <= 0.0:

@@ -90,6 +90,17 @@ def repeats_of_simulation(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
     return out
 
 
+def repeat_mean_corners(ds: xr.Dataset) -> xr.DataArray:
+    """Detected corners of the first variant, averaged over repeats (px).
+
+    Dimensions (tag, p, theta, corner, uv); NaN where never detected.
+    """
+    with warnings.catch_warnings():  # never-detected configurations are all-NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        corners = ds.corners.isel(variant=0).mean("repeat", skipna=True)
+    return corners.transpose("tag", "p", "theta", "corner", "uv")
+
+
 def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> Items:
     """The visible (tag, p, theta) items with their errors, corners, image statistics, detection.
 
@@ -113,10 +124,7 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
     flipped = np.maximum(np.abs(r_err[..., 3:]), np.abs(s_err[..., 3:])).max(-1) > FLIP_RAD
     r_err = np.where(flipped[..., None], np.nan, r_err)
     s_err = np.where(flipped[..., None], np.nan, s_err)
-    with warnings.catch_warnings():  # never-detected items are all-NaN
-        warnings.simplefilter("ignore", RuntimeWarning)
-        r_c = real.corners.isel(variant=0).mean("repeat", skipna=True).values
-        s_c = sim.corners.isel(variant=0).mean("repeat", skipna=True).values
+    r_c, s_c = repeat_mean_corners(real).values, repeat_mean_corners(sim).values
     floors = np.array([PRACTICAL_FLOOR[axis_unit(a)] for a in AXES])
     scale = np.maximum(field.sigma.values, floors)
     # a configuration whose repeats show more noise than the per-axis level gets its own
@@ -211,7 +219,18 @@ class NoiseShift:
     shift: xr.DataArray
 
     def at(self, items: Items) -> np.ndarray:
-        """The shift (N, 6) at each of ``items`` (m, rad)."""
+        """The shift at each of ``items``.
+
+        Parameters
+        ----------
+        items : Items
+            Items on configurations of :attr:`shift` (their tag, p and theta).
+
+        Returns
+        -------
+        ndarray (N, 6)
+            The shift per item and axis (m, rad); NaN where the simulation found no corners.
+        """
         where = {
             "tag": xr.DataArray(items.tag, dims="item"),
             "p": xr.DataArray(items.p, dims="item"),
@@ -232,18 +251,32 @@ def with_noise_shift(
     simulation's own, both from their median PnP reprojection errors (sqrt(real^2 - sim^2),
     :func:`simgap.analysis.channels.frame_corner_noise`), with as many frames a draw as the
     capture averages (``real`` has the simulation's repeats:
-    :func:`repeats_of_simulation`). ``sim`` is returned aligned to ``real``
-    (:func:`simgap.analysis.gap.align`).
+    :func:`repeats_of_simulation`).
+
+    Parameters
+    ----------
+    real : xarray.Dataset
+        The capture (its PnP reprojection errors, px, and its repeats).
+    sim : xarray.Dataset
+        Its converged simulation (errors, m and rad; corners and reprojection errors, px).
+    rig : Rig
+        The fixture (the tag's size, m).
+    base : VariantState
+        The simulation's state: its assumed calibration and PnP settings solve the poses.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``sim`` aligned to ``real`` (:func:`simgap.analysis.gap.align`), its errors shifted.
+    NoiseShift
+        The noise used and the shift per configuration.
     """
     real, sim = gapmod.align(real, sim)
     real_px = frame_corner_noise(real.reproj_px.isel(variant=0).values)
     sim_px = frame_corner_noise(sim.reproj_px.isel(variant=0).values)
     sigma = float(np.sqrt(max(real_px**2 - sim_px**2, 0.0)))
     frames = int(real.sizes["repeat"])
-    with warnings.catch_warnings():  # never-detected configurations are all-NaN
-        warnings.simplefilter("ignore", RuntimeWarning)
-        corners = sim.corners.isel(variant=0).mean("repeat", skipna=True)
-    corners = corners.transpose("tag", "p", "theta", "corner", "uv")
+    corners = repeat_mean_corners(sim)
     grid = corners.shape[:3]
     shift = noise_shift(corners.values.reshape(-1, 4, 2), sigma, rig, base, frames)
     coords = {"tag": sim.tag.values, "p": sim.p.values, "theta": sim.theta.values}
@@ -254,4 +287,5 @@ def with_noise_shift(
         attrs={"units": "m or rad"},
     )
     error = (sim.error + shift_da.fillna(0.0)).transpose(*sim.error.dims)
+    error.attrs = dict(sim.error.attrs)  # its units and names, as the simulation's
     return sim.assign(error=error), NoiseShift(sigma, frames, shift_da)

@@ -46,7 +46,7 @@ class DiagnoseSettings:
     #: Most render seeds per configuration.
     max_render_seeds: int = 4
     #: Simulate an experiment that renders converged (the baseline's) converged too; off: path
-    #: traced at :data:`PATH_SIMULATION_SPP` (every blind seed up to 49 ran so). A noise-free
+    #: traced at :data:`PATH_SIMULATION_SPP` (every blind seed up to 48 ran so). A noise-free
     #: simulation would compare a noisy capture's far, oblique tags with poses the capture
     #: cannot have (PnP shifts their depth under corner noise: +10 mm at 16 spp,
     #: benchmarks/far_tag_noise_bias.py), so each converged simulated pose is moved by the

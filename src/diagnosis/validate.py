@@ -257,16 +257,17 @@ def run_validation(
     rig = base.rig_model
     shard, shards = settings.shard
     draws = draw_trials(settings, rig)
+    diagnose_settings = DiagnoseSettings(converged_simulation=settings.converged_simulation)
+    mode = diagnose_settings.simulation(base).render.mode
     for i, (hidden, camera) in enumerate(draws):
         path = out_dir / "trials" / f"trial_{i:03d}.json"
-        if i % shards != shard or _kept_trial(path, hidden, camera) is not None:
+        if i % shards != shard or _kept_trial(path, hidden, camera, mode) is not None:
             continue
         t0 = time.perf_counter()
         folder = out_dir / "captures" / f"trial_{i:03d}"
         exp = pseudo_real_experiment(base, hidden, camera, 1000 + settings.seed * 1000 + i)
         render_capture(exp, simulator, folder, hidden)
         real = ingest(folder, rig)
-        diagnose_settings = DiagnoseSettings(converged_simulation=settings.converged_simulation)
         result, _ = diagnose(real, base, simulator, diagnose_settings)
         trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig)
         record = trial.record()
@@ -276,7 +277,7 @@ def run_validation(
             f"({'ok' if record['correct'] else 'MISS'}, {trial.seconds:.0f} s)"
         )
     trials_dir = out_dir / "trials"
-    kept = (_kept_trial(trials_dir / f"trial_{i:03d}.json", *d) for i, d in enumerate(draws))
+    kept = (_kept_trial(trials_dir / f"trial_{i:03d}.json", *d, mode) for i, d in enumerate(draws))
     records = [r for r in kept if r is not None]  # every shard's trials finished so far
     summary = summarize_scores(records)
     summary["trials_planned"] = settings.trials
@@ -286,12 +287,22 @@ def run_validation(
 
 
 def _kept_trial(
-    path: Path, hidden: dict[str, Any], camera: NuisanceCamera
+    path: Path, hidden: dict[str, Any], camera: NuisanceCamera, mode: str
 ) -> dict[str, Any] | None:
-    """The trial kept at ``path`` (None if there is none yet), checked against its draw."""
+    """The trial kept at ``path`` (None if there is none yet), checked against its draw.
+
+    ``mode``: the render mode this run simulates with (``converged`` or ``path``); a trial
+    diagnosed with the other is refused, so that one summary never mixes the two.
+    """
     if not path.is_file():
         return None
     record = json.loads(path.read_text())
+    kept_mode = str(record.get("result", {}).get("simulation_render", "")).split(" ")[0]
+    if kept_mode and kept_mode != mode:
+        raise ValueError(
+            f"{path}: diagnosed with a {kept_mode} simulation, this run simulates {mode}; use "
+            "another output folder, or --converged-simulation / --path-simulation as before"
+        )
     if record["params"] != jsonable(hidden) or record.get("camera") != jsonable(camera.record()):
         raise ValueError(
             f"{path}: made with other hidden effects or another camera ({record['params']}, "

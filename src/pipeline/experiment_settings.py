@@ -31,8 +31,9 @@ DEFAULT_SPP: Final[dict[str, int]] = {"converged": 4, "path": 16}
 class RenderSettings:
     """How the renderer samples each configuration (the experiment's ``render:`` block)."""
 
-    #: Samples per pixel; default: :data:`DEFAULT_SPP` of the :attr:`mode` (4 converged, 16
-    #: path traced).
+    #: Samples per pixel; none named (or ``null``): :data:`DEFAULT_SPP` of the :attr:`mode` (4
+    #: converged, 16 path traced), resolved when the settings are made (a later
+    #: ``with_render(mode=...)`` keeps the resolved count unless it names ``spp`` too).
     spp: int | None = None
     #: Mitsuba sampler.
     sampler: Literal["multijitter", "ldsampler", "stratified", "independent", "orthogonal"] = (
@@ -60,7 +61,9 @@ class RenderSettings:
     mode: Literal["path", "converged"] = "converged"
 
     def __post_init__(self) -> None:
-        if self.spp is None:
+        modes = sorted(DEFAULT_SPP)
+        require(self.mode in DEFAULT_SPP, f"mode: expected one of {modes}, got {self.mode}")
+        if self.spp is None:  # ``spp: null`` too: the mode's own
             object.__setattr__(self, "spp", DEFAULT_SPP[self.mode])
         require(self.spp >= 1, f"spp: expected an integer >= 1, got {self.spp}")
         require(self.max_depth >= 2 or self.max_depth == -1, "max_depth: expected >= 2 or -1")
