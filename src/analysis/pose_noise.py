@@ -122,14 +122,8 @@ def propagated_pose_noise(
 
     Parameters
     ----------
-    corners : ndarray (N, 4, 2)
-        Detected corners of each configuration (px); NaN where none.
-    sigma_px : float
-        Standard deviation of each corner coordinate (px).
-    rig : Rig
-        The fixture (the tag's size, m).
-    base : VariantState
-        The simulation's state: its assumed calibration and PnP settings solve the poses.
+    corners, sigma_px, rig, base
+        As :func:`pose_draws` (px, px, the fixture, the simulation's state).
 
     Returns
     -------
@@ -153,16 +147,9 @@ def noise_shift(
 
     Parameters
     ----------
-    corners : ndarray (N, 4, 2)
-        Detected corners of each configuration (px); NaN where none.
-    sigma_px : float
-        Standard deviation of each corner coordinate in one frame (px).
-    rig : Rig
-        The fixture (the tag's size, m).
-    base : VariantState
-        The simulation's state: its assumed calibration and PnP settings solve the poses.
-    frames : int
-        Frames averaged in each draw.
+    corners, sigma_px, rig, base, frames
+        As :func:`pose_draws` (px, px a coordinate of one frame, the fixture, the simulation's
+        state, frames averaged in each draw).
 
     Returns
     -------

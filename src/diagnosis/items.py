@@ -259,10 +259,9 @@ def with_noise_shift(
         The capture (its PnP reprojection errors, px, and its repeats).
     sim : xarray.Dataset
         Its converged simulation (errors, m and rad; corners and reprojection errors, px).
-    rig : Rig
-        The fixture (the tag's size, m).
-    base : VariantState
-        The simulation's state: its assumed calibration and PnP settings solve the poses.
+    rig, base : Rig, VariantState
+        The fixture and the simulation's state, whose calibration and PnP settings solve the
+        poses (:func:`simgap.analysis.pose_noise.pose_draws`).
 
     Returns
     -------
