@@ -6,10 +6,12 @@ from dataclasses import dataclass
 
 from simgap.analysis.thresholds import EXPLAINED_REDUCTION
 from simgap.pipeline.experiment import Experiment
+from simgap.pipeline.experiment_settings import DEFAULT_SPP
 
 #: Samples per pixel of a diagnosis' path-traced simulation of an experiment that renders
-#: converged: the study's own setting until issue 28, on which every blind seed up to 48 ran.
-PATH_SIMULATION_SPP = 16
+#: converged: path tracing's own default (the study's setting until issue 28, on which every
+#: blind seed up to 48 ran).
+PATH_SIMULATION_SPP = DEFAULT_SPP["path"]
 
 
 @dataclass(frozen=True)
