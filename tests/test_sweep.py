@@ -8,7 +8,8 @@ from typer.testing import CliRunner
 
 from simgap.cli import app
 from simgap.pipeline.experiment import load_experiment
-from simgap.pipeline.sweep import run_experiment
+from simgap.pipeline.sweep import experiment_pipelines, run_experiment
+from simgap.pipeline.variant import MAX_SCENES_ALIVE, clear_scenes, scenes_alive
 from simgap.render.scene import projected_sticker_boxes
 from simgap.results.dataset import read_netcdf
 
@@ -95,3 +96,25 @@ def test_cli_smoke_run_and_report(tmp_path, session_cache):
     res = runner.invoke(app, ["report", str(nc), "-o", str(rep)])
     assert res.exit_code == 0, res.output
     assert (rep / "table2.md").is_file() and (rep / "heatmap_tag0.png").is_file()
+
+
+def test_a_process_keeps_one_scene_and_rebuilds_it_bit_for_bit(tmp_path):
+    """Scenes alive slow every launch (MAX_SCENES_ALIVE): one is kept; a rebuilt one renders
+    the same bits, and an experiment's variants, used in turn by every task, all stay."""
+    exp = load_experiment("experiments/smoke.yaml")
+    p, theta = 7, float(np.deg2rad(30.0))
+    clear_scenes()
+    first = experiment_pipelines(exp, tmp_path / "a")[0]
+    rendered, _ = first.hdr(p, theta, 0)
+    other = experiment_pipelines(exp.with_render(spp=8), tmp_path / "b")[0]
+    other.scene()
+    assert scenes_alive() == MAX_SCENES_ALIVE == 1
+    again = experiment_pipelines(exp, tmp_path / "c")[0]  # an empty cache: rendered anew
+    rendered_again, _ = again.hdr(p, theta, 0)
+    assert again.seconds["scene load"] > 0  # the scene was built again, not kept
+    np.testing.assert_array_equal(rendered_again, rendered)
+    variants = experiment_pipelines(load_experiment("experiments/smoke_variants.yaml"), tmp_path)
+    for pipe in variants:
+        pipe.scene()
+    assert scenes_alive() == len({pipe.scene_key for pipe in variants}) > 1
+    clear_scenes()

@@ -57,9 +57,10 @@ def experiment_pipelines(exp: Experiment, cache_dir: Path) -> list[VariantPipeli
         cache = Cache(cache_dir)
         rig = exp.rig_model
         margin = exp.render.margin_px
+        states = [state for _, state in exp.variant_states()]
         _PIPELINES[key] = [
-            VariantPipeline(rig, state, tags, margin, cache, assets)
-            for _, state in exp.variant_states()
+            VariantPipeline(rig, state, tags, margin, cache, assets, scenes_alive=len(states))
+            for state in states
         ]
     return _PIPELINES[key]
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections import Counter
+from collections import Counter, OrderedDict
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -91,11 +91,23 @@ def config_seed(base: int, p: int, theta: float, *extra) -> int:
     )
 
 
-#: Mitsuba scenes by scene key, shared by every pipeline of this process: a variant
-#: that changes only the image or estimation stage has the same scene key and reuses the scene
-#: and its compiled kernels, and a Dask worker keeps them between tasks. Keyed by content hashes,
-#: so sharing is safe; :func:`clear_scenes` empties it.
-_SCENES: dict[str, object] = {}
+#: Mitsuba scenes a process keeps alive, at least (more where one experiment's variants need
+#: more at once: :class:`VariantPipeline`'s ``scenes_alive``). Every scene alive slows every kernel
+#: launch of every scene: Dr.Jit traces a virtual call (a BSDF's, an emitter's) over all the
+#: instances registered in the process. Measured (benchmarks/scenes_alive.py, 2 cores): a launch
+#: of two pixels took 4.2 ms beside no other scene, 6.5 ms beside one, 34 ms beside 10 and 158 ms
+#: beside 40, a converged baseline render 48, 53, 93 and 248 ms
+#: (docs/results/converged_render_step8.md). A diagnosis or a validation run builds a scene for
+#: every camera and every scene-stage candidate it renders; kept, they made its later renders
+#: slower and slower. One: the callers render one state's configurations in turn (a sweep's
+#: task its experiment's variants, which all stay alive), and a scene dropped is rebuilt when
+#: needed again (the same renders, bit for bit).
+MAX_SCENES_ALIVE = 1
+#: Mitsuba scenes by scene key, least recently used first, shared by every pipeline of this
+#: process: a variant that changes only the image or estimation stage has the same scene key and
+#: reuses the scene and its compiled kernels, and a Dask worker keeps them between tasks. Keyed by
+#: content hashes, so sharing is safe; :func:`clear_scenes` empties it.
+_SCENES: OrderedDict[str, object] = OrderedDict()
 
 
 def clear_scenes() -> None:
@@ -103,13 +115,28 @@ def clear_scenes() -> None:
     _SCENES.clear()
 
 
+def scenes_alive() -> int:
+    """How many Mitsuba scenes this process holds (:data:`MAX_SCENES_ALIVE`)."""
+    return len(_SCENES)
+
+
 class VariantPipeline:
     """One variant's stages for any (p, theta), with caching."""
 
     def __init__(
-        self, rig: Rig, state: VariantState, tags, margin_px: int, cache: Cache, assets: str
+        self,
+        rig: Rig,
+        state: VariantState,
+        tags,
+        margin_px: int,
+        cache: Cache,
+        assets: str,
+        scenes_alive: int = 1,
     ):
         self.rig, self.state, self.tags, self.cache = rig, state, tuple(tags), cache
+        #: Scenes its caller uses in turn (an experiment's variants, one task after another):
+        #: this many stay alive at least (:data:`MAX_SCENES_ALIVE`)
+        self.scenes_alive = scenes_alive
         #: Render margin around the stickers (px): the experiment's, or more where the camera
         #: pipeline spreads pixels further (a wide blur must not pull in the flat surround)
         self.margin_px = max(int(margin_px), math.ceil(pipeline_reach_px(state.image)))
@@ -132,10 +159,18 @@ class VariantPipeline:
             self.seconds[stage] += time.perf_counter() - t0
 
     def scene(self):
-        """The Mitsuba scene of this variant (one per process and scene key)."""
-        if self.scene_key not in _SCENES:
+        """The Mitsuba scene of this variant (one per process and scene key).
+
+        Building one drops the least recently used beyond :data:`MAX_SCENES_ALIVE` (or this
+        pipeline's ``scenes_alive``, if more).
+        """
+        if self.scene_key in _SCENES:
+            _SCENES.move_to_end(self.scene_key)
+        else:
             from simgap.render.scene import FixtureScene
 
+            while len(_SCENES) >= max(MAX_SCENES_ALIVE, self.scenes_alive):
+                _SCENES.popitem(last=False)
             s = self.state.scene
             with self._timed("scene load"):
                 _SCENES[self.scene_key] = FixtureScene(
