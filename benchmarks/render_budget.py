@@ -81,8 +81,8 @@ def path_once(scene, pixels: np.ndarray) -> np.ndarray:
 def floors(exp: Experiment) -> dict[str, float]:
     """ms a configuration of the renders that bound any render of the region (module docstring).
 
-    On one Mitsuba scene, alone in the process as in a sweep's worker: a launch's cost grows
-    with the scenes alive (a two-pixel launch took 3.6 ms beside no other scene, 6 ms beside one).
+    On one Mitsuba scene, alone in the process as in a sweep's worker: every other scene alive
+    slows each launch (benchmarks/scenes_alive.py).
     """
     from simgap.render.converged import converged_pixels
     from simgap.render.pixel_samples import sample_pixels

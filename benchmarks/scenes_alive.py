@@ -3,10 +3,10 @@
 Dr.Jit traces a virtual call (a BSDF's, an emitter's) over every instance registered in the
 process, so every scene alive adds to every launch of every scene; the pipeline therefore keeps
 at most :data:`simgap.pipeline.variant.MAX_SCENES_ALIVE` (docs/results/converged_render_step8.md).
-One baseline scene is posed at ``--configs`` configurations; with ``--alive`` other scenes built
-beside it (the same scene at other sample counts: each is a scene of its own), it prints the
-least of three launches on two pixels and a converged render's time (ms, mean over the
-configurations), then the same after the others are deleted.
+One baseline scene is posed at four configurations (:data:`CONFIGS`); with ``--alive`` other
+scenes built beside it (the same scene at other sample counts: each is a scene of its own), it
+prints the least of three launches on two pixels and a converged render's time (ms, mean over
+the configurations), then the same after the others are deleted.
 
 Usage: ``python benchmarks/scenes_alive.py [--alive 0,1,4,10,20,40]``
 """

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 from simgap.cli import app
 from simgap.pipeline.experiment import load_experiment
 from simgap.pipeline.sweep import experiment_pipelines, run_experiment
-from simgap.pipeline.variant import MAX_SCENES_ALIVE, clear_scenes, scenes_alive
+from simgap.pipeline.variant import MAX_SCENES_ALIVE, cached_scenes, clear_scenes
 from simgap.render.scene import projected_sticker_boxes
 from simgap.results.dataset import read_netcdf
 
@@ -104,17 +104,20 @@ def test_a_process_keeps_one_scene_and_rebuilds_it_bit_for_bit(tmp_path):
     exp = load_experiment("experiments/smoke.yaml")
     p, theta = 7, float(np.deg2rad(30.0))
     clear_scenes()
-    first = experiment_pipelines(exp, tmp_path / "a")[0]
-    rendered, _ = first.hdr(p, theta, 0)
-    other = experiment_pipelines(exp.with_render(spp=8), tmp_path / "b")[0]
-    other.scene()
-    assert scenes_alive() == MAX_SCENES_ALIVE == 1
-    again = experiment_pipelines(exp, tmp_path / "c")[0]  # an empty cache: rendered anew
-    rendered_again, _ = again.hdr(p, theta, 0)
-    assert again.seconds["scene load"] > 0  # the scene was built again, not kept
-    np.testing.assert_array_equal(rendered_again, rendered)
-    variants = experiment_pipelines(load_experiment("experiments/smoke_variants.yaml"), tmp_path)
-    for pipe in variants:
-        pipe.scene()
-    assert scenes_alive() == len({pipe.scene_key for pipe in variants}) > 1
-    clear_scenes()
+    try:
+        first = experiment_pipelines(exp, tmp_path / "a")[0]
+        rendered, _ = first.hdr(p, theta, 0)
+        other = experiment_pipelines(exp.with_render(spp=8), tmp_path / "b")[0]
+        other.scene()
+        assert cached_scenes() == MAX_SCENES_ALIVE == 1
+        again = experiment_pipelines(exp, tmp_path / "c")[0]  # an empty cache: rendered anew
+        rendered_again, _ = again.hdr(p, theta, 0)
+        assert again.seconds["scene load"] > 0  # the scene was built again, not kept
+        np.testing.assert_array_equal(rendered_again, rendered)
+        smoke_variants = load_experiment("experiments/smoke_variants.yaml")
+        variants = experiment_pipelines(smoke_variants, tmp_path)
+        for pipe in variants:
+            pipe.scene()
+        assert cached_scenes() == len({pipe.scene_key for pipe in variants}) > 1
+    finally:
+        clear_scenes()

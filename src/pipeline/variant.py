@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 import time
 from collections import Counter, OrderedDict
 from collections.abc import Iterator
@@ -91,8 +92,8 @@ def config_seed(base: int, p: int, theta: float, *extra) -> int:
     )
 
 
-#: Mitsuba scenes a process keeps alive, at least (more where one experiment's variants need
-#: more at once: :class:`VariantPipeline`'s ``scenes_alive``). Every scene alive slows every kernel
+#: Mitsuba scenes a process keeps, at most (more where one experiment's variants are used in turn:
+#: :class:`VariantPipeline`'s ``scenes_alive``). Every scene alive slows every kernel
 #: launch of every scene: Dr.Jit traces a virtual call (a BSDF's, an emitter's) over all the
 #: instances registered in the process. Measured (benchmarks/scenes_alive.py, 2 cores): a launch
 #: of two pixels took 4.2 ms beside no other scene, 6.5 ms beside one, 34 ms beside 10 and 158 ms
@@ -108,15 +109,19 @@ MAX_SCENES_ALIVE = 1
 #: reuses the scene and its compiled kernels, and a Dask worker keeps them between tasks. Keyed by
 #: content hashes, so sharing is safe; :func:`clear_scenes` empties it.
 _SCENES: OrderedDict[str, object] = OrderedDict()
+#: Guards :data:`_SCENES` where a Dask worker runs tasks on several threads (a scene dropped by one
+#: thread stays valid for another that holds it; it is only no longer shared).
+_SCENES_LOCK = threading.Lock()
 
 
 def clear_scenes() -> None:
     """Forget the Mitsuba scenes built in this process (they are rebuilt when next needed)."""
-    _SCENES.clear()
+    with _SCENES_LOCK:
+        _SCENES.clear()
 
 
-def scenes_alive() -> int:
-    """How many Mitsuba scenes this process holds (:data:`MAX_SCENES_ALIVE`)."""
+def cached_scenes() -> int:
+    """How many Mitsuba scenes this process keeps for reuse (:data:`MAX_SCENES_ALIVE`)."""
     return len(_SCENES)
 
 
@@ -164,16 +169,18 @@ class VariantPipeline:
         Building one drops the least recently used beyond :data:`MAX_SCENES_ALIVE` (or this
         pipeline's ``scenes_alive``, if more).
         """
-        if self.scene_key in _SCENES:
-            _SCENES.move_to_end(self.scene_key)
-        else:
+        with _SCENES_LOCK:
+            scene = _SCENES.get(self.scene_key)
+            if scene is not None:
+                _SCENES.move_to_end(self.scene_key)
+                return scene
             from simgap.render.scene import FixtureScene
 
-            while len(_SCENES) >= max(MAX_SCENES_ALIVE, self.scenes_alive):
+            while _SCENES and len(_SCENES) >= max(MAX_SCENES_ALIVE, self.scenes_alive):
                 _SCENES.popitem(last=False)
             s = self.state.scene
             with self._timed("scene load"):
-                _SCENES[self.scene_key] = FixtureScene(
+                scene = FixtureScene(
                     self.rig,
                     s.spec,
                     self.image_size,
@@ -185,7 +192,8 @@ class VariantPipeline:
                     lens=(s.aperture_radius_m, s.focus_distance_m),
                     max_depth=s.quality.max_depth,
                 )
-        return _SCENES[self.scene_key]
+            _SCENES[self.scene_key] = scene
+            return scene
 
     def region(self, p: int, theta: float) -> Region | None:
         """The pixels rendered at one configuration; None when no sticker faces the camera."""
