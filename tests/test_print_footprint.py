@@ -15,6 +15,7 @@ from simgap.render.converged import edge_footprint, edge_pixels, widened
 from simgap.render.pixel_samples import footprint_samples, sample_pixels
 from simgap.render.print_footprint import (
     LENS_REACH_MAX_PX,
+    _holds_unit_square,
     agrees,
     clipped_area,
     defocus_reach_px,
@@ -27,6 +28,35 @@ from simgap.render.scene import FixtureScene, projected_sticker_outlines
 def _shoelace(quad: np.ndarray) -> float:
     x, y = quad[:, 0], quad[:, 1]
     return 0.5 * abs(float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))
+
+
+def _holds_by_every_corner(quads: np.ndarray) -> np.ndarray:
+    """The definition: every corner of [0, 1]^2 on the inner side of every edge (M, 4, 2)."""
+    edge = np.roll(quads, -1, axis=1) - quads
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    to_corner = corners[None, None] - quads[:, :, None]  # (M, 4 edges, 4 corners, 2)
+    cross = edge[:, :, None, 0] * to_corner[..., 1] - edge[:, :, None, 1] * to_corner[..., 0]
+    turning = np.roll(edge, -1, axis=1)
+    turn = np.sign(
+        np.sum(edge[..., 0] * turning[..., 1], axis=1)
+        - np.sum(edge[..., 1] * turning[..., 0], axis=1)
+    )
+    return np.all(cross * turn[:, None, None] >= 0.0, axis=(1, 2)) & (turn != 0)
+
+
+def test_holding_the_square_is_decided_as_by_every_corner_bit_for_bit():
+    """The fast test takes each edge's least and greatest cross product over the corners from
+    its per-axis terms: the same decision as the four corners', also where a corner lies exactly
+    on an edge (vertices on a 1/8 grid) and either way round."""
+    rng = np.random.default_rng(28)
+    centre = rng.uniform(-1.0, 2.0, (20_000, 1, 2))
+    radius = rng.uniform(0.05, 3.0, (20_000, 1, 1))
+    angle = np.sort(rng.uniform(0.0, 2.0 * np.pi, (20_000, 4)), axis=1)
+    quads = centre + radius * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    for q in (quads, quads[:, ::-1], np.round(quads * 8.0) / 8.0):
+        expected = _holds_by_every_corner(q)
+        assert 0 < expected.sum() < len(q)  # both answers occur
+        np.testing.assert_array_equal(_holds_unit_square(q), expected)
 
 
 def test_clipped_area_of_known_shapes():
