@@ -11,13 +11,12 @@ from hypothesis import strategies as st
 
 from simgap.pipeline.experiment import load_experiment
 from simgap.pipeline.region import sticker_region
+from simgap.render.clipping import _holds_unit_square, clipped_area
 from simgap.render.converged import edge_footprint, edge_pixels, widened
 from simgap.render.pixel_samples import footprint_samples, sample_pixels
 from simgap.render.print_footprint import (
     LENS_REACH_MAX_PX,
-    _holds_unit_square,
     agrees,
-    clipped_area,
     defocus_reach_px,
     exact_footprint_applies,
     print_footprint,

@@ -140,7 +140,7 @@ class VariantPipeline:
     ):
         self.rig, self.state, self.tags, self.cache = rig, state, tuple(tags), cache
         #: Scenes its caller uses in turn (an experiment's variants, one task after another):
-        #: this many stay alive at least (:data:`MAX_SCENES_ALIVE`)
+        #: the process keeps this many when it is more than :data:`MAX_SCENES_ALIVE`
         self.scenes_alive = scenes_alive
         #: Render margin around the stickers (px): the experiment's, or more where the camera
         #: pipeline spreads pixels further (a wide blur must not pull in the flat surround)
