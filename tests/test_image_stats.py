@@ -142,11 +142,14 @@ def test_only_the_edge_widths_asked_for_are_fitted_and_the_rest_is_unchanged():
     some = tag_stats(frame, corners, LAYOUT, edge_widths=xy)
     none = tag_stats(frame, corners, LAYOUT, edge_widths=())
     widths = [STAT_INDEX[n] for n in EDGE_WIDTH_STATS]
-    others = [i for i in range(len(full)) if i not in widths]
+    # the edge overshoot reads the same edge pixels: measured wherever an edge width is
+    overshoot = STAT_INDEX["edge_overshoot"]
+    others = [i for i in range(len(full)) if i not in widths and i != overshoot]
     assert np.isfinite(full[widths]).all()
     for i, name in zip(widths, EDGE_WIDTH_STATS, strict=True):  # the same fit, bit for bit
         assert (some[i] == full[i]) if name in xy else np.isnan(some[i])
     assert np.isnan(none[widths]).all()
+    assert some[overshoot] == full[overshoot] and np.isnan(none[overshoot])
     np.testing.assert_array_equal(some[others], full[others])
     np.testing.assert_array_equal(none[others], full[others])
 
@@ -253,3 +256,112 @@ def test_the_jpeg_dc_step_is_read_back_whatever_the_noise_and_softness():
             assert step == libjpeg_dc_step(quality)
             assert libjpeg_dc_step(quality_for_dc_step(step)) == step
             assert abs(quality_for_dc_step(step) - quality) <= 1
+
+
+def test_black_clipping_counts_pixels_at_0_dn_only():
+    frame, corners = synthetic_tag()
+    i = STAT_INDEX["black_clipped_fraction"]
+    assert tag_stats(frame, corners, LAYOUT)[i] == 0.0
+    # ink at 0 DN: the marker's black cells, measured 0.159 of the sticker
+    black, _ = synthetic_tag(ink=0.0)
+    s = tag_stats(black, corners, LAYOUT)
+    assert s[i] > 0.1
+    assert s[i] == s[STAT_INDEX["clipped_fraction"]]  # no white pixel at 255 DN
+    bright = frame.copy()
+    bright[100:112, 60:75] = 255  # clipped white, not black
+    assert tag_stats(bright, corners, LAYOUT)[i] == 0.0
+
+
+def test_edge_overshoot_sees_an_unsharp_mask_and_not_blur():
+    """An unsharp mask (sigma 1 px, amount 1) on the 8-bit tag raises the edge overshoot.
+
+    Measured (sharp tags, sigma 0.6 px): 0.000 unsharpened, 0.123 (0.3 rad, 80 px) and 0.133
+    (0.7 rad, 53 px) sharpened; blurred tags (sigma 1.5 px) read at most 0.02 unsharpened. The
+    bounds leave a margin of about a third.
+    """
+    import cv2
+
+    i = STAT_INDEX["edge_overshoot"]
+    for angle, marker_px in ((0.3, 80.0), (0.7, 53.0)):
+        frame, corners = synthetic_tag(sigma_px=0.6, angle=angle, marker_px=marker_px)
+        plain = tag_stats(frame, corners, LAYOUT)[i]
+        blurred, _ = synthetic_tag(sigma_px=1.5, angle=angle, marker_px=marker_px)
+        # frame + 1.0 (frame - blur): an unsharp mask of amount 1 on the 8-bit values
+        sharpened = cv2.addWeighted(frame, 2.0, cv2.GaussianBlur(frame, (0, 0), 1.0), -1.0, 0)
+        sharp = tag_stats(sharpened, corners, LAYOUT)[i]
+        assert 0.0 <= plain < 0.01
+        assert tag_stats(blurred, corners, LAYOUT)[i] < 0.03
+        assert sharp > 0.08 and sharp - plain > 0.08
+    assert np.isnan(tag_stats(frame, corners, LAYOUT, edge_widths=())[i])
+
+
+def _bayer_demosaiced(rgb: np.ndarray) -> np.ndarray:
+    """``rgb`` sampled through an RGGB Bayer mosaic and demosaiced bilinearly (OpenCV)."""
+    import cv2
+
+    raw = np.empty(rgb.shape[:2], np.uint8)
+    raw[0::2, 0::2] = rgb[0::2, 0::2, 0]
+    raw[0::2, 1::2] = rgb[0::2, 1::2, 1]
+    raw[1::2, 0::2] = rgb[1::2, 0::2, 1]
+    raw[1::2, 1::2] = rgb[1::2, 1::2, 2]
+    return cv2.demosaicing(raw, cv2.COLOR_BayerRG2RGB)
+
+
+def test_colour_fringe_sees_demosaicing_and_not_grey_or_tinted_edges():
+    """Bilinear demosaicing colours a grey tag's edges; a grey or a tinted edge reads about 0.
+
+    Measured (sigma 0.8 px, 0.3 rad, 80 px): 0.00 DN for a grey tag with independent noise in
+    each channel, 0.41 DN for a tinted noise-free one (the 8-bit rounding of each channel of the
+    edge's blend), 10.2 DN once mosaicked and demosaiced. An 8-bit step (1 DN) bounds the grey and
+    tinted ones, half the demosaiced value its fringe.
+    """
+    from simgap.render import imaging
+
+    i = STAT_INDEX["colour_fringe_dn"]
+    frame, corners = synthetic_tag(sigma_px=0.8)
+    noisy = np.stack(
+        [
+            synthetic_tag(sigma_px=0.8, full_well_e=2000, read_noise_e=5, seed=k)[0]
+            for k in range(3)
+        ],
+        axis=2,
+    )
+    grey = tag_stats(imaging.to_gray(noisy), corners, LAYOUT, rgb=noisy)[i]
+    assert 0.0 <= grey < 1.0
+    demosaiced = _bayer_demosaiced(np.repeat(frame[..., None], 3, axis=2))
+    fringe = tag_stats(imaging.to_gray(demosaiced), corners, LAYOUT, rgb=demosaiced)[i]
+    assert fringe > 5.0
+    # paper (230, 200, 170) DN: the grey tag's linear values scaled per channel
+    tint = linearise(np.array([230, 200, 170])) / 0.7
+    tinted = imaging.encode_srgb8(linearise(frame)[..., None] * tint)
+    s = tag_stats(imaging.to_gray(tinted), corners, LAYOUT, rgb=tinted)
+    np.testing.assert_array_equal(np.median(tinted[frame == frame.max()], axis=0), (230, 200, 170))
+    assert 0.0 <= s[i] < 1.0
+    # no RGB, a grey RGB (equal channels) or no edge pixels (corners only expected): NaN
+    assert np.isnan(tag_stats(frame, corners, LAYOUT)[i])
+    assert np.isnan(tag_stats(frame, corners, LAYOUT, rgb=np.repeat(frame[..., None], 3, 2))[i])
+    assert np.isnan(tag_stats(frame, corners, LAYOUT, rgb=frame)[i])
+    assert np.isnan(tag_stats(frame, corners, LAYOUT, edge_widths=(), rgb=demosaiced)[i])
+    with pytest.raises(ValueError, match="same crop"):
+        tag_stats(frame, corners, LAYOUT, rgb=demosaiced[1:])
+
+
+def test_repeat_gain_reads_a_gain_change_and_not_noise():
+    """log2(paper level / the repeat's): -0.2 EV for a repeat 2^0.2 brighter in linear light.
+
+    Measured: -0.1998 EV for the brighter repeat (+0.1998 the other way round); 0 or +-0.017 EV
+    for two noisy frames of one gain (seeds 0-7 against 10-17), whose paper medians fall on
+    8-bit levels 0.017 EV apart at this level. The tolerances allow one such step with margin.
+    """
+    from simgap.render import imaging
+
+    i = STAT_INDEX["repeat_gain_ev"]
+    clean, corners = synthetic_tag(paper=0.5)
+    brighter = imaging.encode_srgb8(linearise(clean) * 2**0.2)
+    assert tag_stats(clean, corners, LAYOUT, repeat=brighter)[i] == pytest.approx(-0.2, abs=0.03)
+    assert tag_stats(brighter, corners, LAYOUT, repeat=clean)[i] == pytest.approx(0.2, abs=0.03)
+    noise = {"paper": 0.5, "full_well_e": 2000, "read_noise_e": 5}
+    first, _ = synthetic_tag(seed=3, **noise)
+    second, _ = synthetic_tag(seed=13, **noise)
+    assert abs(tag_stats(first, corners, LAYOUT, repeat=second)[i]) < 0.03
+    assert np.isnan(tag_stats(first, corners, LAYOUT)[i])

@@ -67,7 +67,11 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
             expected = not extra
         assert t["correct"] == expected
         assert t["camera"]["p"] == [0, 7, 14] and t["camera"]["frames_per_pose"] == 2
-        assert set(t["bins"]) == {"exposure", "softness", "noise", "frames"}
+        stages = {"demosaicing", "sharpening", "denoising", "black level", "tone curve"}
+        stages |= {"lateral colour", "gain changes"}
+        basic = {"exposure", "softness", "noise", "frames", "poses", "crushed blacks"}
+        assert set(t["bins"]) == basic | stages
+        assert t["crushed_black"] is not None and 0.0 <= t["crushed_black"] <= 1.0
         result = DiagnosisResult.from_json(t["result"])
         if result.combined:  # the reduction is measured on configurations that did not choose
             assert result.combined.configurations == result.split.report
@@ -245,3 +249,36 @@ def test_a_selected_parameter_on_its_bound_is_counted():
     scores = [t.score() for t in records]
     assert scores[0]["on_bound"] == ["defocus.focus_distance_m"] and scores[1]["on_bound"] == []
     assert summarize_scores(scores)["on_bound_trials"] == 0.5
+
+
+def test_other_cameras_draw_their_own_image_pipeline_and_frontal_poses():
+    """Every pipeline stage is drawn in some cameras and not in others, as valid effects; a
+    quarter of the captures is mostly frontal; the total exposure stays the drawn one through
+    a black level and a tone curve; without the pipeline the other draws are the seed's own."""
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.nuisance import (
+        FRONTAL_HEAVY_STOPS_DEG,
+        PIPELINE_SHARE,
+        draw_nuisance,
+        exposure_truth,
+        with_exposure,
+    )
+    from simgap.effects import make_effect
+
+    rig = load_rig()
+    camera_rng, pipeline_rng = np.random.default_rng([5, 1]), np.random.default_rng([5, 2])
+    cameras = [draw_nuisance(camera_rng, rig, pipeline_rng) for _ in range(60)]
+    plain = draw_nuisance(np.random.default_rng([5, 1]), rig)
+    for stage, share in PIPELINE_SHARE.items():
+        present = sum(stage in c.pipeline() for c in cameras)
+        # binomial(60, share): within 4 standard deviations of its mean
+        assert abs(present - 60 * share) < 4 * np.sqrt(60 * share * (1 - share)), stage
+    for c in cameras:
+        for stage, params in c.pipeline().items():
+            make_effect(stage, params)
+    frontal = [c for c in cameras if set(FRONTAL_HEAVY_STOPS_DEG) < set(c.theta_deg)]
+    assert 5 <= len(frontal) <= 25 and all(len(c.theta_deg) == 6 for c in frontal)
+    assert plain.effects["lighting"] == cameras[0].effects["lighting"]
+    assert not plain.pipeline()
+    crushing = next(c for c in cameras if {"black_level", "tone_curve"} & set(c.pipeline()))
+    assert exposure_truth(with_exposure(crushing, 0.7, rig), rig) == pytest.approx(0.7, abs=1e-2)

@@ -158,6 +158,13 @@ def validate(
         "--converged-simulation/--path-simulation",
         help="Diagnose with a converged simulation (the default), or path traced at 16 spp.",
     ),
+    camera_pipeline: bool = typer.Option(
+        True,
+        "--camera-pipeline/--no-camera-pipeline",
+        help="Give each other camera its own image pipeline (demosaicing, sharpening, "
+        "denoising, black level, tone curve, lateral colour, gain changes) and some captures "
+        "mostly frontal poses (the default); --no-camera-pipeline draws cameras without them.",
+    ),
     overwrite: OverwriteOption = False,
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores.
@@ -179,7 +186,11 @@ def validate(
     if not (k.isdigit() and n.isdigit()):
         raise ValueError(f"--shard: expected K/N (two whole numbers, e.g. 0/4), got {shard!r}")
     settings = ValidateSettings(
-        trials=trials, seed=seed, shard=(int(k), int(n)), converged_simulation=converged_simulation
+        trials=trials,
+        seed=seed,
+        shard=(int(k), int(n)),
+        converged_simulation=converged_simulation,
+        camera_pipeline=camera_pipeline,
     )
     if effects:
         names = tuple(e.strip() for e in effects.split(",") if e.strip())

@@ -19,6 +19,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+import colour
 import numpy as np
 
 from simgap.core.rig import Rig
@@ -85,6 +86,58 @@ FRONTAL_STOPS_DEG = (0, 180)
 FACING_STOPS_DEG = tuple(range(0, 61, 10)) + tuple(range(300, 360, 10)) + tuple(range(120, 241, 10))
 #: Effects the simulation never models that every other camera has (always among its effects).
 CAMERA_EFFECTS = ("lighting", "ambient", "exposure", "sensor_noise", "gamma", "vignetting")
+#: The camera's own image pipeline (:mod:`simgap.effects.camera_pipeline`, and the lens's
+#: lateral colour): each stage is present in this share of the cameras, drawn independently,
+#: with its parameters from the ranges below (a bench or robot camera's settings: RealSense,
+#: machine-vision and phone-module ISPs sharpen, denoise and demosaic by default).
+PIPELINE_SHARE: dict[str, float] = {
+    "gain_change": 0.3,
+    "black_level": 0.4,
+    "bayer": 0.5,
+    "denoise": 0.4,
+    "tone_curve": 0.3,
+    "sharpen": 0.5,
+    "chromatic_aberration": 0.3,
+}
+#: Frame-to-frame exposure spread (EV): auto exposure settling, mains flicker.
+GAIN_CHANGE_SIGMA_EV = (0.03, 0.15)
+#: Black level subtracted beyond the sensor's (fraction of full scale): the ink of a dark
+#: print (linear 0.02-0.05 at the simulation's exposure) is partly or wholly crushed to 0 DN.
+BLACK_LEVEL = (0.01, 0.06)
+#: Demosaicing methods and colour filter layouts (:class:`simgap.effects.camera_pipeline.Bayer`).
+DEMOSAIC_METHODS = ("bilinear", "edge_aware")
+BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
+#: Bilateral denoising: range kernel (8-bit DN) and spatial kernel (px).
+DENOISE_STRENGTH_DN = (4.0, 20.0)
+DENOISE_RADIUS_PX = (0.5, 1.5)
+#: S-curve of the output LUT: slope and midpoint
+#: (:class:`~simgap.effects.camera_pipeline.ToneCurve`).
+TONE_CONTRAST = (2.0, 6.0)
+TONE_MIDPOINT = (0.35, 0.6)
+#: Unsharp mask: amount, radius (px) and threshold (DN); a D435i's default sharpness is not 0.
+SHARPEN_AMOUNT = (0.3, 1.5)
+SHARPEN_RADIUS_PX = (0.5, 1.5)
+SHARPEN_THRESHOLD_DN = (0.0, 4.0)
+#: Lateral chromatic aberration: red against green at the image corner (px, either sign).
+CHROMATIC_SHIFT_PX = (0.3, 1.5)
+#: Share of captures whose poses are mostly frontal: the stops :data:`FRONTAL_HEAVY_STOPS_DEG`
+#: and one oblique stop of :data:`OBLIQUE_STOPS_DEG` (the handful of views a user often takes).
+FRONTAL_HEAVY_SHARE = 0.25
+FRONTAL_HEAVY_STOPS_DEG = (0.0, 10.0, 170.0, 180.0, 190.0)
+OBLIQUE_STOPS_DEG = (
+    40.0,
+    50.0,
+    60.0,
+    300.0,
+    310.0,
+    320.0,
+    120.0,
+    130.0,
+    140.0,
+    220.0,
+    230.0,
+    240.0,
+)
 
 
 @dataclass(frozen=True)
@@ -109,6 +162,9 @@ class NuisanceCamera:
         1 or 2.
     light_ev : float
         The drawn light level at the aim point relative to the template's key light (EV).
+
+    The camera's own image pipeline (:data:`PIPELINE_SHARE`) is among ``effects``; see
+    :meth:`pipeline`.
     """
 
     effects: dict[str, dict[str, Any]]
@@ -118,6 +174,10 @@ class NuisanceCamera:
     theta_deg: tuple[float, ...]
     frames_per_pose: int
     light_ev: float
+
+    def pipeline(self) -> dict[str, dict[str, Any]]:
+        """The stages of the camera's own image pipeline it has (:data:`PIPELINE_SHARE`)."""
+        return {k: v for k, v in self.effects.items() if k in PIPELINE_SHARE}
 
     def record(self) -> dict[str, Any]:
         """The camera as ``trial_NNN.json`` keeps it (plain JSON types)."""
@@ -220,11 +280,63 @@ def _poses(rng: np.random.Generator) -> tuple[tuple[int, ...], tuple[float, ...]
     return p, tuple(float(s) for s in sorted(chosen))
 
 
-def draw_nuisance(rng: np.random.Generator, rig: Rig) -> NuisanceCamera:
+def draw_pipeline(rng: np.random.Generator) -> dict[str, dict[str, Any]]:
+    """The stages of a camera's own image pipeline, each drawn with :data:`PIPELINE_SHARE`."""
+    samplers = {
+        "gain_change": lambda: {"sigma_ev": _uniform(rng, GAIN_CHANGE_SIGMA_EV)},
+        "black_level": lambda: {"level": _uniform(rng, BLACK_LEVEL)},
+        "bayer": lambda: {
+            "pattern": str(rng.choice(BAYER_PATTERNS)),
+            "method": str(rng.choice(DEMOSAIC_METHODS)),
+        },
+        "denoise": lambda: {
+            "strength_dn": _uniform(rng, DENOISE_STRENGTH_DN),
+            "radius_px": _uniform(rng, DENOISE_RADIUS_PX),
+        },
+        "tone_curve": lambda: {
+            "contrast": _uniform(rng, TONE_CONTRAST),
+            "midpoint": _uniform(rng, TONE_MIDPOINT),
+        },
+        "sharpen": lambda: {
+            "amount": _uniform(rng, SHARPEN_AMOUNT),
+            "radius_px": _uniform(rng, SHARPEN_RADIUS_PX),
+            "threshold_dn": _uniform(rng, SHARPEN_THRESHOLD_DN),
+        },
+        "chromatic_aberration": lambda: {
+            "shift_px": float(rng.choice([-1.0, 1.0])) * _uniform(rng, CHROMATIC_SHIFT_PX)
+        },
+    }
+    # every stage takes its draws whether present or not, so a share change moves no other draw
+    drawn = {
+        name: (rng.uniform() < share, samplers[name]()) for name, share in PIPELINE_SHARE.items()
+    }
+    return {name: params for name, (present, params) in drawn.items() if present}
+
+
+def _frontal_heavy_stops(rng: np.random.Generator) -> tuple[float, ...]:
+    """:data:`FRONTAL_HEAVY_STOPS_DEG` and one drawn oblique stop (deg), sorted."""
+    oblique = float(rng.choice(OBLIQUE_STOPS_DEG))
+    return tuple(sorted((*FRONTAL_HEAVY_STOPS_DEG, oblique)))
+
+
+def draw_nuisance(
+    rng: np.random.Generator, rig: Rig, pipeline_rng: np.random.Generator | None = None
+) -> NuisanceCamera:
     """Draw one other camera from the ranges of this module.
 
     The camera's exposure setting is chosen so that its total exposure (:func:`exposure_truth`:
     setting, light meter and transfer curve) is the drawn one, within :data:`EXPOSURE_EV`.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Draws the lights, exposure, sensor, transfer curve, vignetting, scene and poses.
+    rig : Rig
+        The fixture (for the light meter).
+    pipeline_rng : numpy.random.Generator, optional
+        Draws the camera's own image pipeline (:func:`draw_pipeline`) and whether its poses are
+        mostly frontal (:data:`FRONTAL_HEAVY_SHARE`), from a stream of its own so that the other
+        draws stay those of ``rng``. None: no pipeline stages and the usual poses.
     """
     total_ev = _uniform(rng, EXPOSURE_EV)
     light_ev = _uniform(rng, LIGHT_EV)
@@ -254,6 +366,11 @@ def draw_nuisance(rng: np.random.Generator, rig: Rig) -> NuisanceCamera:
     spp = int(rng.choice(SPP_CHOICES))
     p, theta_deg = _poses(rng)
     frames = 2 if rng.uniform() < TWO_FRAMES_SHARE else 1
+    if pipeline_rng is not None:
+        effects.update(draw_pipeline(pipeline_rng))
+        frontal = _frontal_heavy_stops(pipeline_rng)
+        if pipeline_rng.uniform() < FRONTAL_HEAVY_SHARE:
+            theta_deg = frontal
     camera = NuisanceCamera(effects, scene, spp, p, theta_deg, frames, light_ev)
     return with_exposure(camera, total_ev, rig)
 
@@ -315,13 +432,26 @@ def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
     """Apparent exposure change of the camera's transfer curve at the paper's level (EV).
 
     The diagnosis linearises every frame with the sRGB curve; a camera encoding with a pure
-    gamma makes the paper look brighter or darker by this much (0 for sRGB).
+    gamma, subtracting a black level or applying a tone curve makes the paper look brighter or
+    darker by this much: the level through those pixel-wise stages (their own code), rounded to
+    the delivered DN and linearised with sRGB. 0 for a plain sRGB camera (quantisation aside).
     """
     gamma = camera.effects["gamma"]
-    level = np.clip(paper_linear, 1e-4, 1.0)
-    if gamma.get("encoding", "gamma") == "srgb":
+    level = float(np.clip(paper_linear, 1e-4, 1.0))
+    black, tone = camera.effects.get("black_level"), camera.effects.get("tone_curve")
+    if gamma.get("encoding", "gamma") == "srgb" and black is None and tone is None:
         return 0.0
-    dn = np.round(255.0 * level ** (1.0 / float(gamma.get("gamma", 2.2))))
+    x = np.array(level, np.float32)
+    if black is not None:
+        x = make_effect("black_level", black).process(x, None)  # type: ignore[attr-defined]
+    x = float(np.clip(x, 0.0, 1.0))
+    if gamma.get("encoding", "gamma") == "srgb":
+        encoded = float(colour.cctf_encoding(x, function="sRGB"))
+    else:
+        encoded = x ** (1.0 / float(gamma.get("gamma", 2.2)))
+    if tone is not None:
+        encoded = float(make_effect("tone_curve", tone).curve(encoded))  # type: ignore[attr-defined]
+    dn = np.round(255.0 * encoded)
     return float(np.log2(max(float(linearise(dn)), 1e-4) / level))
 
 
@@ -371,8 +501,10 @@ def softness_truth(camera: NuisanceCamera, blur_sigma_px: float = 0.0) -> float:
 
 __all__ = [
     "CAMERA_EFFECTS",
+    "PIPELINE_SHARE",
     "NuisanceCamera",
     "draw_nuisance",
+    "draw_pipeline",
     "exposure_truth",
     "filter_variance_px2",
     "light_meter_ev",

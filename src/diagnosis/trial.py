@@ -6,11 +6,18 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import xarray as xr
 
 from simgap.analysis.candidates import geometric_effects
 from simgap.core.rig import Rig
 from simgap.diagnosis.hidden_effects import CAMERA_NAMED, HIDDEN, OUTSIDE, REPORTED_AS, found
-from simgap.diagnosis.nuisance import NuisanceCamera, exposure_truth, softness_truth
+from simgap.diagnosis.nuisance import (
+    FRONTAL_HEAVY_STOPS_DEG,
+    OBLIQUE_STOPS_DEG,
+    NuisanceCamera,
+    exposure_truth,
+    softness_truth,
+)
 from simgap.diagnosis.result import DiagnosisResult
 from simgap.diagnosis.result_json import jsonable
 
@@ -24,6 +31,8 @@ def _magnitude(params: dict[str, Any], key: str) -> np.ndarray:
 EXPOSURE_BINS_EV = (0.5, 1.0)
 SOFTNESS_BINS_PX = (0.2, 0.4)
 FULL_WELL_BINS_E = (3000.0, 8000.0)
+#: Unsharp-mask amounts of the sharpening bins (the drawn range is 0.3-1.5).
+SHARPEN_AMOUNT_BINS = (0.6, 1.0)
 
 
 def _bin(value: float, edges: tuple[float, float], unit: str) -> str:
@@ -35,14 +44,76 @@ def _bin(value: float, edges: tuple[float, float], unit: str) -> str:
     return f">= {hi:g} {unit}"
 
 
-def nuisance_bins(camera: NuisanceCamera, rig: Rig) -> dict[str, str]:
-    """The camera's bin in each nuisance dimension: exposure, softness, noise, frames a pose."""
+#: Share of a tag's pixels at 0 DN from which a capture's blacks count as crushed.
+CRUSHED_BLACK_SHARE = 0.1
+
+
+def crushed_black_share(real: xr.Dataset) -> float | None:
+    """The largest share of a tag's sticker pixels at 0 DN over a capture's frames (0-1).
+
+    From the capture's own ``black_clipped_fraction`` statistic; None where the dataset has
+    none (written before the statistic existed) or no tag was measured.
+    """
+    if "image_stats" not in real or "black_clipped_fraction" not in real.stat.values:
+        return None
+    values = real.image_stats.sel(stat="black_clipped_fraction").values
+    return float(np.nanmax(values)) if np.isfinite(values).any() else None
+
+
+def pipeline_bins(camera: NuisanceCamera) -> dict[str, str]:
+    """The camera's own image pipeline by stage: present (with its setting) or ``none``.
+
+    Bins of the per-stage score table: demosaicing method, sharpening amount, denoising
+    strength, black level, tone curve, lateral colour and frame-to-frame gain.
+    """
+    stages = camera.pipeline()
+
+    def setting(name: str, text: str) -> str:
+        return text if name in stages else "none"
+
+    bayer = stages.get("bayer", {})
     return {
+        "demosaicing": setting("bayer", str(bayer.get("method", ""))),
+        "sharpening": setting(
+            "sharpen",
+            _bin(
+                float(stages.get("sharpen", {}).get("amount", 0.0)), SHARPEN_AMOUNT_BINS, "amount"
+            ),
+        ),
+        "denoising": setting("denoise", "bilateral"),
+        "black level": setting("black_level", "subtracted"),
+        "tone curve": setting("tone_curve", "S-curve"),
+        "lateral colour": setting("chromatic_aberration", "present"),
+        "gain changes": setting("gain_change", "present"),
+    }
+
+
+def nuisance_bins(
+    camera: NuisanceCamera, rig: Rig, crushed_black: float | None = None
+) -> dict[str, str]:
+    """The camera's bin in each nuisance dimension.
+
+    Exposure, softness, noise, frames a pose, poses (mostly frontal or spread), the stages of
+    the camera's own image pipeline (:func:`pipeline_bins`) and, where measured, whether the
+    capture's blacks are crushed (:data:`CRUSHED_BLACK_SHARE`).
+    """
+    frontal = set(camera.theta_deg) <= {*FRONTAL_HEAVY_STOPS_DEG, *OBLIQUE_STOPS_DEG} and (
+        sum(t not in FRONTAL_HEAVY_STOPS_DEG for t in camera.theta_deg) <= 1
+    )
+    bins = {
         "exposure": _bin(abs(exposure_truth(camera, rig)), EXPOSURE_BINS_EV, "EV"),
         "softness": _bin(softness_truth(camera), SOFTNESS_BINS_PX, "px"),
         "noise": _bin(camera.effects["sensor_noise"]["full_well_e"], FULL_WELL_BINS_E, "e-"),
         "frames": f"{camera.frames_per_pose} a pose",
+        "poses": "mostly frontal" if frontal else "spread",
+        **pipeline_bins(camera),
     }
+    if crushed_black is not None:
+        crushed = crushed_black >= CRUSHED_BLACK_SHARE
+        bins["crushed blacks"] = (
+            f"{'>=' if crushed else '<'} {CRUSHED_BLACK_SHARE:.0%} of a tag at 0 DN"
+        )
+    return bins
 
 
 @dataclass
@@ -55,6 +126,8 @@ class Trial:
     result: DiagnosisResult = field(default_factory=DiagnosisResult)
     seconds: float = 0.0
     rig: Rig | None = None
+    #: The largest share of a tag's pixels at 0 DN in the capture (:func:`crushed_black_share`).
+    crushed_black: float | None = None
 
     def record(self) -> dict[str, Any]:
         """The trial as ``validation.json`` keeps it: its score, draws, result and seconds."""
@@ -62,6 +135,7 @@ class Trial:
             dict(
                 self.score(),
                 index=self.index,
+                crushed_black=self.crushed_black,
                 params=self.hidden,
                 camera=self.camera.record() if self.camera else None,
                 result=self.result,
@@ -126,7 +200,11 @@ class Trial:
             "geometric_selected": geometric,
             "spurious": spurious,
             "on_bound": self.result.selected_on_bound(),
-            "bins": nuisance_bins(self.camera, self.rig) if self.camera and self.rig else {},
+            "bins": (
+                nuisance_bins(self.camera, self.rig, self.crushed_black)
+                if self.camera and self.rig
+                else {}
+            ),
         }
         if not hidden:
             out["correct"] = not spurious

@@ -46,7 +46,7 @@ from simgap.diagnosis.nuisance import (
 )
 from simgap.diagnosis.result_json import jsonable, write_json
 from simgap.diagnosis.settings import DiagnoseSettings
-from simgap.diagnosis.trial import Trial
+from simgap.diagnosis.trial import Trial, crushed_black_share
 from simgap.diagnosis.validation_report import confusion, summarize_scores, validation_markdown
 from simgap.pipeline.capture import ingest, write_capture
 from simgap.pipeline.experiment import Configurations, Experiment, VariantSpec
@@ -98,6 +98,10 @@ class ValidateSettings:
     converged_simulation : bool
         Diagnose with a converged simulation
         (:attr:`simgap.diagnosis.settings.DiagnoseSettings.converged_simulation`).
+    camera_pipeline : bool
+        Give every other camera its own image pipeline and some captures mostly frontal poses
+        (:func:`simgap.diagnosis.nuisance.draw_pipeline`); False draws the cameras as before
+        the pipeline stages existed (the same draws of a seed otherwise).
     """
 
     trials: int = 30
@@ -112,6 +116,7 @@ class ValidateSettings:
     effects: tuple[str, ...] = tuple(HIDDEN)
     shard: tuple[int, int] = (0, 1)
     converged_simulation: bool = True
+    camera_pipeline: bool = True
 
     def __post_init__(self) -> None:
         k, n = self.shard
@@ -156,17 +161,19 @@ def draw_trials(
 ) -> list[tuple[dict[str, dict[str, Any]], NuisanceCamera]]:
     """Every trial's hidden effects and other camera, in trial order (the same for any shard).
 
-    The hidden draws and the cameras come from two streams of the seed, so that a change of the
-    camera's ranges leaves the hidden draws of a seed as they were. A hidden exposure sets the
-    camera's total exposure (:func:`simgap.diagnosis.nuisance.with_exposure`); a hidden sensor
-    noise replaces the camera's sensor.
+    The hidden draws, the cameras and the cameras' own image pipelines come from three streams
+    of the seed, so that a change of one's ranges leaves the others' draws of a seed as they
+    were. A hidden exposure sets the camera's total exposure
+    (:func:`simgap.diagnosis.nuisance.with_exposure`); a hidden sensor noise replaces the
+    camera's sensor.
     """
     hidden_rng = np.random.default_rng(settings.seed)
     camera_rng = np.random.default_rng([settings.seed, 1])
+    pipeline_rng = np.random.default_rng([settings.seed, 2]) if settings.camera_pipeline else None
     out = []
     for _ in range(settings.trials):
         hidden = draw_hidden(hidden_rng, settings)
-        camera = settings.camera(draw_nuisance(camera_rng, rig))
+        camera = settings.camera(draw_nuisance(camera_rng, rig, pipeline_rng))
         if "exposure" in hidden:
             camera = with_exposure(camera, float(hidden["exposure"]["ev"]), rig)
         out.append((hidden, camera))
@@ -269,7 +276,8 @@ def run_validation(
         render_capture(exp, simulator, folder, hidden)
         real = ingest(folder, rig)
         result, _ = diagnose(real, base, simulator, diagnose_settings)
-        trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig)
+        crushed = crushed_black_share(real)
+        trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig, crushed)
         record = trial.record()
         write_json(record, path)
         log(

@@ -13,6 +13,7 @@ import numpy as np
 
 from simgap.diagnosis.hidden_effects import APPEARANCE, OUTSIDE, REPORTED_AS, found
 from simgap.diagnosis.result import DiagnosisResult
+from simgap.diagnosis.trial import CRUSHED_BLACK_SHARE
 
 
 def _share(flags: list[bool]) -> float | None:
@@ -47,6 +48,12 @@ def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
             "magnitude_error_p90": float(np.percentile(errors, 90)) if errors else None,
         }
     appearance = [s for s in single if s["hidden"][0] in APPEARANCE]
+    blur_only = [s for s in single if s["hidden"] == ["blur"]]
+    crushed_jpeg = [
+        s
+        for s in inside
+        if "jpeg" in s["hidden"] and (s.get("crushed_black") or 0.0) >= CRUSHED_BLACK_SHARE
+    ]
     bins: dict[str, dict[str, dict[str, Any]]] = {}
     for s in scores:
         for dimension, label in s.get("bins", {}).items():
@@ -67,6 +74,9 @@ def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
         "pair_recall": _share([s["recall"] for s in pairs]),
         "no_effect_correct": _share([s["correct"] for s in none]),
         "no_effect_free_of_geometry": _share([not s.get("geometric_selected") for s in none]),
+        "blur_only_free_of_geometry": _share([not s.get("geometric_selected") for s in blur_only]),
+        "jpeg_crushed_recall": _share([found("jpeg", s["selected"]) for s in crushed_jpeg]),
+        "jpeg_crushed_trials": len(crushed_jpeg),
         "outside_unexplained": _share([s["correct"] for s in outside]),
         "magnitude_within_25pct": _share([m <= 0.25 for m in mags]),
         "magnitude_error_median": float(np.median(mags)) if mags else None,
@@ -79,6 +89,11 @@ def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
         "per_nuisance_bin": bins,
         "confusion": confusion(scores),
     }
+
+
+def _camera_text(bins: dict[str, str]) -> str:
+    """A trial's camera in the trials table: its bins, those of absent stages left out."""
+    return "; ".join(f"{k}: {v}" for k, v in bins.items() if v != "none") or "-"
 
 
 def confusion(scores: list[dict]) -> dict[str, dict[str, int]]:
@@ -125,8 +140,11 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "and colour; ambient; total exposure -1.5 to +1.5 EV; box, tent or Gaussian pixel "
         "filter; 49-81 spp; nearest or bilinear texture filtering; full well 1000-20000 e-, read "
         "noise 1-10 e-; sRGB or gamma 1.8-2.4; vignetting; node and table paint; 4-6 pin holes x "
-        "6-8 stops, both frontal stops among them; one or two frames a pose), with hidden effects "
-        "drawn per trial. Correct: "
+        "6-8 stops, both frontal stops among them; one or two frames a pose; where drawn, the "
+        "camera's own image pipeline, each stage in some cameras: gain changes per frame, a "
+        "black level crushing the shadows, Bayer demosaicing, bilateral denoising, an S-shaped "
+        "tone curve, sharpening, lateral colour, and mostly frontal poses in a quarter of the "
+        "captures), with hidden effects drawn per trial. Correct: "
         "the hidden effect named (of a pair: at least one; the strict row asks for both, and the "
         "recall for pairs counts them) and nothing named that the capture does not have (the "
         "camera's own exposure, sensor noise and softness may always be named).",
@@ -144,6 +162,11 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         f"{pct(summary['no_effect_correct'])} |",
         "| no-effect trials free of geometric and calibration effects | "
         f"{pct(summary['no_effect_free_of_geometry'])} |",
+        "| blur-only trials free of geometric and calibration effects | "
+        f"{pct(summary.get('blur_only_free_of_geometry'))} |",
+        f"| JPEG named where the capture's blacks are crushed (>= "
+        f"{CRUSHED_BLACK_SHARE:.0%} of a tag at 0 DN; {summary.get('jpeg_crushed_trials', 0)} "
+        f"trials) | {pct(summary.get('jpeg_crushed_recall'))} |",
         f"| effect outside the catalogue reported unexplained | "
         f"{pct(summary['outside_unexplained'])} |",
         f"| fitted magnitude within 25 % | {pct(summary['magnitude_within_25pct'])} |",
@@ -209,7 +232,7 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         lines.append(
             f"| {r['index']} | {', '.join(r['hidden']) or 'none'} | "
             f"{', '.join(r['selected']) or '-'} | {left} | {'yes' if r['correct'] else 'no'} | "
-            f"{mags or '-'} | {'; '.join(r.get('bins', {}).values()) or '-'} | "
+            f"{mags or '-'} | {_camera_text(r.get('bins', {}))} | "
             f"{r['seconds']:.0f} |"
         )
     return "\n".join(lines) + "\n"

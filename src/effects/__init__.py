@@ -23,7 +23,13 @@ Use :func:`make_effect` to build one from YAML data and ``EFFECTS`` to list them
 
 from __future__ import annotations
 
-from simgap.effects import estimation, geometry, image, scene  # noqa: F401,E402  (registration)
+from simgap.effects import (  # noqa: F401,E402  (registration)
+    camera_pipeline,
+    estimation,
+    geometry,
+    image,
+    scene,
+)
 from simgap.effects.base import EFFECTS, Check, Effect, EffectParams, make_effect, param, register
 
 __all__ = ["EFFECTS", "Check", "Effect", "EffectParams", "make_effect", "param", "register"]

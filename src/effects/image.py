@@ -125,13 +125,66 @@ class Vignetting(ImageEffect, name="vignetting", order=20):
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Multiply by the fall-off."""
-        cam = ctx.camera
-        h, w = img.shape[:2]
-        v, u = np.mgrid[0:h, 0:w].astype(np.float32)
-        du, dv = u + ctx.offset[0] - cam.cx, v + ctx.offset[1] - cam.cy
-        corner2 = max(cam.cx, cam.width - cam.cx) ** 2 + max(cam.cy, cam.height - cam.cy) ** 2
-        gain = 1.0 - self.params.strength * (du * du + dv * dv) / corner2
+        du, dv = _from_principal_point(img, ctx)
+        gain = 1.0 - self.params.strength * (du * du + dv * dv) / corner_radius_px(ctx.camera) ** 2
         return img * gain[..., None]
+
+
+def corner_radius_px(camera: CameraModel) -> float:
+    """Distance from the principal point to the farthest image corner (px)."""
+    return float(
+        np.hypot(
+            max(camera.cx, camera.width - camera.cx), max(camera.cy, camera.height - camera.cy)
+        )
+    )
+
+
+def _from_principal_point(img: np.ndarray, ctx: ImageContext) -> tuple[np.ndarray, np.ndarray]:
+    """Full-frame offsets (px) of the crop's pixel centres from the principal point, (H, W) each."""
+    h, w = img.shape[:2]
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    return u + np.float32(ctx.offset[0] - ctx.camera.cx), v + np.float32(
+        ctx.offset[1] - ctx.camera.cy
+    )
+
+
+class ChromaticAberration(ImageEffect, name="chromatic_aberration", order=12):
+    """Lateral chromatic aberration: red and blue imaged at other magnifications than green.
+
+    The red image is magnified about the principal point so that at the farthest image corner it
+    lies ``shift_px`` outwards of the green one, the blue image ``shift_px`` inwards (a negative
+    ``shift_px`` swaps them): a lens's transverse colour, which leaves colour fringes at edges
+    that grow linearly with the distance from the principal point. Applied before the pixel
+    blur, as the optics do.
+    """
+
+    class Params(EffectParams):
+        """Red-against-green displacement at the image corner."""
+
+        shift_px: float = param(0.5, "-5 < shift < 5 px", lambda v: -5 < v < 5)
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Resample red and blue at their magnified positions (bilinear)."""
+        du, dv = _from_principal_point(img, ctx)
+        relative = self.params.shift_px / corner_radius_px(ctx.camera)
+        out = img.copy()
+        for channel, sign in ((0, 1.0), (2, -1.0)):
+            # output pixel at r shows the scene point imaged at r / (1 + sign * relative)
+            shrink = np.float32(1.0 / (1.0 + sign * relative))
+            map_x = du * shrink + np.float32(ctx.camera.cx - ctx.offset[0])
+            map_y = dv * shrink + np.float32(ctx.camera.cy - ctx.offset[1])
+            out[..., channel] = cv2.remap(
+                np.ascontiguousarray(img[..., channel]),
+                map_x,
+                map_y,
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_REFLECT,
+            )
+        return out
+
+    def reach_px(self) -> float:
+        """The displacement at the corner, and the bilinear interpolation's pixel (px)."""
+        return abs(self.params.shift_px) + 1.0
 
 
 class Exposure(ImageEffect, name="exposure", order=30):

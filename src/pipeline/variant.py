@@ -33,7 +33,9 @@ from simgap.render.scene import projected_sticker_outlines
 #: Part of every render key: bump when what a render holds changes (its pixels or their samples).
 RENDER_VERSION = "sticker-region-1"  # 1: only the pixels near the stickers, rendered as a list
 #: Part of every result key: bump when what a result holds changes (not the render or frame).
-RESULT_VERSION = "window-detect-7"  # 7: JPEG DC step (6: ArUco on the window around the crop)
+#: 8: pipeline signatures (black clipping, edge overshoot, colour fringe, repeat gain);
+#: 7: JPEG DC step; 6: ArUco on the window around the crop.
+RESULT_VERSION = "window-detect-8"
 #: The stages :attr:`VariantPipeline.seconds` times (benchmarks/sweep_speed.py prints them).
 STAGES = (
     "scene load",  # Mitsuba scene built (its first render compiles the kernels)
@@ -302,7 +304,9 @@ class VariantPipeline:
                 result = estimate_tags(*args, found, p, theta)
             with self._timed("image statistics"):
                 gray, offset = frame.gray_crop, frame.offset
-                add_image_stats(result, *args, gray, offset, found, rejected, p, theta)
+                add_image_stats(
+                    result, *args, gray, offset, found, rejected, p, theta, rgb=frame.crop
+                )
         with self._timed("io"):
             self.cache.save_arrays("results", key, result.arrays())
         return result

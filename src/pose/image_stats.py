@@ -52,7 +52,28 @@ Statistics (see :data:`STATS` for names, units and meanings):
   between blurred edges and read less reliably;
 - JPEG DC step: the quantisation step on whose lattice the DC coefficients of the sticker's
   whole 8 x 8 blocks lie (DN; NaN without compression or above quality about 85):
-  :mod:`simgap.pose.jpeg_blocks`.
+  :mod:`simgap.pose.jpeg_blocks`;
+- black-clipped fraction: share of sticker pixels at 0 DN (crushed blacks: a black level set too
+  high, an underexposure, a steep tone curve); ``clipped_fraction`` counts both ends together;
+- edge overshoot: the sharpening halo, from the same edge pixels as the edge width (all four
+  sides pooled, linearised): their signed distances to the edge binned every
+  :data:`OVERSHOOT_BIN_PX` px, the median of each bin of at least :data:`MIN_PIXELS` pixels, and
+  the larger of the brightest paper-side median's excess over the paper level and the darkest
+  ink-side median's deficit under the ink level, over the edge step ``paper - ink`` (ratio,
+  floored at 0). About 0 for an edge blurred or sharp but not sharpened; an unsharp mask
+  raises it (tests/test_image_stats.py). Only from detected corners, like the edge width;
+- colour fringe: how far (DN, RGB) the pixels within :data:`FRINGE_EDGE_PX` px of the marker's
+  outer edge lie from the line through the ink's and the paper's colours (per-channel medians
+  of the ink and paper regions), as an RMS over those pixels, less in quadrature the RMS distance
+  of the flat ink and paper pixels from the same line (floored at 0), so that noise and a spread
+  of the colour cast cancel. Demosaicing and lateral chromatic aberration colour the edges
+  and raise it; a grey edge reads about 0 whatever its blur, and so does a tinted one (a coloured
+  light or paper: the blend of two colours of one hue stays near their line). NaN without the
+  8-bit RGB frame, from a grey one (all channels equal) and where the corners were not detected;
+- repeat gain: where a second frame of the same pose is given, ``log2`` of the paper level over
+  the repeat's paper level (the same median over the same paper pixels, linearised): the gain
+  or exposure change between the two frames (EV, positive where this frame is the brighter),
+  0 for two frames of one gain whatever their noise. NaN from one frame.
 """
 
 from __future__ import annotations
@@ -94,6 +115,14 @@ STATS: tuple[tuple[str, str, str], ...] = (
         "mean |step| between neighbours across 8x8 JPEG block boundaries over that inside blocks",
     ),
     ("jpeg_dc_step_dn", "DN", "quantisation step of the 8x8 JPEG blocks' DC coefficient"),
+    ("black_clipped_fraction", "1", "share of sticker pixels at 0 DN"),
+    (
+        "edge_overshoot",
+        "1",
+        "overshoot of the edge profile beyond ink and paper over the edge step",
+    ),
+    ("colour_fringe_dn", "DN", "RMS colour distance of edge pixels from the ink-paper colour line"),
+    ("repeat_gain_ev", "1", "log2 of the paper level over a repeat frame's (EV), gain change"),
 )
 STAT_NAMES: tuple[str, ...] = tuple(s[0] for s in STATS)
 
@@ -120,6 +149,11 @@ ESF_MAX_CELL_SHARE = 0.9
 ESF_SIDE_SHARE = 0.7
 #: Fewest pixels a region needs for its statistic (else NaN).
 MIN_PIXELS = 12
+#: Width of the distance bins of the edge overshoot (px): half a pixel resolves a halo one or two
+#: pixels wide and still holds :data:`MIN_PIXELS` pixels a bin on a side of some 20 px.
+OVERSHOOT_BIN_PX = 0.5
+#: Pixels at most this far from the marker's outer edge (px) are the edge of the colour fringe.
+FRINGE_EDGE_PX = 1.5
 #: Added to both mean steps of the blockiness (DN): noise-free flat regions read 1, not 0 / 0.
 BLOCK_EPSILON_DN = 0.5
 #: Pixels closer than this to a cell edge of the marker are left out of the blockiness (px).
@@ -203,6 +237,79 @@ def _blockiness(
     return float((on.mean() + epsilon_dn) / (off.mean() + epsilon_dn))
 
 
+def _edge_overshoot(d: np.ndarray, values: np.ndarray, ink: float, paper: float) -> float:
+    """Overshoot of an edge profile beyond its ink and paper levels, over the step (see module doc).
+
+    Parameters
+    ----------
+    d : ndarray (n,)
+        Signed distances of the edge pixels to the edge (px, positive towards the paper).
+    values : ndarray (n,)
+        Their linearised values (fraction of full scale).
+    ink, paper : float
+        The ink and paper levels (fraction of full scale).
+
+    Returns
+    -------
+    float
+        The larger of the paper-side excess and the ink-side deficit over ``paper - ink``
+        (ratio, at least 0); NaN where no bin holds :data:`MIN_PIXELS` pixels or the step is not
+        positive.
+    """
+    step = paper - ink
+    if not step > 0:
+        return float("nan")
+    n_bins = int(round(2 * ESF_MAX_DISTANCE_PX / OVERSHOOT_BIN_PX))
+    edges = np.linspace(-ESF_MAX_DISTANCE_PX, ESF_MAX_DISTANCE_PX, n_bins + 1)
+    which = np.digitize(d, edges) - 1
+    excess = []
+    for k in range(n_bins):
+        in_bin = values[which == k]
+        if in_bin.size < MIN_PIXELS:
+            continue
+        median = float(np.median(in_bin))
+        excess.append(median - paper if edges[k] >= 0 else ink - median)
+    if not excess:
+        return float("nan")
+    return max(max(excess) / step, 0.0)
+
+
+def _colour_fringe(rgb: np.ndarray, edge: np.ndarray, ink: np.ndarray, paper: np.ndarray) -> float:
+    """RMS distance of edge colours from the ink-paper colour line, flat spread removed (DN).
+
+    Parameters
+    ----------
+    rgb : ndarray (n, 3)
+        The sticker's 8-bit RGB values (DN), one row a pixel.
+    edge, ink, paper : ndarray of bool (n,)
+        The edge pixels and the flat ink and paper pixels.
+
+    Returns
+    -------
+    float
+        ``sqrt(max(a^2 - b^2, 0))`` with ``a`` the RMS distance of the edge pixels from the line
+        through the ink's and the paper's per-channel median colours and ``b`` that of the flat
+        pixels (DN); NaN with fewer than :data:`MIN_PIXELS` edge pixels or where the two colours
+        coincide.
+    """
+    if edge.sum() < MIN_PIXELS:
+        return float("nan")
+    ink_colour = np.median(rgb[ink], axis=0)
+    axis = np.median(rgb[paper], axis=0) - ink_colour
+    length = float(np.linalg.norm(axis))
+    if length < 1.0:
+        return float("nan")
+    axis /= length
+
+    def mean_square_distance(colours: np.ndarray) -> float:
+        offset = colours - ink_colour
+        off_line = offset - np.outer(offset @ axis, axis)
+        return float(np.mean(np.sum(off_line**2, axis=1)))
+
+    excess = mean_square_distance(rgb[edge]) - mean_square_distance(rgb[ink | paper])
+    return float(np.sqrt(max(excess, 0.0)))
+
+
 def _edge_samples(
     pts: np.ndarray, norm: np.ndarray, corners: np.ndarray, layout: MarkerLayout
 ) -> list[np.ndarray] | None:
@@ -254,6 +361,7 @@ def tag_stats(
     rejected: list[np.ndarray] | tuple = (),
     edge_widths: tuple[str, ...] = EDGE_WIDTH_STATS,
     repeat: np.ndarray | None = None,
+    rgb: np.ndarray | None = None,
 ) -> np.ndarray:
     """Statistics of one tag, in the order of :data:`STATS`; NaN where not measurable.
 
@@ -274,9 +382,20 @@ def tag_stats(
         the corners are only expected, not detected (the fit needs accurate corners), or where
         the caller reads no edge width (the fits are most of a tag's measuring time).
     repeat : ndarray of uint8 (H, W), optional
-        A second frame of the same pose (same crop): the temporal noise is measured from it.
+        A second frame of the same pose (same crop): the temporal noise and the repeat gain are
+        measured from it.
+    rgb : ndarray of uint8 (H, W, 3), optional
+        The same frame in 8-bit RGB (same crop and offset as ``gray``): the colour fringe is
+        measured from it (NaN without it, or where it is grey: 2-D or all channels equal).
+
+    Raises
+    ------
+    ValueError
+        Where ``rgb`` is given with another height and width than ``gray``.
     """
     out = np.full(len(STATS), np.nan)
+    if rgb is not None and rgb.shape[:2] != gray.shape[:2]:
+        raise ValueError(f"rgb is {rgb.shape[:2]}, gray {gray.shape[:2]}: expected the same crop")
     corners = np.asarray(corners, np.float64).reshape(4, 2)
     if not np.isfinite(corners).all():
         return out
@@ -317,8 +436,12 @@ def tag_stats(
         lin_repeat = linearise(repeat[y0:y1, x0:x1])
         out[s["temporal_noise_ink_linear"]] = _temporal_noise(lin, lin_repeat, ink_mask)
         out[s["temporal_noise_paper_linear"]] = _temporal_noise(lin, lin_repeat, paper_mask)
+        repeat_paper = float(np.median(lin_repeat[paper_mask]))
+        if paper_lin > 0 and repeat_paper > 0:
+            out[s["repeat_gain_ev"]] = float(np.log2(paper_lin / repeat_paper))
     values = patch[sticker_mask]
     out[s["clipped_fraction"]] = float(np.mean((values <= 0) | (values >= 255)))
+    out[s["black_clipped_fraction"]] = float(np.mean(values <= 0))
     sigma = out[s["noise_paper_dn"]]
     spread = HIGHLIGHT_SIGMAS * (sigma if np.isfinite(sigma) else 0.0)
     limit = paper_dn + max(spread, HIGHLIGHT_MIN_DN)
@@ -341,6 +464,19 @@ def tag_stats(
             idx = np.concatenate([samples[k][0] for k in sides]).astype(np.intp)
             d = np.concatenate([samples[k][1] for k in sides])
             out[s[name]] = fit_esf_width(d, lin_values[idx], ink_lin, paper_lin, 2 * MIN_PIXELS)
+        idx = np.concatenate([side[0] for side in samples]).astype(np.intp)
+        d = np.concatenate([side[1] for side in samples])
+        out[s["edge_overshoot"]] = _edge_overshoot(d, lin_values[idx], ink_lin, paper_lin)
+        colour = None if rgb is None or rgb.ndim != 3 else rgb[y0:y1, x0:x1]
+        if colour is not None and not (colour == colour[..., :1]).all():
+            edge = np.zeros(patch.size, bool)
+            edge[idx[np.abs(d) <= FRINGE_EDGE_PX]] = True
+            out[s["colour_fringe_dn"]] = _colour_fringe(
+                colour.reshape(-1, colour.shape[-1]).astype(np.float64),
+                edge,
+                ink_mask.ravel(),
+                paper_mask.ravel(),
+            )
     n_rejected = 0
     for quad in rejected:
         centre = np.asarray(quad, np.float64).reshape(4, 2).mean(axis=0) - offset

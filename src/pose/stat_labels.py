@@ -15,8 +15,8 @@ class StatLabel:
         Readable name (no underscores), e.g. ``"paper noise σ, linear"``.
     unit : str
         Unit as a reader says it: ``"DN"`` (8-bit digital number), ``"px"``, ``"fraction of full
-        scale"`` (linearised level, 0 black to 1 white), ``"ratio"`` or ``"count"``; never
-        ``"1"``.
+        scale"`` (linearised level, 0 black to 1 white), ``"ratio"``, ``"count"`` or ``"EV"``
+        (a ratio of linear levels in stops, ``log2``); never ``"1"``.
     """
 
     name: str
@@ -51,6 +51,10 @@ STAT_LABELS: dict[str, StatLabel] = {
     "rejected_candidates": StatLabel("rejected detector candidates", "count"),
     "blockiness": StatLabel("JPEG blockiness (1 = none)", "ratio"),
     "jpeg_dc_step_dn": StatLabel("JPEG DC quantisation step (none: uncompressed)", "DN"),
+    "black_clipped_fraction": StatLabel("black-clipped pixels (0 DN)", _STICKER),
+    "edge_overshoot": StatLabel("edge overshoot over the edge step (sharpening halo)", "ratio"),
+    "colour_fringe_dn": StatLabel("colour fringe at edges (off the ink-paper colour line)", "DN"),
+    "repeat_gain_ev": StatLabel("gain over the repeat frame's (paper level)", "EV"),
 }
 
 

@@ -135,6 +135,7 @@ def add_image_stats(
     p: int,
     theta: float,
     repeat: np.ndarray | None = None,
+    rgb: np.ndarray | None = None,
 ) -> None:
     """Fill ``out.image_stats`` (from :func:`estimate_tags`) with every visible tag's evidence.
 
@@ -157,8 +158,11 @@ def add_image_stats(
     p, theta
         Pin hole and turntable angle (rad).
     repeat : ndarray of uint8, optional
-        Another grey frame of the same pose (same crop and offset): the temporal noise
-        statistics are measured against it (else NaN).
+        Another grey frame of the same pose (same crop and offset): the temporal noise and the
+        repeat gain are measured against it (else NaN).
+    rgb : ndarray of uint8 (H, W, 3), optional
+        The same frame in 8-bit RGB (same crop and offset as ``gray``): the colour fringe is
+        measured from it (else NaN, and NaN where it is grey).
     """
     cal = estimation.calibration
     layout = MarkerLayout(rig.marker_cells(), rig.tags.quiet_zone_cells)
@@ -172,4 +176,6 @@ def add_image_stats(
             edge_widths = ()
         else:
             continue
-        out.image_stats[i] = tag_stats(gray, corners, layout, offset, rejected, edge_widths, repeat)
+        out.image_stats[i] = tag_stats(
+            gray, corners, layout, offset, rejected, edge_widths, repeat, rgb=rgb
+        )

@@ -47,10 +47,13 @@ def _progress(show: bool) -> Progress:
     )
 
 
-def _read_gray(frame: CaptureFrame, cal: CameraModel, failed: list[str]) -> np.ndarray | None:
-    """The 8-bit grey frame, or None (warned and added to ``failed``) when unusable.
+def _read_frame(
+    frame: CaptureFrame, cal: CameraModel, failed: list[str]
+) -> tuple[np.ndarray, np.ndarray | None] | None:
+    """The 8-bit grey frame and its 8-bit RGB, or None (warned, added to ``failed``) when unusable.
 
-    A frame whose header gives another size than the calibration's is not decoded.
+    The RGB is None where the frame is grey (its three decoded channels are equal). A frame
+    whose header gives another size than the calibration's is not decoded.
     """
     img = read_image(frame.image, cal.width, cal.height)
     if isinstance(img, str):
@@ -59,7 +62,8 @@ def _read_gray(frame: CaptureFrame, cal: CameraModel, failed: list[str]) -> np.n
         )
         failed.append(str(frame.image))
         return None
-    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    grey = (img[..., 1] == img[..., 0]).all() and (img[..., 2] == img[..., 0]).all()
+    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), None if grey else img[..., ::-1]
 
 
 def ingest(
@@ -79,7 +83,8 @@ def ingest(
     are estimated with the capture's calibration, and the image evidence measured, exactly as
     :func:`simgap.pose.tags.estimate_tags` and :func:`~simgap.pose.tags.add_image_stats` do for
     renders. Where a pose has more than one frame (repeats), its first frame's statistics also carry
-    the temporal noise measured against its second.
+    the temporal noise and the repeat gain measured against its second. The colour fringe is
+    measured on colour frames (NaN on grey ones).
 
     Parameters
     ----------
@@ -143,14 +148,16 @@ def ingest(
         task = bar.add_task(f"ingest {cap.folder.name}", total=len(cap.frames))
         for frames in by_pose.values():
             frames = sorted(frames, key=lambda f: f.repeat)
-            greys = [_read_gray(frame, cal, failed) for frame in frames]
-            readable = [k for k, gray in enumerate(greys) if gray is not None]
-            for k, (frame, gray) in enumerate(zip(frames, greys, strict=True)):
+            images = [_read_frame(frame, cal, failed) for frame in frames]
+            readable = [k for k, image in enumerate(images) if image is not None]
+            for k, (frame, image) in enumerate(zip(frames, images, strict=True)):
                 bar.advance(task)
-                if gray is None:
+                if image is None:
                     continue
+                gray, rgb = image
                 # the first readable frame of a pose with another one also gets the temporal noise
-                other = greys[readable[1]] if len(readable) > 1 and k == readable[0] else None
+                # and the repeat gain
+                other = images[readable[1]][0] if len(readable) > 1 and k == readable[0] else None
                 found, rejected = det.detect_with_rejected(gray)
                 out = estimate_tags(rig, estimation, tags, found, frame.p, frame.theta)
                 add_image_stats(
@@ -165,6 +172,7 @@ def ingest(
                     frame.p,
                     frame.theta,
                     other,
+                    rgb=rgb,
                 )
                 idx = (0, repeats.index(frame.repeat), slice(None), ps.index(frame.p))
                 idx = idx + (thetas.index(frame.theta),)

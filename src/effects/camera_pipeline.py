@@ -1,0 +1,243 @@
+"""A real camera's own image pipeline (ISP): the stages between its sensor and the file.
+
+Every real photo passes through them, and each leaves a signature in the image statistics
+(:mod:`simgap.pose.image_stats`) and moves the detected corners:
+
+=====================  =====  ======================================  ==============================
+effect                 order  what the camera does                    signature
+=====================  =====  ======================================  ==============================
+``gain_change``        31     exposure / gain that changes per frame  ``repeat_gain_ev``
+``black_level``        42     subtracts a black level, crushing       ``black_clipped_fraction``,
+                              the shadows to 0                        lower ``ink_linear``
+``bayer``              44     colour filter array + demosaicing       ``colour_fringe_dn``
+``denoise``            55     spatial edge-preserving denoising       lower noise, edges kept
+``tone_curve``         56     an S-shaped output LUT (not sRGB)       ink and paper levels, contrast
+``sharpen``            60     unsharp mask                            ``edge_overshoot``
+=====================  =====  ======================================  ==============================
+
+Stages below :data:`~simgap.effects.image.ENCODE_ORDER` act on linear float RGB (relative to
+full scale), those above it on the encoded 8-bit frame, as a camera's ISP does: black level and
+demosaicing on raw data, denoising, the tone curve and sharpening on the encoded image, JPEG
+last. Temporal denoising (frames blended over time) is not modelled: simgap renders each frame
+independently.
+
+References
+----------
+Ramanath, Snyder, Yoo & Drew, "Color image processing pipeline", IEEE Signal Processing
+Magazine 22(1), 2005 (the stage order). Tomasi & Manduchi, "Bilateral filtering for gray and
+color images", ICCV 1998. ImageMagick's ``-sigmoidal-contrast`` (the tone curve's form).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import cv2
+import numpy as np
+
+from simgap.effects.base import EffectParams, param
+from simgap.effects.image import ImageContext, ImageEffect
+
+#: Raw code of linear 0 in the 16-bit frame handed to OpenCV's demosaicing, as a fraction of
+#: full scale: a sensor's own pedestal, so that read noise below black survives demosaicing.
+RAW_PEDESTAL = 1.0 / 16.0
+#: 16-bit full scale of that frame.
+RAW_FULL_SCALE = 65535.0
+
+
+class GainChange(ImageEffect, name="gain_change", order=31):
+    """Exposure or gain that changes from frame to frame (auto exposure hunting, flicker).
+
+    Each frame's linear signal is multiplied by ``2 ** e`` with ``e`` drawn from a normal
+    distribution of standard deviation ``sigma_ev`` (EV, stops): two frames of one pose differ
+    in level (``repeat_gain_ev``) while each frame's own noise is unchanged.
+    """
+
+    stochastic = True
+
+    class Params(EffectParams):
+        """Frame-to-frame spread of the exposure."""
+
+        sigma_ev: float = param(0.1, "0 < sigma < 2 EV", lambda v: 0 < v < 2)
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Scale the frame by its drawn gain."""
+        return img * np.float32(2.0 ** ctx.rng.normal(0.0, self.params.sigma_ev))
+
+
+class BlackLevel(ImageEffect, name="black_level", order=42):
+    """A black level subtracted beyond the sensor's own: the shadows crushed to 0.
+
+    ``out = max(x - level, 0) / (1 - level)`` on linear values (fraction of full scale): a
+    camera whose black-level correction takes more than the sensor's offset, or a contrast
+    setting that clips the shadows. Dark ink whose level (with its noise) lies below ``level``
+    reads 0 DN; the rest is stretched to keep white at full scale.
+    """
+
+    class Params(EffectParams):
+        """The subtracted level."""
+
+        level: float = param(
+            0.02, "0 < level < 0.5 (fraction of full scale)", lambda v: 0 < v < 0.5
+        )
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Subtract, clip at 0 and restore full scale."""
+        level = np.float32(self.params.level)
+        return np.maximum(img - level, np.float32(0.0)) / (np.float32(1.0) - level)
+
+
+#: OpenCV conversion codes per colour filter pattern (the 2 x 2 tile from the top-left pixel)
+#: and demosaicing method: bilinear, and OpenCV's edge-aware interpolation.
+_DEMOSAIC = {
+    ("RGGB", "bilinear"): cv2.COLOR_BayerRGGB2RGB,
+    ("BGGR", "bilinear"): cv2.COLOR_BayerBGGR2RGB,
+    ("GRBG", "bilinear"): cv2.COLOR_BayerGRBG2RGB,
+    ("GBRG", "bilinear"): cv2.COLOR_BayerGBRG2RGB,
+    ("RGGB", "edge_aware"): cv2.COLOR_BayerRGGB2RGB_EA,
+    ("BGGR", "edge_aware"): cv2.COLOR_BayerBGGR2RGB_EA,
+    ("GRBG", "edge_aware"): cv2.COLOR_BayerGRBG2RGB_EA,
+    ("GBRG", "edge_aware"): cv2.COLOR_BayerGBRG2RGB_EA,
+}
+_CHANNEL = {"R": 0, "G": 1, "B": 2}
+
+
+class Bayer(ImageEffect, name="bayer", order=44):
+    """A Bayer colour filter array and the camera's demosaicing.
+
+    Each photosite keeps only the channel of its filter (``pattern``: the 2 x 2 tile at the
+    frame's top-left pixel), then the camera interpolates the missing two per pixel
+    (``method``: ``bilinear`` or OpenCV's ``edge_aware``). On an achromatic edge the
+    interpolated channels disagree, which leaves colour fringes (``colour_fringe_dn``) and moves
+    the grey frame's edges by a fraction of a pixel. The crop offsets are even
+    (:data:`~simgap.effects.image.BLOCK_ALIGN_PX`), so a crop sees the full frame's pattern.
+    """
+
+    class Params(EffectParams):
+        """Filter layout and interpolation."""
+
+        pattern: Literal["RGGB", "BGGR", "GRBG", "GBRG"] = "RGGB"
+        method: Literal["bilinear", "edge_aware"] = "bilinear"
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Mosaic the linear frame on a 16-bit raw scale, demosaic, return linear RGB."""
+        raw = np.clip(
+            np.round(
+                (img + np.float32(RAW_PEDESTAL)) * np.float32(RAW_FULL_SCALE / (1 + RAW_PEDESTAL))
+            ),
+            0,
+            RAW_FULL_SCALE,
+        ).astype(np.uint16)
+        mosaic = np.empty(raw.shape[:2], np.uint16)
+        tile = self.params.pattern
+        for k, name in enumerate(tile):
+            dy, dx = divmod(k, 2)
+            mosaic[dy::2, dx::2] = raw[dy::2, dx::2, _CHANNEL[name]]
+        rgb = cv2.demosaicing(mosaic, _DEMOSAIC[(tile, self.params.method)])
+        scale = np.float32((1 + RAW_PEDESTAL) / RAW_FULL_SCALE)
+        return rgb.astype(np.float32) * scale - np.float32(RAW_PEDESTAL)
+
+    def reach_px(self) -> float:
+        """The interpolation's neighbourhood: two pixels (px)."""
+        return 2.0
+
+
+def _to_uint8(img: np.ndarray) -> np.ndarray:
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+class Denoise(ImageEffect, name="denoise", order=55):
+    """Spatial, edge-preserving denoising of the encoded frame (a bilateral filter).
+
+    Pixels are averaged with neighbours within about ``radius_px`` (the spatial kernel's
+    standard deviation) whose values differ by less than about ``strength_dn`` (the range
+    kernel's, 8-bit DN): flat ink and paper become smoother, an edge's steps are kept, so the
+    edge widens by much less than the radius.
+    """
+
+    class Params(EffectParams):
+        """Range and spatial kernels."""
+
+        strength_dn: float = param(8.0, "0 < strength <= 100 DN", lambda v: 0 < v <= 100)
+        radius_px: float = param(1.0, "0.3 <= radius <= 5 px", lambda v: 0.3 <= v <= 5)
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Bilateral filter (OpenCV; neighbourhood from the spatial kernel)."""
+        out = cv2.bilateralFilter(
+            img.astype(np.float32),
+            0,
+            self.params.strength_dn,
+            self.params.radius_px,
+            borderType=cv2.BORDER_REFLECT,
+        )
+        return _to_uint8(out)
+
+    def reach_px(self) -> float:
+        """OpenCV's neighbourhood radius for the spatial kernel (1.5 of its sigmas, px)."""
+        return float(np.ceil(1.5 * self.params.radius_px))
+
+
+class ToneCurve(ImageEffect, name="tone_curve", order=56):
+    """A camera's S-shaped output curve (LUT) on the encoded frame, instead of plain sRGB.
+
+    ``y = (S(c (x - m)) - S(-c m)) / (S(c (1 - m)) - S(-c m))`` on the encoded value ``x`` in
+    [0, 1], with ``S`` the logistic function, ``c = contrast`` its slope and ``m = midpoint``:
+    black and white stay, mid-tones gain contrast (darker shadows, brighter highlights); small
+    ``contrast`` tends to the identity.
+    """
+
+    class Params(EffectParams):
+        """Slope and midpoint of the curve."""
+
+        contrast: float = param(4.0, "0 < contrast <= 20", lambda v: 0 < v <= 20)
+        midpoint: float = param(0.5, "0 < midpoint < 1", lambda v: 0 < v < 1)
+
+    def curve(self, encoded: np.ndarray | float) -> np.ndarray:
+        """The curve on encoded values in [0, 1] (float in, float out)."""
+        c, m = self.params.contrast, self.params.midpoint
+
+        def s(t: np.ndarray | float) -> np.ndarray:
+            return 1.0 / (1.0 + np.exp(-np.asarray(t, float)))
+
+        return (s(c * (np.asarray(encoded, float) - m)) - s(-c * m)) / (s(c * (1 - m)) - s(-c * m))
+
+    def lut(self) -> np.ndarray:
+        """The curve as an 8-bit lookup table (256,)."""
+        return _to_uint8(255.0 * self.curve(np.arange(256) / 255.0))
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Look every value up."""
+        return cv2.LUT(img, self.lut())
+
+
+class Sharpen(ImageEffect, name="sharpen", order=60):
+    """Sharpening of the encoded frame by an unsharp mask.
+
+    ``out = x + amount (x - G_radius * x)`` where the difference exceeds ``threshold_dn``
+    (8-bit DN), ``G_radius`` a Gaussian of standard deviation ``radius_px``: edges gain a dark
+    and a bright halo (``edge_overshoot``), noise is amplified. A camera's "sharpness" setting.
+    """
+
+    class Params(EffectParams):
+        """Strength, width and threshold of the mask."""
+
+        amount: float = param(0.8, "0 < amount <= 5", lambda v: 0 < v <= 5)
+        radius_px: float = param(1.0, "0.3 <= radius <= 5 px", lambda v: 0.3 <= v <= 5)
+        threshold_dn: float = param(0.0, "0 <= threshold < 64 DN", lambda v: 0 <= v < 64)
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Add the amplified difference from the blurred frame."""
+        x = img.astype(np.float32)
+        detail = x - cv2.GaussianBlur(
+            x, (0, 0), self.params.radius_px, borderType=cv2.BORDER_REFLECT
+        )
+        if self.params.threshold_dn > 0:
+            detail[np.abs(detail) <= self.params.threshold_dn] = 0.0
+        return _to_uint8(x + np.float32(self.params.amount) * detail)
+
+    def reach_px(self) -> float:
+        """Three sigmas of the mask's blur (px)."""
+        return 3.0 * self.params.radius_px
+
+
+__all__ = ["Bayer", "BlackLevel", "Denoise", "GainChange", "Sharpen", "ToneCurve"]
