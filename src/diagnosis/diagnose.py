@@ -43,6 +43,7 @@ from simgap.core.progress import ProgressCallback, Steps
 from simgap.diagnosis.items import (
     NoiseShift,
     build_items,
+    demosaicing_from_attrs,
     repeats_of_simulation,
     simulation_experiment,
     split_items,
@@ -54,6 +55,7 @@ from simgap.diagnosis.items import (
 from simgap.diagnosis.result import (
     Combined,
     Confirmed,
+    Demosaicing,
     DiagnosisResult,
     EquivalentModel,
     Finding,
@@ -69,6 +71,14 @@ from simgap.diagnosis.where import unexplained_evidence, where_summary
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.simulator import Simulator
 from simgap.results.contract import check_dataset
+
+
+def demosaicing_result(real: xr.Dataset) -> Demosaicing | None:
+    """The capture's demosaicing as the result records it (None where its frames show none)."""
+    cfa = demosaicing_from_attrs(real)
+    if cfa is None or cfa.layout is None or cfa.method is None:
+        return None
+    return Demosaicing(layout=cfa.layout, method=cfa.method, residual_ratio=cfa.ratio)
 
 
 class Diagnosis:
@@ -283,6 +293,7 @@ def diagnose(
         ),
         render_seeds=seeds,
         simulation_render=f"{sim_exp.render.mode} {sim_exp.render.spp} spp",
+        demosaicing=demosaicing_result(real),
         propagated_corner_noise_px=d.propagated_px,
         noise_shift_corner_px=None if d.noise_shift is None else d.noise_shift.corner_px,
     )

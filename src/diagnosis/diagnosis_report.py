@@ -54,6 +54,14 @@ def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
 def _render_seeds_sentence(result: DiagnosisResult) -> str:
     """How the simulation was rendered and each configuration's pose noise measured."""
     rendered = f" Simulated {result.simulation_render}." if result.simulation_render else ""
+    cfa = result.demosaicing
+    if cfa is not None:
+        rendered += (
+            f" The capture's colour frames are demosaiced from a Bayer {cfa.layout} colour "
+            f"filter array (re-mosaicking residual {cfa.residual_ratio:.2f} of the other "
+            "layouts'): the simulation images through it, demosaiced "
+            f"{cfa.method.replace('_', '-')}."
+        )
     return rendered + _pose_noise_sentence(result)
 
 

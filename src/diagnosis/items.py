@@ -8,6 +8,7 @@ on one split of the items, chosen on a second and the reduction is reported on a
 from __future__ import annotations
 
 import dataclasses
+import json
 import warnings
 from dataclasses import dataclass
 
@@ -26,6 +27,7 @@ from simgap.core.config import to_mapping
 from simgap.core.rig import CameraModel, Rig
 from simgap.effects.state import VariantState
 from simgap.pipeline.experiment import Configurations, Experiment
+from simgap.pose.cfa import CfaVerdict
 from simgap.pose.image_stats import STAT_NAMES
 
 
@@ -39,8 +41,28 @@ def calibration_from_attrs(real: xr.Dataset) -> CameraModel | None:
     return CameraModel(**{k: (tuple(data[k]) if k == "distortion" else data[k]) for k in keys})
 
 
+def demosaicing_from_attrs(real: xr.Dataset) -> CfaVerdict | None:
+    """The demosaicing a capture's colour frames show (``camera_demosaicing`` attr), or None.
+
+    None where the dataset has no such attr (a simulation, or a capture ingested before it
+    existed) or its frames show no colour filter array.
+    """
+    text = real.attrs.get("camera_demosaicing")
+    if not text:
+        return None
+    verdict = CfaVerdict(**json.loads(text))
+    return verdict if verdict.layout is not None else None
+
+
 def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
-    """``exp`` restricted to the real dataset's configurations, imaging with its calibration."""
+    """``exp`` restricted to the real dataset's configurations, imaging as its camera does.
+
+    With the capture's calibration (:func:`calibration_from_attrs`) and, where its colour
+    frames show a Bayer colour filter array (:func:`demosaicing_from_attrs`), its layout
+    demosaiced with the nearest method of the catalogue (``bayer`` effect): demosaicing moves
+    the corners of a frame's grey image by a fraction of a pixel, which a simulation without it
+    would read as a geometric gap. An experiment that names its own ``bayer`` keeps it.
+    """
     rig = dict(exp.rig)
     cal = calibration_from_attrs(real)
     if cal is not None:
@@ -50,7 +72,13 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
         tuple(round(float(np.rad2deg(t)), 6) for t in real.theta.values),
         tuple(int(t) for t in real.tag.values),
     )
-    return dataclasses.replace(exp, rig=rig, configurations=conf, variants=(), grid={})
+    effects = dict(exp.effects)
+    cfa = demosaicing_from_attrs(real)
+    if cfa is not None and "bayer" not in effects:
+        effects["bayer"] = {"pattern": cfa.layout, "method": cfa.method}
+    return dataclasses.replace(
+        exp, rig=rig, configurations=conf, variants=(), grid={}, effects=effects
+    )
 
 
 def with_render_seeds(exp: Experiment, seeds: int) -> Experiment:

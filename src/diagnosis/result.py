@@ -196,6 +196,22 @@ class Split:
 
 
 @dataclass(kw_only=True)
+class Demosaicing:
+    """The Bayer colour filter array a capture's colour frames show, as the simulation images it.
+
+    Read from the frames at ingest (:class:`simgap.pose.cfa.CfaVerdict`) and applied to the
+    simulation (``bayer`` effect), as a property of the camera, not a cause of the gap.
+    """
+
+    #: the 2 x 2 filter tile at the frame's top-left pixel, e.g. ``"RGGB"``
+    layout: str
+    #: the catalogue's demosaicing method nearest the camera's (``bilinear``, ``edge_aware``)
+    method: str
+    #: the layout's re-mosaicking residual over the other layouts' (1: no trace; 0: exact)
+    residual_ratio: float
+
+
+@dataclass(kw_only=True)
 class DiagnosisResult:
     """The whole diagnosis (``result.json``); see the module docstring.
 
@@ -225,6 +241,8 @@ class DiagnosisResult:
     render_seeds: int = 1
     #: how the simulation was rendered: ``render.mode`` and samples per pixel, e.g. "path 16 spp"
     simulation_render: str = ""
+    #: the capture's demosaicing, simulated with it; None where its frames show none
+    demosaicing: Demosaicing | None = None
     #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
     #: noise, where the simulation's repeats measure none (a converged render); None otherwise
     propagated_corner_noise_px: float | None = None

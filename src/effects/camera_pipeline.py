@@ -37,6 +37,7 @@ import numpy as np
 
 from simgap.effects.base import EffectParams, param
 from simgap.effects.image import ImageContext, ImageEffect
+from simgap.pose import cfa
 
 #: Raw code of linear 0 in the 16-bit frame handed to OpenCV's demosaicing, as a fraction of
 #: full scale: a sensor's own pedestal, so that read noise below black survives demosaicing.
@@ -87,21 +88,6 @@ class BlackLevel(ImageEffect, name="black_level", order=42):
         return np.maximum(img - level, np.float32(0.0)) / (np.float32(1.0) - level)
 
 
-#: OpenCV conversion codes per colour filter pattern (the 2 x 2 tile from the top-left pixel)
-#: and demosaicing method: bilinear, and OpenCV's edge-aware interpolation.
-_DEMOSAIC = {
-    ("RGGB", "bilinear"): cv2.COLOR_BayerRGGB2RGB,
-    ("BGGR", "bilinear"): cv2.COLOR_BayerBGGR2RGB,
-    ("GRBG", "bilinear"): cv2.COLOR_BayerGRBG2RGB,
-    ("GBRG", "bilinear"): cv2.COLOR_BayerGBRG2RGB,
-    ("RGGB", "edge_aware"): cv2.COLOR_BayerRGGB2RGB_EA,
-    ("BGGR", "edge_aware"): cv2.COLOR_BayerBGGR2RGB_EA,
-    ("GRBG", "edge_aware"): cv2.COLOR_BayerGRBG2RGB_EA,
-    ("GBRG", "edge_aware"): cv2.COLOR_BayerGBRG2RGB_EA,
-}
-_CHANNEL = {"R": 0, "G": 1, "B": 2}
-
-
 class Bayer(ImageEffect, name="bayer", order=44):
     """A Bayer colour filter array and the camera's demosaicing.
 
@@ -128,12 +114,9 @@ class Bayer(ImageEffect, name="bayer", order=44):
             0,
             RAW_FULL_SCALE,
         ).astype(np.uint16)
-        mosaic = np.empty(raw.shape[:2], np.uint16)
-        tile = self.params.pattern
-        for k, name in enumerate(tile):
-            dy, dx = divmod(k, 2)
-            mosaic[dy::2, dx::2] = raw[dy::2, dx::2, _CHANNEL[name]]
-        rgb = cv2.demosaicing(mosaic, _DEMOSAIC[(tile, self.params.method)])
+        rgb = cfa.demosaic(
+            cfa.mosaic(raw, self.params.pattern), self.params.pattern, self.params.method
+        )
         scale = np.float32((1 + RAW_PEDESTAL) / RAW_FULL_SCALE)
         return rgb.astype(np.float32) * scale - np.float32(RAW_PEDESTAL)
 

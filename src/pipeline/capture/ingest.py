@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 from pathlib import Path
@@ -21,6 +22,7 @@ from simgap.pipeline.capture.folder import (
     read_image,
 )
 from simgap.pipeline.capture.manifest import CaptureFrame
+from simgap.pose.cfa import CfaTraces, around_markers
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.tags import Estimation, add_image_stats, estimate_tags
@@ -114,7 +116,10 @@ def ingest(
         ``calibration_file``), ``calibration_path`` (the absolute path of the file read),
         ``calibration_file`` (that file's text), ``detector``, ``pnp``, ``frames``,
         ``frames_unreadable`` (count of frames that could not be decoded or had the wrong size,
-        each recorded as not detected) and ``frames_failed`` (JSON list of their paths), versions.
+        each recorded as not detected), ``frames_failed`` (JSON list of their paths),
+        ``camera_demosaicing`` (JSON: the colour filter layout and nearest demosaicing method
+        the colour frames show around their markers, :class:`simgap.pose.cfa.CfaVerdict`; null
+        layout where none shows), versions.
 
     Raises
     ------
@@ -144,6 +149,7 @@ def ingest(
     by_pose: dict[tuple[int, float], list[CaptureFrame]] = {}
     for frame in cap.frames:
         by_pose.setdefault((frame.p, frame.theta), []).append(frame)
+    cfa_traces = CfaTraces()
     with _progress(show_progress) as bar:
         task = bar.add_task(f"ingest {cap.folder.name}", total=len(cap.frames))
         for frames in by_pose.values():
@@ -159,6 +165,8 @@ def ingest(
                 # and the repeat gain
                 other = images[readable[1]][0] if len(readable) > 1 and k == readable[0] else None
                 found, rejected = det.detect_with_rejected(gray)
+                if rgb is not None and found:
+                    cfa_traces.add(*around_markers(rgb, found))
                 out = estimate_tags(rig, estimation, tags, found, frame.p, frame.theta)
                 add_image_stats(
                     out,
@@ -194,6 +202,7 @@ def ingest(
         "frames_failed": json.dumps(failed),
         "detector": json.dumps({VARIANT: f"{detector}"}),
         "pnp": json.dumps({VARIANT: f"{pnp}"}),
+        "camera_demosaicing": json.dumps(dataclasses.asdict(cfa_traces.verdict())),
         **software_versions(),
         "conventions": CONVENTIONS,
     }
