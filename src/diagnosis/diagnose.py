@@ -40,6 +40,7 @@ from simgap.analysis.scoring import equivalent_models
 from simgap.analysis.selection import ModelSearch
 from simgap.core.axes import AXES
 from simgap.core.progress import ProgressCallback, Steps
+from simgap.diagnosis.camera_signatures import pipeline_signatures
 from simgap.diagnosis.items import (
     NoiseShift,
     build_items,
@@ -294,6 +295,7 @@ def diagnose(
         render_seeds=seeds,
         simulation_render=f"{sim_exp.render.mode} {sim_exp.render.spp} spp",
         demosaicing=demosaicing_result(real),
+        camera_pipeline=pipeline_signatures(d.real, d.sim),
         propagated_corner_noise_px=d.propagated_px,
         noise_shift_corner_px=None if d.noise_shift is None else d.noise_shift.corner_px,
     )

@@ -25,6 +25,7 @@ from simgap.analysis.report.figures import plot_change_heatmap
 from simgap.analysis.report.output import save_figure, save_text
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL, GEOMETRY_CORNER_GAP_PX
 from simgap.core.axes import AXES, display_unit
+from simgap.diagnosis.camera_signatures import pipeline_markdown
 from simgap.diagnosis.diagnose import Diagnosis
 from simgap.diagnosis.engineering import (
     engineering_markdown,
@@ -316,6 +317,7 @@ def write_diagnosis_report(result: DiagnosisResult, d: Diagnosis, out_dir: Path)
     lines += engineering_markdown(d, distance, fitted, selected_names(result))
     lines += where_markdown(result.where)
     lines += which_markdown(result)
+    lines += pipeline_markdown(result.camera_pipeline)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]
     lines.append(f"Diagnosis time: {result.seconds:.0f} s.")
     paths.append(save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))

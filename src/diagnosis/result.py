@@ -212,6 +212,23 @@ class Demosaicing:
 
 
 @dataclass(kw_only=True)
+class PipelineSignature:
+    """What a capture and its simulation show of one stage of a camera's own image pipeline.
+
+    (:func:`simgap.diagnosis.camera_signatures.pipeline_signatures`.)
+    """
+
+    #: the stage, e.g. ``"sharpening"``
+    stage: str
+    #: what is measured, with its unit
+    measure: str
+    #: the capture's value (None: not measurable, e.g. no colour or one frame a pose)
+    real: float | None
+    #: the simulation's value
+    simulated: float | None
+
+
+@dataclass(kw_only=True)
 class DiagnosisResult:
     """The whole diagnosis (``result.json``); see the module docstring.
 
@@ -243,6 +260,8 @@ class DiagnosisResult:
     simulation_render: str = ""
     #: the capture's demosaicing, simulated with it; None where its frames show none
     demosaicing: Demosaicing | None = None
+    #: what the capture and the simulation show of each stage of a camera's own pipeline
+    camera_pipeline: list[PipelineSignature] = field(default_factory=list)
     #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
     #: noise, where the simulation's repeats measure none (a converged render); None otherwise
     propagated_corner_noise_px: float | None = None
