@@ -22,6 +22,7 @@ caller (the CLI, the blind validation); the result is a
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -68,6 +69,7 @@ from simgap.diagnosis.result import (
 )
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.sim_runner import SimRunner
+from simgap.diagnosis.telling_poses import corner_difference_px, telling_poses
 from simgap.diagnosis.where import unexplained_evidence, where_summary
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.simulator import Simulator
@@ -202,7 +204,23 @@ class Diagnosis:
             n_params=chosen.n_params,
             configurations=len(self.choose_index),
             scores=Scores.of(chosen),
-            equivalent_models=equivalent_alternatives(chosen, self.search.tried),
+            equivalent_models=[
+                self.with_telling_poses(chosen, alternative)
+                for alternative in equivalent_alternatives(chosen, self.search.tried)
+            ],
+        )
+
+    def with_telling_poses(self, chosen: Scored, other: Scored) -> EquivalentModel:
+        """A look-alike as the result lists it, with the poses that would tell it apart.
+
+        Its largest corner difference from ``chosen`` over the capture's poses, and the grid
+        poses where the two differ most (:mod:`simgap.diagnosis.telling_poses`).
+        """
+        own = corner_difference_px(self.rig, self.base, chosen, other, self.items)
+        return dataclasses.replace(
+            equivalent_model(other),
+            capture_difference_px=float(np.max(own)) if own.size else None,
+            telling_poses=telling_poses(self.rig, self.base, chosen, other),
         )
 
     def combined(self, chosen: Scored) -> Combined:
@@ -309,14 +327,12 @@ def diagnose(
     return result, d
 
 
-def equivalent_alternatives(
-    chosen: Scored, tried: list[Scored], limit: int = 5
-) -> list[EquivalentModel]:
+def equivalent_alternatives(chosen: Scored, tried: list[Scored], limit: int = 5) -> list[Scored]:
     """Models of ``tried`` that explain the choose split's evidence like ``chosen``.
 
     Only models within :func:`equivalent_models` on every channel are listed (a model that is
     clearly better or worse is not a look-alike). Supersets of ``chosen`` are left out: that
-    an extra effect changes nothing is no news.
+    an extra effect changes nothing is no news. Simplest first.
     """
     same = [
         s
@@ -324,10 +340,7 @@ def equivalent_alternatives(
         if not set(chosen.effects) <= set(s.effects)  # not the choice plus extras
         and equivalent_models(s, chosen)
     ]
-    return [
-        equivalent_model(s)
-        for s in sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
-    ]
+    return sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
 
 
 def equivalent_model(scored: Scored) -> EquivalentModel:

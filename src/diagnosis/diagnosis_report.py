@@ -33,7 +33,7 @@ from simgap.diagnosis.engineering import (
     plot_abs_error_vs_distance,
     plot_gap_by_distance,
 )
-from simgap.diagnosis.result import DiagnosisResult
+from simgap.diagnosis.result import DiagnosisResult, EquivalentModel
 from simgap.diagnosis.result_json import write_json
 from simgap.diagnosis.where_report import where_markdown
 
@@ -191,12 +191,28 @@ def selection_markdown(result: DiagnosisResult) -> list[str]:
             "them apart (where one is simpler, the simpler is selected):",
             "",
         ]
-        lines += [
-            f"- {' + '.join(a.effects)} ({a.n_params} parameters, "
-            f"{a.scores.corner_gap_after_px:.2f} px)"
-            for a in alternatives
-        ]
+        lines += [_look_alike_line(a) for a in alternatives]
     return lines
+
+
+def _look_alike_line(model: EquivalentModel) -> str:
+    """One look-alike: its effects, and the poses that would tell it from the selected model."""
+    line = (
+        f"- {' + '.join(model.effects)} ({model.n_params} parameters, "
+        f"{model.scores.corner_gap_after_px:.2f} px)"
+    )
+    if model.capture_difference_px is not None and model.telling_poses:
+        poses = "; ".join(
+            f"pin hole {t.p}, turntable {t.theta_deg:g} deg (tag {t.tag}, {t.distance_m:.2f} m): "
+            f"{t.corner_difference_px:.2f} px"
+            for t in model.telling_poses
+        )
+        line += (
+            f": its corners differ from the selected model's by at most "
+            f"{model.capture_difference_px:.2f} px on the capture's poses; frames at these poses "
+            f"would tell the two apart ({poses})"
+        )
+    return line + "."
 
 
 def how_far_markdown(result: DiagnosisResult) -> list[str]:

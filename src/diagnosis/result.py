@@ -141,12 +141,34 @@ class Finding:
 
 
 @dataclass(kw_only=True)
+class TellingPose:
+    """A grid pose where two look-alike models predict different corners.
+
+    (:func:`simgap.diagnosis.telling_poses.telling_poses`.)
+    """
+
+    p: int
+    theta_deg: float
+    #: the tag at that pose whose corners differ most
+    tag: int
+    #: camera-to-tag distance (m)
+    distance_m: float
+    #: RMS distance between the two models' predicted corners (px)
+    corner_difference_px: float
+
+
+@dataclass(kw_only=True)
 class EquivalentModel:
     """A model tried that the choose split cannot tell from the chosen one."""
 
     effects: list[str]
     n_params: int
     scores: Scores
+    #: the largest RMS corner distance (px) between it and the chosen model over the capture's
+    #: own poses (None: not computed, e.g. a refused model)
+    capture_difference_px: float | None = None
+    #: the grid poses where the two differ most (empty where neither has geometry)
+    telling_poses: list[TellingPose] = field(default_factory=list)
 
 
 @dataclass(kw_only=True)
