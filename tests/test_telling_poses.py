@@ -56,3 +56,43 @@ def test_models_without_geometry_name_no_pose():
     rig, base = load_rig(), VariantState()
     flat = SimpleNamespace(projection=None)
     assert telling_poses(rig, base, flat, flat) == []
+
+
+def test_the_summary_and_report_name_a_look_alike_and_the_poses_that_tell_it_apart():
+    from simgap.diagnosis.diagnosis_report import selected_names, selection_markdown
+    from simgap.diagnosis.result import (
+        DiagnosisResult,
+        EquivalentModel,
+        Finding,
+        Scores,
+        Selection,
+        TellingPose,
+    )
+
+    pose = TellingPose(p=0, theta_deg=300.0, tag=0, distance_m=0.42, corner_difference_px=0.96)
+    alike = EquivalentModel(
+        effects=["camera_mount"],
+        n_params=6,
+        scores=Scores(corner_gap_after_px=0.21),
+        capture_difference_px=0.2,
+        telling_poses=[pose],
+    )
+    finding = Finding(effect="principal_point", params={}, pose_contribution=1.0, minor=False)
+    result = DiagnosisResult(
+        selection=Selection(
+            findings=[finding],
+            n_params=2,
+            configurations=9,
+            scores=Scores(),
+            equivalent_models=[alike],
+        )
+    )
+    assert selected_names(result) == (
+        "principal_point (these poses cannot tell it from camera_mount)"
+    )
+    text = "\n".join(selection_markdown(result))
+    assert "at most 0.20 px on the capture's poses" in text
+    assert "pin hole 0, turntable 300 deg (tag 0, 0.42 m): 0.96 px" in text
+    # a round trip through result.json keeps them
+    again = DiagnosisResult.from_json(result.to_json())
+    assert again.selection.equivalent_models[0].telling_poses == [pose]

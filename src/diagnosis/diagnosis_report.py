@@ -165,9 +165,21 @@ def which_markdown(result: DiagnosisResult) -> list[str]:
 
 
 def selected_names(result: DiagnosisResult) -> str:
-    """The selected effects, most important first, minor ones marked (``-`` for none)."""
+    """The selected effects, most important first, minor ones marked (``-`` for none).
+
+    Where other models explain the capture as well (look-alikes its poses cannot tell apart),
+    they are named after it: the selection is then the simplest of equals, not a verdict.
+    """
     minor = set(result.minor)
-    return ", ".join(f"{e} (minor)" if e in minor else e for e in result.selected) or "-"
+    names = ", ".join(f"{e} (minor)" if e in minor else e for e in result.selected) or "-"
+    alike = (
+        [" + ".join(a.effects) for a in result.selection.equivalent_models]
+        if result.selection
+        else []
+    )
+    if alike:
+        names += f" (these poses cannot tell it from {' or '.join(alike)})"
+    return names
 
 
 def selection_markdown(result: DiagnosisResult) -> list[str]:
