@@ -13,7 +13,12 @@ from simgap.analysis.scoring import (
     distinguishably_lower,
     worsens_pose,
 )
-from simgap.analysis.thresholds import MIN_POSE_REDUCTION, SIZE_SLOPE_Z, SIZE_ZERO_SHARE
+from simgap.analysis.thresholds import (
+    EQUIVALENT_REL,
+    MIN_POSE_REDUCTION,
+    SIZE_SLOPE_Z,
+    SIZE_ZERO_SHARE,
+)
 
 
 def admissible(scored: Scored, reference: Scored | None) -> bool:
@@ -119,6 +124,21 @@ def seen_in_centres(scored: Scored, reference: Scored | None) -> bool:
     return corners_clearly_lower(after, residuals_without(scored, reference, centres=True))
 
 
+def clearly_smaller(after: np.ndarray | None, before: np.ndarray | None) -> bool:
+    """Whether per-item corner residuals (px^2) fall by the corner channel's relative tolerance.
+
+    The RMS over the items falls by at least :data:`~simgap.analysis.thresholds.EQUIVALENT_REL`
+    (the relative part of every channel's tolerance): a consistent improvement smaller than
+    that is what a camera's unmodelled image formation (a softer edge, a tone curve, a darker
+    print) leaves in the corners, not a lens.
+    """
+    if after is None or before is None or not np.isfinite(after).any():
+        return False
+    rms_after = float(np.sqrt(np.nanmean(after)))
+    rms_before = float(np.sqrt(np.nanmean(before)))
+    return rms_after <= (1.0 - EQUIVALENT_REL) * rms_before
+
+
 def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     """Whether a model's newest effect has a corner signature of its own and the corners show it.
 
@@ -128,7 +148,8 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     channel beyond its tolerance (:func:`~simgap.analysis.scoring.distinguishably_lower`) or
     item by item over both folds of a cross-fit
     (:func:`~simgap.analysis.scoring.corners_clearly_lower`,
-    :func:`~simgap.analysis.scoring.corner_residuals`); and the pose gap is not
+    :func:`~simgap.analysis.scoring.corner_residuals`) by at least the channel's relative
+    tolerance (:func:`clearly_smaller`); and the pose gap is not
     distinguishably larger, by the tolerance of every channel
     (:func:`~simgap.analysis.scoring.distinguishably_lower` on the pose channel: a quarter unit
     and 10 %). Within its noise the pose gap tells nothing either way: a lens distortion whose
@@ -142,10 +163,12 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     if len(new) != 1 or not has_corner_signature(new[0]):
         return False
     before_px = scored.corner_gap_before_px if reference is None else reference.corner_gap_after_px
-    lower = corner_gap_lower(
-        scored.corner_gap_after_px, before_px, scored.corner_unit_px
-    ) or corners_clearly_lower(
-        corner_residuals(scored, cross_fitted=True), residuals_without(scored, reference)
+    after, without = (
+        corner_residuals(scored, cross_fitted=True),
+        residuals_without(scored, reference),
+    )
+    lower = corner_gap_lower(scored.corner_gap_after_px, before_px, scored.corner_unit_px) or (
+        corners_clearly_lower(after, without) and clearly_smaller(after, without)
     )
     pose_before = (
         scored.pose_gap_all_axes_before if reference is None else reference.pose_gap_all_axes_after
