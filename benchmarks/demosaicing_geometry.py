@@ -24,7 +24,7 @@ import numpy as np
 
 from simgap.core.paths import default_cache_dir
 from simgap.diagnosis.diagnose import diagnose
-from simgap.diagnosis.nuisance import FRONTAL_HEAVY_STOPS_DEG, OBLIQUE_STOPS_DEG, draw_nuisance
+from simgap.diagnosis.nuisance import FRONTAL_HEAVY_STOPS_DEG, draw_nuisance
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.validate import pseudo_real_experiment, render_capture
 from simgap.pipeline.capture import ingest
@@ -41,6 +41,9 @@ PIPELINE = {
     "gamma": {"encoding": "gamma", "gamma": 2.2},
 }
 SEED = 77
+#: The one oblique stop of each trial (deg), in turn: both tags, both sides (of
+#: :data:`simgap.diagnosis.nuisance.OBLIQUE_STOPS_DEG`).
+OBLIQUE_STOPS = (40.0, 320.0, 140.0, 220.0)
 
 
 def main() -> None:
@@ -61,7 +64,7 @@ def main() -> None:
     for i in range(args.trials):
         camera = draw_nuisance(np.random.default_rng([SEED, i]), rig)
         bayer = {"pattern": LAYOUTS[i % 4], "method": "edge_aware"}
-        oblique = OBLIQUE_STOPS_DEG[(3 * i) % len(OBLIQUE_STOPS_DEG)]
+        oblique = OBLIQUE_STOPS[i % len(OBLIQUE_STOPS)]
         camera = dataclasses.replace(
             camera,
             effects={**camera.effects, **PIPELINE, "bayer": bayer},
