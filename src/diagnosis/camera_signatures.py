@@ -18,20 +18,24 @@ from simgap.analysis.image_evidence import repeat_median_stats
 from simgap.diagnosis.result import PipelineSignature
 
 
+def _finite(values: np.ndarray) -> np.ndarray:
+    """The finite values of an array, flattened."""
+    values = np.asarray(values, float).ravel()
+    return values[np.isfinite(values)]
+
+
 def _values(ds: xr.Dataset, stat: str) -> np.ndarray:
     """Every finite value of one statistic over the dataset's tags, poses and repeats."""
     if "image_stats" not in ds or stat not in ds.stat.values:
         return np.array([])
-    values = np.asarray(ds.image_stats.isel(variant=0).sel(stat=stat).values, float).ravel()
-    return values[np.isfinite(values)]
+    return _finite(ds.image_stats.isel(variant=0).sel(stat=stat).values)
 
 
 def _per_item(ds: xr.Dataset, stat: str) -> np.ndarray:
     """The repeat-median of one statistic per tag and pose, finite values only."""
     if "image_stats" not in ds:
         return np.array([])
-    values = np.asarray(repeat_median_stats(ds).sel(stat=stat).values, float).ravel()
-    return values[np.isfinite(values)]
+    return _finite(repeat_median_stats(ds).sel(stat=stat).values)
 
 
 def _noise_ratio(ds: xr.Dataset) -> np.ndarray:
@@ -47,10 +51,6 @@ def _first_frames(ds: xr.Dataset, stat: str) -> np.ndarray:
     if "image_stats" not in ds or stat not in ds.stat.values:
         return np.array([])
     return np.asarray(ds.image_stats.isel(variant=0, repeat=0).sel(stat=stat).values, float).ravel()
-
-
-def _finite(values: np.ndarray) -> np.ndarray:
-    return values[np.isfinite(values)]
 
 
 def _summary(values: np.ndarray, how: Callable[[np.ndarray], float]) -> float | None:
