@@ -275,3 +275,18 @@ def test_a_corner_effect_must_lower_the_corners_by_the_channels_relative_toleran
     assert clearly_smaller(before * (0.244 / 0.483) ** 2, before)
     assert clearly_smaller(before * 0.899**2, before)  # just inside the tolerance
     assert not clearly_smaller(None, before) and not clearly_smaller(before, None)
+
+
+def test_a_projection_fit_on_items_never_detected_on_both_sides_changes_nothing():
+    """A split whose items were detected on neither side (a motion-blurred, crushed capture) fits
+    no geometry and predicts no change, instead of failing; no configuration, no pose."""
+    from simgap.analysis.candidates import CANDIDATES
+    from simgap.diagnosis.telling_poses import grid_items
+    from simgap.effects.state import VariantState
+
+    rig = load_rig()
+    assert rig.eyepoints_from_tags([], [], []).shape == (0, 4, 4)
+    items = grid_items(rig).subset(np.arange(6))
+    items.real_corners = np.full((6, 4, 2), np.nan)
+    fit = CANDIDATES["camera_mount"].fit(rig, VariantState(), items)
+    assert np.all(fit.extra["x"] == 0.0) and np.isnan(fit.extra["corner_rms_px"])

@@ -266,6 +266,10 @@ class ProjectionCandidate:
         t0 = time.perf_counter()
         target = items.real_corners
         ok = np.isfinite(target).all(axis=(1, 2)) & np.isfinite(items.sim_corners).all(axis=(1, 2))
+        if not ok.any():  # no item detected on both sides: nothing to fit, no change
+            x = np.zeros(self.n_params)
+            extra = {"x": x, "corner_rms_px": float("nan"), "at_bound": (), "size_changes": {}}
+            return Fit(self.effect, self.effect_params(x), time.perf_counter() - t0, extra)
         sub = items.subset(np.flatnonzero(ok))
         goal = (target[ok] - sub.sim_corners).ravel()
 

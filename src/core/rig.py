@@ -313,6 +313,8 @@ class Rig:
         """
         tags = np.asarray(tags, dtype=int)
         ps, thetas = np.asarray(ps, dtype=float), np.asarray(thetas, dtype=float)
+        if len(tags) == 0:
+            return np.empty((0, 4, 4))
         eye_from_carriage = tf.invert(self.carriage_from_eyepoint(err))
         pitch = self.links.pin_pitch * (1.0 + err.pitch_scale)
         eye_from_rail = np.repeat(eye_from_carriage[None], len(ps), axis=0)
