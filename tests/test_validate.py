@@ -119,8 +119,9 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     """Every hidden sampler makes a valid effect; the camera's own exposure may be named, a
     geometric effect that was not hidden may not; magnitudes read the camera's totals."""
     from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_truth import exposure_truth, with_exposure
     from simgap.diagnosis.hidden_effects import HIDDEN, REPORTED_AS, rendered_effects
-    from simgap.diagnosis.nuisance import draw_nuisance, exposure_truth, with_exposure
+    from simgap.diagnosis.nuisance import draw_nuisance
     from simgap.diagnosis.trial import Trial
     from simgap.effects import make_effect
 
@@ -256,13 +257,8 @@ def test_other_cameras_draw_their_own_image_pipeline_and_frontal_poses():
     quarter of the captures is mostly frontal; the total exposure stays the drawn one through
     a black level and a tone curve; without the pipeline the other draws are the seed's own."""
     from simgap.core.rig import load_rig
-    from simgap.diagnosis.nuisance import (
-        FRONTAL_HEAVY_STOPS_DEG,
-        PIPELINE_SHARE,
-        draw_nuisance,
-        exposure_truth,
-        with_exposure,
-    )
+    from simgap.diagnosis.camera_truth import exposure_truth, with_exposure
+    from simgap.diagnosis.nuisance import FRONTAL_HEAVY_STOPS_DEG, PIPELINE_SHARE, draw_nuisance
     from simgap.effects import make_effect
 
     rig = load_rig()

@@ -14,7 +14,7 @@ arbitrary point of the plateau. The fit is then the median over the tags of thei
 changes, the clipped ones right-censored (Kaplan-Meier), or, where more than half are clipped
 and that median is not determined, the median with the clipped tags at their lower bounds: the
 least exposure the evidence calls for (:func:`censored_median_ev`). The validation's truth is also a
-median over the tags (of the light ratio, :func:`simgap.diagnosis.nuisance.exposure_truth`).
+median over the tags (of the light ratio, :func:`simgap.diagnosis.camera_truth.exposure_truth`).
 
 Measured on 17 development captures (seeds 34, 35, 37, 38 with a hidden exposure or a bright
 camera, and 39's trial 4; 2026-11-26). Six had a plateau: it returned +2.93 EV for cameras of

@@ -100,7 +100,7 @@ APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg", "tag_gloss"
 #: exposure and light, its sensor, its pixel filter): naming them is never wrong, and a hidden one
 #: sets the camera's own (exposure: its total exposure; sensor noise: its sensor) or adds to it
 #: (blur: in quadrature with its filter's softness). Their magnitudes are scored against the
-#: camera's totals (:func:`simgap.diagnosis.nuisance.exposure_truth`, ``softness_truth``).
+#: camera's totals (:func:`simgap.diagnosis.camera_truth.exposure_truth`, ``softness_truth``).
 CAMERA_NAMED = ("blur", "exposure", "sensor_noise")
 #: Effects outside the diagnosis catalogue: the answer must be "unexplained". Motion blur of the
 #: turntable still turning while the shutter is open (horizontal).

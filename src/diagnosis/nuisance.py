@@ -8,26 +8,22 @@ ranges below (realistic for a bench camera and lab lighting), and scores are rep
 nuisance bin (:func:`simgap.diagnosis.trial.nuisance_bins`).
 
 The drawn camera is data (:class:`NuisanceCamera`): its image effects, its scene overrides, its
-samples per pixel and its poses. :func:`exposure_truth` and :func:`softness_truth` turn it into
-the exposure and blur a diagnosis should report for it, measured the way a lab would (a light
-meter at the tags, the pixel filter's width), never from the capture itself.
+samples per pixel and its poses. :mod:`simgap.diagnosis.camera_truth` turns it into the exposure
+and blur a diagnosis should report for it, measured the way a lab would (a light meter at the
+tags, the pixel filter's width), never from the capture itself.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-import colour
 import numpy as np
 
 from simgap.core.rig import Rig
-from simgap.effects import make_effect
-from simgap.effects.state import SceneState, VariantState
-from simgap.pose.image_stats import linearise
+from simgap.diagnosis.camera_truth import with_exposure
 from simgap.scene.lights import LightSpec, default_target, irradiance
-from simgap.scene.spec import SceneSpec, default_scene_spec
+from simgap.scene.spec import default_scene_spec
 
 #: Total exposure of the other camera relative to the simulation, light level included (EV):
 #: auto exposure and lab lighting put a bench camera this far either way; at +1.5 EV the paper
@@ -375,138 +371,10 @@ def draw_nuisance(
     return with_exposure(camera, total_ev, rig)
 
 
-def with_exposure(camera: NuisanceCamera, total_ev: float, rig: Rig) -> NuisanceCamera:
-    """``camera`` with its exposure setting chosen so that :func:`exposure_truth` is ``total_ev``.
-
-    The transfer curve's apparent change depends on the level, so the setting is found by a
-    few fixed-point steps (it converges in three to the last 0.001 EV).
-    """
-    meter = light_meter_ev(camera, rig)
-    setting = total_ev - meter
-    for _ in range(4):
-        level = PAPER_LEVEL * 2.0 ** (setting + meter)
-        setting = total_ev - meter - transfer_ev(camera, level)
-    effects = {**camera.effects, "exposure": {"ev": float(setting)}}
-    return dataclasses.replace(camera, effects=effects)
-
-
-# --- what a diagnosis should report for a camera ---------------------------------------------
-
-
-def _tag_points(rig: Rig, p: tuple[int, ...], theta_deg: tuple[float, ...]) -> tuple:
-    """Rail-frame centres and normals of the tags facing the camera at the poses."""
-    points, normals = [], []
-    for pin in p:
-        for t in np.radians(theta_deg):
-            for tag in rig.tags.ids:
-                if not rig.is_visible(tag, pin, t):
-                    continue
-                m = rig.rail_from_turntable(t) @ rig.turntable_from_tag(tag)
-                points.append(m[:3, 3])
-                normals.append(m[:3, 2])
-    return np.array(points), np.array(normals)
-
-
-def _scene_irradiance(spec: SceneSpec, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    return sum(irradiance(light, points, normals) for light in spec.lights.values())
-
-
-def light_meter_ev(camera: NuisanceCamera, rig: Rig) -> float:
-    """How much more light the other camera's scene puts on the tags than the simulation's (EV).
-
-    The median over the capture's facing tags of the log2 ratio of direct irradiance (key and
-    ambient, :func:`simgap.scene.lights.irradiance`; shadows and inter-reflections left out).
-    """
-    base = VariantState(scene=SceneState(spec=default_scene_spec()))
-    state = base
-    for name in ("lighting", "ambient"):
-        state = make_effect(name, camera.effects[name]).apply(state)
-    points, normals = _tag_points(rig, camera.p, camera.theta_deg)
-    ratio = _scene_irradiance(state.scene.spec, points, normals) / _scene_irradiance(
-        base.scene.spec, points, normals
-    )
-    return float(np.median(np.log2(ratio)))
-
-
-def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
-    """Apparent exposure change of the camera's transfer curve at the paper's level (EV).
-
-    The diagnosis linearises every frame with the sRGB curve; a camera encoding with a pure
-    gamma, subtracting a black level or applying a tone curve makes the paper look brighter or
-    darker by this much: the level through those pixel-wise stages (their own code), rounded to
-    the delivered DN and linearised with sRGB. 0 for a plain sRGB camera (quantisation aside).
-    """
-    gamma = camera.effects["gamma"]
-    level = float(np.clip(paper_linear, 1e-4, 1.0))
-    black, tone = camera.effects.get("black_level"), camera.effects.get("tone_curve")
-    if gamma.get("encoding", "gamma") == "srgb" and black is None and tone is None:
-        return 0.0
-    x = np.array(level, np.float32)
-    if black is not None:
-        x = make_effect("black_level", black).process(x, None)  # type: ignore[attr-defined]
-    x = float(np.clip(x, 0.0, 1.0))
-    if gamma.get("encoding", "gamma") == "srgb":
-        encoded = float(colour.cctf_encoding(x, function="sRGB"))
-    else:
-        encoded = x ** (1.0 / float(gamma.get("gamma", 2.2)))
-    if tone is not None:
-        encoded = float(make_effect("tone_curve", tone).curve(encoded))  # type: ignore[attr-defined]
-    dn = np.round(255.0 * encoded)
-    return float(np.log2(max(float(linearise(dn)), 1e-4) / level))
-
-
-#: Paper level (linear) of the simulation's default scene at a mid-range frontal tag, at which
-#: :func:`transfer_ev` is evaluated (measured: the median over tags of the baseline simulation's
-#: linearised paper level is 0.34-0.35 in the blind trials of seed 28).
-PAPER_LEVEL = 0.34
-
-
-def exposure_truth(camera: NuisanceCamera, rig: Rig) -> float:
-    """The exposure change (EV) that matches the simulation's paper level to this camera's.
-
-    Camera exposure setting + light meter (:func:`light_meter_ev`) + transfer curve
-    (:func:`transfer_ev` at the paper's level): what an exposure finding should read.
-    """
-    setting = float(camera.effects["exposure"]["ev"])
-    meter = light_meter_ev(camera, rig)
-    return setting + meter + transfer_ev(camera, PAPER_LEVEL * 2.0 ** (setting + meter))
-
-
-#: Variance of the simulation's own pixel footprint along one axis (px^2): a box of one pixel.
-BOX_VARIANCE_PX2 = 1.0 / 12.0
-
-
-def filter_variance_px2(rfilter: dict[str, Any]) -> float:
-    """Variance of a reconstruction filter along one axis (px^2).
-
-    Box: 1/12; tent of radius r: r^2 / 6; Gaussian of standard deviation s: s^2.
-    """
-    kind = rfilter.get("type", "box")
-    if kind == "tent":
-        return float(rfilter.get("radius", 1.0)) ** 2 / 6.0
-    if kind == "gaussian":
-        return float(rfilter.get("stddev", 0.5)) ** 2
-    return BOX_VARIANCE_PX2
-
-
-def softness_truth(camera: NuisanceCamera, blur_sigma_px: float = 0.0) -> float:
-    """The Gaussian blur (px) that matches the simulation's edges to this camera's.
-
-    The camera's pixel filter beyond the simulation's box, combined in quadrature with a blur it
-    has (``blur_sigma_px``); 0 when the camera is as sharp as the simulation.
-    """
-    extra = filter_variance_px2(camera.scene["rfilter"]) - BOX_VARIANCE_PX2
-    return float(np.sqrt(max(extra + blur_sigma_px**2, 0.0)))
-
-
 __all__ = [
     "CAMERA_EFFECTS",
     "PIPELINE_SHARE",
     "NuisanceCamera",
     "draw_nuisance",
     "draw_pipeline",
-    "exposure_truth",
-    "filter_variance_px2",
-    "light_meter_ev",
-    "softness_truth",
 ]

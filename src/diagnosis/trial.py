@@ -10,14 +10,9 @@ import xarray as xr
 
 from simgap.analysis.candidates import geometric_effects
 from simgap.core.rig import Rig
+from simgap.diagnosis.camera_truth import exposure_truth, softness_truth
 from simgap.diagnosis.hidden_effects import CAMERA_NAMED, HIDDEN, OUTSIDE, REPORTED_AS, found
-from simgap.diagnosis.nuisance import (
-    FRONTAL_HEAVY_STOPS_DEG,
-    OBLIQUE_STOPS_DEG,
-    NuisanceCamera,
-    exposure_truth,
-    softness_truth,
-)
+from simgap.diagnosis.nuisance import FRONTAL_HEAVY_STOPS_DEG, OBLIQUE_STOPS_DEG, NuisanceCamera
 from simgap.diagnosis.result import DiagnosisResult
 from simgap.diagnosis.result_json import jsonable
 

@@ -30,6 +30,7 @@ import numpy as np
 from simgap.core.atomic import atomic_write
 from simgap.core.config import deep_merge
 from simgap.core.rig import Rig
+from simgap.diagnosis.camera_truth import with_exposure
 from simgap.diagnosis.diagnose import diagnose
 from simgap.diagnosis.hidden_effects import (
     APPEARANCE,
@@ -39,11 +40,7 @@ from simgap.diagnosis.hidden_effects import (
     found,
     rendered_effects,
 )
-from simgap.diagnosis.nuisance import (
-    NuisanceCamera,
-    draw_nuisance,
-    with_exposure,
-)
+from simgap.diagnosis.nuisance import NuisanceCamera, draw_nuisance
 from simgap.diagnosis.result_json import jsonable, write_json
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.trial import Trial, crushed_black_share
@@ -164,7 +161,7 @@ def draw_trials(
     The hidden draws, the cameras and the cameras' own image pipelines come from three streams
     of the seed, so that a change of one's ranges leaves the others' draws of a seed as they
     were. A hidden exposure sets the camera's total exposure
-    (:func:`simgap.diagnosis.nuisance.with_exposure`); a hidden sensor noise replaces the
+    (:func:`simgap.diagnosis.camera_truth.with_exposure`); a hidden sensor noise replaces the
     camera's sensor.
     """
     hidden_rng = np.random.default_rng(settings.seed)
