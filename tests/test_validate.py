@@ -278,3 +278,37 @@ def test_other_cameras_draw_their_own_image_pipeline_and_frontal_poses():
     assert not plain.pipeline()
     crushing = next(c for c in cameras if {"black_level", "tone_curve"} & set(c.pipeline()))
     assert exposure_truth(with_exposure(crushing, 0.7, rig), rig) == pytest.approx(0.7, abs=1e-2)
+
+
+def test_jpeg_behind_crushed_blacks_and_blur_only_trials_are_scored_apart():
+    """The issue's bars: JPEG named where a capture's blacks are crushed (at least 10 % of a tag
+    at 0 DN, measured on the capture), and blur-only trials free of geometry; their rows."""
+    from simgap.diagnosis.validation_report import summarize_scores, validation_markdown
+
+    def trial(hidden, selected, crushed, geometric=()):
+        return dict(
+            hidden=hidden,
+            selected=selected,
+            correct=set(hidden) <= set(selected) and not geometric,
+            recall=float(set(hidden) <= set(selected)),
+            spurious=list(geometric),
+            geometric_selected=list(geometric),
+            top1=selected[0] if selected else "none",
+            bins={},
+            crushed_black=crushed,
+        )
+
+    scores = [
+        trial(["jpeg"], ["jpeg"], 0.17),
+        trial(["jpeg"], ["blur"], 0.12),
+        trial(["jpeg"], ["blur"], 0.02),  # not crushed: not in the row
+        trial(["blur"], ["blur"], 0.0),
+        trial(["blur"], ["blur", "lens_distortion"], None, ("lens_distortion",)),
+    ]
+    summary = summarize_scores(scores)
+    assert summary["jpeg_crushed_trials"] == 2 and summary["jpeg_crushed_recall"] == 0.5
+    assert summary["blur_only_free_of_geometry"] == 0.5
+    text = validation_markdown(summary, [])
+    row = "crushed (>= 10% of a tag at 0 DN; 2 trials) | 50% |"
+    assert f"| JPEG named where the capture's blacks are {row}" in text
+    assert "| blur-only trials free of geometric and calibration effects | 50% |" in text
