@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from simgap.pose.image_stats import linearise
+from simgap.pose.image_stats import is_grey, linearise
 
 #: Layouts of the 2 x 2 tile at the top-left pixel, and the channel each of its four sites keeps.
 LAYOUTS = ("RGGB", "BGGR", "GRBG", "GBRG")
@@ -96,7 +96,7 @@ class CfaTraces:
 
         Grey frames (all channels equal) carry no trace and are skipped.
         """
-        if rgb.ndim != 3 or (rgb == rgb[..., :1]).all():
+        if is_grey(rgb):
             return
         dx, dy = offset[0] % 2, offset[1] % 2
         rgb = rgb[dy:, dx:]  # restart the crop at an even full-frame pixel

@@ -171,6 +171,11 @@ def linearise(dn: np.ndarray) -> np.ndarray:
     return _SRGB_TO_LINEAR[np.clip(np.asarray(dn), 0, 255).astype(np.intp)]
 
 
+def is_grey(image: np.ndarray) -> bool:
+    """Whether an image carries no colour: 2-D, or its channels (last axis) all equal."""
+    return image.ndim != 3 or bool((image == image[..., :1]).all())
+
+
 @dataclass(frozen=True)
 class MarkerLayout:
     """Cells across the marker (including its black border) and quiet-zone cells around it."""
@@ -468,7 +473,7 @@ def tag_stats(
         d = np.concatenate([side[1] for side in samples])
         out[s["edge_overshoot"]] = _edge_overshoot(d, lin_values[idx], ink_lin, paper_lin)
         colour = None if rgb is None or rgb.ndim != 3 else rgb[y0:y1, x0:x1]
-        if colour is not None and not (colour == colour[..., :1]).all():
+        if colour is not None and not is_grey(colour):
             edge = np.zeros(patch.size, bool)
             edge[idx[np.abs(d) <= FRINGE_EDGE_PX]] = True
             out[s["colour_fringe_dn"]] = _colour_fringe(

@@ -25,6 +25,7 @@ from simgap.pipeline.capture.manifest import CaptureFrame
 from simgap.pose.cfa import CfaTraces, around_markers
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
+from simgap.pose.image_stats import is_grey
 from simgap.pose.tags import Estimation, add_image_stats, estimate_tags
 from simgap.results.contract import CONVENTIONS
 from simgap.results.dataset import (
@@ -64,8 +65,7 @@ def _read_frame(
         )
         failed.append(str(frame.image))
         return None
-    grey = (img[..., 1] == img[..., 0]).all() and (img[..., 2] == img[..., 0]).all()
-    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), None if grey else img[..., ::-1]
+    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), None if is_grey(img) else img[..., ::-1]
 
 
 def ingest(
