@@ -81,7 +81,12 @@ def demosaicing_result(real: xr.Dataset) -> Demosaicing | None:
     cfa = demosaicing_from_attrs(real)
     if cfa is None or cfa.layout is None or cfa.method is None:
         return None
-    return Demosaicing(layout=cfa.layout, method=cfa.method, residual_ratio=cfa.ratio)
+    return Demosaicing(
+        layout=cfa.layout,
+        method=cfa.method,
+        residual_ratio=cfa.ratio,
+        transfer_gamma=cfa.transfer_gamma,
+    )
 
 
 class Diagnosis:

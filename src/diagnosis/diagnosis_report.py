@@ -60,7 +60,13 @@ def _render_seeds_sentence(result: DiagnosisResult) -> str:
         rendered += (
             f" The capture's colour frames are demosaiced from a Bayer {cfa.layout} colour "
             f"filter array (re-mosaicking residual {cfa.residual_ratio:.2f} of the other "
-            "layouts'): the simulation images through it, demosaiced "
+            "layouts'"
+            + (
+                f", best in the linear light of a gamma {cfa.transfer_gamma:.2f} tone response"
+                if cfa.transfer_gamma is not None
+                else ""
+            )
+            + "): the simulation images through it, demosaiced "
             f"{cfa.method.replace('_', '-')}."
         )
     return rendered + _pose_noise_sentence(result)

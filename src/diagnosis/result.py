@@ -231,6 +231,10 @@ class Demosaicing:
     method: str
     #: the layout's re-mosaicking residual over the other layouts' (1: no trace; 0: exact)
     residual_ratio: float
+    #: the power-law tone response (code value ** gamma = linear) in whose linear light the
+    #: frames are reproduced best (:data:`simgap.pose.cfa.TRANSFER_GAMMAS`); None in results
+    #: from before it was read
+    transfer_gamma: float | None = None
 
 
 @dataclass(kw_only=True)

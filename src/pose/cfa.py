@@ -6,15 +6,20 @@ demosaiced frame again with its own layout and demosaicing it reproduces it clos
 layout the sampled values are thrown away and interpolated ones kept, and it does not. Over the
 pixels near edges (where interpolation errs; flat areas tell nothing):
 
-``residual[layout, method]``
-    the mean absolute difference (linear, in units of 1/255 of full scale) between the frame
-    and the frame mosaicked with ``layout`` and demosaicked with ``method`` (OpenCV's bilinear or
-    edge-aware), both linearised with the sRGB curve (cameras demosaic linear raw data);
+``residual[transfer, layout, method]``
+    the mean absolute difference (in the frame's own 8-bit code values) between the frame and
+    the frame mosaicked with ``layout`` and demosaicked with ``method`` (OpenCV's bilinear or
+    edge-aware) in the linear light of ``transfer``: cameras demosaic linear raw data and then
+    apply their own tone response, which is not known (sRGB, a gamma, an S-curve). The code
+    values are linearised with each power law of :data:`TRANSFER_GAMMAS` in turn, mosaicked,
+    demosaicked and encoded back; the camera's response is the power law that reproduces the
+    frame best;
 ``ratio``
-    the best layout's residual over the median of the other three layouts' (each at its best
-    method): about 1 for a frame without a colour filter array (a three-chip camera, a render),
-    well below 1 for a demosaiced one. The method is the one of simgap's catalogue that
-    reproduces the frame best at that layout (the nearest, where the camera used another).
+    at that transfer, the best layout's residual over the median of the other three layouts'
+    (each at its best method): about 1 for a frame without a colour filter array (a three-chip
+    camera, a render), well below 1 for a demosaiced one. The method is the one of simgap's
+    catalogue that reproduces the frame best at that layout and transfer (the nearest, where the
+    camera used another).
 
 This is the re-interpolation idea of CFA forensics (Popescu & Farid, "Exposing digital forgeries
 in color filter array interpolated images", IEEE Trans. Signal Processing 53(10), 2005; Kirchner,
@@ -29,7 +34,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from simgap.pose.image_stats import is_grey, linearise
+from simgap.pose.image_stats import is_grey
 
 #: Layouts of the 2 x 2 tile at the top-left pixel, and the channel each of its four sites keeps.
 LAYOUTS = ("RGGB", "BGGR", "GRBG", "GBRG")
@@ -46,18 +51,28 @@ _CODES = {
     ("GBRG", "edge_aware"): cv2.COLOR_BayerGBRG2RGB_EA,
 }
 _CHANNEL = {"R": 0, "G": 1, "B": 2}
-#: 8-bit sRGB code -> linear level on a 16-bit scale (IEC 61966-2-1), and 16-bit -> 8-bit units.
-_SRGB_TO_LINEAR_16 = 65535.0 * linearise(np.arange(256))
-_TO_DN = 255.0 / 65535.0
+#: Exponents of the power-law tone responses searched (code value ** gamma = linear level): from
+#: linear data to a steep response. With sRGB linearisation alone the method was misread behind a
+#: 1.9 gamma, an S-curve and a 17 DN bilateral denoise (blind seed 53 trial 21: bilinear read as
+#: edge-aware, 1.36 against 1.46); searched over these, it is read right (1.55 against 1.89, at
+#: 1.5), as are the layout and method of every demosaiced capture of seeds 53 and 908-912.
+TRANSFER_GAMMAS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.25, 2.5, 3.0)
+_CODES_01 = np.arange(256) / 255.0
+#: Per transfer: 8-bit code -> linear level on a 16-bit scale.
+_TO_LINEAR_16 = [np.round(65535.0 * _CODES_01**g).astype(np.uint16) for g in TRANSFER_GAMMAS]
+#: Per transfer: 16-bit linear level -> code value (8-bit units, not rounded).
+_TO_CODE = [255.0 * (np.arange(65536) / 65535.0) ** (1.0 / g) for g in TRANSFER_GAMMAS]
 #: A pixel is near an edge where its 3 x 3 neighbourhood's green spans at least this (8-bit DN).
 EDGE_RANGE_DN = 24
 #: Fewest edge pixels for a verdict.
 MIN_EDGE_PIXELS = 200
-#: Largest ratio (best layout's residual over the others') read as a demosaiced frame. Measured
-#: on renders of near to far, frontal and oblique tags (tests/test_camera_pipeline.py): demosaiced
-#: 0.03 (bilinear) to 0.53 (edge-aware, then a 20 DN bilateral denoise and a steep tone curve);
-#: without a colour filter array 0.98-1.00 through noise, blur, sharpening, denoising and JPEG.
-#: JPEG's 4:2:0 chroma subsampling erases the traces (0.98-1.00 at quality 60 after demosaicing).
+#: Largest ratio (best layout's residual over the others') read as a demosaiced frame. Set on
+#: renders of near to far, frontal and oblique tags (tests/test_camera_pipeline.py), measured on
+#: the captures of seeds 53 and 908-912 with the tone response searched: demosaiced 0.02-0.43 (43
+#: captures, layout and method right in 43; 41 with sRGB linearisation alone, where one of them,
+#: at 0.73, was not read); without a colour filter array 0.97-1.00 (55 captures through noise,
+#: blur, sharpening, denoising, JPEG), 0.93 through 1.5 px of lateral colour. JPEG's 4:2:0 chroma
+#: subsampling erases the traces (0.92-1.00 on 9 demosaiced, then compressed captures).
 DEMOSAICED_RATIO = 0.7
 
 
@@ -81,14 +96,17 @@ class CfaTraces:
 
     Attributes
     ----------
-    residual_sum : ndarray (4, 2)
-        Per layout (:data:`LAYOUTS`) and method (:data:`METHODS`), the summed absolute
-        differences (DN) over the edge pixels and channels.
+    residual_sum : ndarray (T, 4, 2)
+        Per transfer (:data:`TRANSFER_GAMMAS`), layout (:data:`LAYOUTS`) and method
+        (:data:`METHODS`), the summed absolute differences (8-bit code values) over the edge
+        pixels and channels.
     pixels : int
         Edge pixels summed over.
     """
 
-    residual_sum: np.ndarray = field(default_factory=lambda: np.zeros((len(LAYOUTS), len(METHODS))))
+    residual_sum: np.ndarray = field(
+        default_factory=lambda: np.zeros((len(TRANSFER_GAMMAS), len(LAYOUTS), len(METHODS)))
+    )
     pixels: int = 0
 
     def add(self, rgb: np.ndarray, offset: tuple[int, int] = (0, 0)) -> None:
@@ -110,33 +128,36 @@ class CfaTraces:
         n = int(edge.sum())
         if n == 0:
             return
-        # cameras demosaic raw (linear) data: undo the transfer curve first (sRGB, the curve
-        # the image evidence assumes), on a 16-bit scale
-        linear = np.round(_SRGB_TO_LINEAR_16[rgb]).astype(np.uint16)
-        values = linear[edge].astype(np.float64)
-        for i, layout in enumerate(LAYOUTS):
-            raw = mosaic(linear, layout)
-            for j, method in enumerate(METHODS):
-                again = demosaic(raw, layout, method)[edge].astype(np.float64)
-                self.residual_sum[i, j] += float(np.abs(again - values).sum()) * _TO_DN
+        # cameras demosaic raw (linear) data, then apply their tone response: undo each
+        # candidate response on a 16-bit scale, re-mosaic, demosaic, encode back
+        values = rgb[edge].astype(np.float64)
+        for t, (to_linear, to_code) in enumerate(zip(_TO_LINEAR_16, _TO_CODE, strict=True)):
+            linear = to_linear[rgb]
+            for i, layout in enumerate(LAYOUTS):
+                raw = mosaic(linear, layout)
+                for j, method in enumerate(METHODS):
+                    again = to_code[demosaic(raw, layout, method)[edge]]
+                    self.residual_sum[t, i, j] += float(np.abs(again - values).sum())
         self.pixels += n
 
     def residuals(self) -> np.ndarray:
-        """Mean absolute residual per layout and method (DN per channel), (4, 2)."""
+        """Mean absolute residual per transfer, layout and method (code values), (T, 4, 2)."""
         return self.residual_sum / max(3 * self.pixels, 1)
 
     def verdict(self) -> CfaVerdict:
-        """The layout and nearest method where the frames are demosaiced, else none."""
+        """The layout, nearest method and tone response where the frames are demosaiced."""
         if self.pixels < MIN_EDGE_PIXELS:
             return CfaVerdict(None, None, float("nan"), self.pixels)
         res = self.residuals()
-        per_layout = res.min(axis=1)
-        best = int(np.argmin(per_layout))
+        t, best, method = np.unravel_index(int(np.argmin(res)), res.shape)
+        per_layout = res[t].min(axis=1)
         others = np.delete(per_layout, best)
         ratio = float(per_layout[best] / max(float(np.median(others)), 1e-9))
         if ratio > DEMOSAICED_RATIO:
             return CfaVerdict(None, None, ratio, self.pixels)
-        return CfaVerdict(LAYOUTS[best], METHODS[int(np.argmin(res[best]))], ratio, self.pixels)
+        return CfaVerdict(
+            LAYOUTS[best], METHODS[method], ratio, self.pixels, float(TRANSFER_GAMMAS[t])
+        )
 
 
 #: Margin around a frame's detected markers searched for traces (px): the markers' outer edges.
@@ -172,12 +193,16 @@ class CfaVerdict:
         The best layout's residual over the others' median (NaN without enough edge pixels).
     pixels : int
         Edge pixels the verdict rests on.
+    transfer_gamma : float or None
+        The power-law tone response (code value ** gamma = linear) in whose linear light the
+        frames are reproduced best (:data:`TRANSFER_GAMMAS`); None where no trace was read.
     """
 
     layout: str | None
     method: str | None
     ratio: float
     pixels: int
+    transfer_gamma: float | None = None
 
 
 __all__ = [
@@ -187,6 +212,7 @@ __all__ = [
     "DEMOSAICED_RATIO",
     "LAYOUTS",
     "METHODS",
+    "TRANSFER_GAMMAS",
     "demosaic",
     "mosaic",
 ]
