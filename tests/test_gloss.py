@@ -8,6 +8,7 @@ import pytest
 from simgap.analysis import glint_ratio, gloss, lobe
 from simgap.pipeline.experiment import load_experiment
 from simgap.pose.image_stats import STAT_INDEX, STATS
+from tests.grid_items import grid_items
 
 
 def _grid() -> np.ndarray:
@@ -61,26 +62,12 @@ def test_the_laminate_is_recovered_and_a_matte_light_is_no_laminate():
 def test_a_rendered_laminate_under_a_lens_side_light_is_named_with_its_roughness(tmp_path):
     """Real Mitsuba renders: a laminate of roughness 0.1 under a 0.3 W/sr light 4 cm beside the
     lens against the matte simulation, on 24 configurations with both tags' frontal stops."""
-    from simgap.analysis.fitting import Items
     from simgap.diagnosis.sim_runner import SimRunner
     from simgap.pipeline.simulator import Simulator
 
     exp = load_experiment("experiments/baseline.yaml")
     runner = SimRunner(exp, Simulator(tmp_path))
-    rig = runner.rig
-    rows = [
-        (tag, p, np.deg2rad(t))
-        for tag in rig.tags.ids
-        for p in (0, 4, 8, 13)
-        for t in (0, 10, 30, 180, 190, 210)
-        if rig.is_visible(tag, p, np.deg2rad(t))
-    ]
-    tag, p, theta = (np.array(c) for c in zip(*rows, strict=True))
-    n = len(tag)
-    items = Items(
-        tag=tag, p=p, theta=theta, real_err=np.zeros((n, 6)), sim_err=np.zeros((n, 6)),
-        real_corners=np.zeros((n, 4, 2)), sim_corners=np.zeros((n, 4, 2)), scale=np.ones(6),
-    )  # fmt: skip
+    items = grid_items(runner.rig, (0, 4, 8, 13), (0, 10, 30, 180, 190, 210))
     base = exp.variant_states()[0][1]
     candidate = gloss.GlossCandidate()
     truth = {

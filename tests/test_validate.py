@@ -16,7 +16,7 @@ from simgap.diagnosis.result import DiagnosisResult, Finding, Scores, Selection
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table."""
-    from simgap.diagnosis.hidden_effects import CAMERA_NAMED
+    from simgap.diagnosis.trial import camera_named
     from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
     from simgap.pipeline.experiment import load_experiment
 
@@ -57,8 +57,9 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     assert (tmp_path / "captures" / "trial_000" / "manifest.csv").is_file()
     for t in data["trials"]:
         geometric = set(t["selected"]) & geometric_effects()
-        # the camera's own exposure, noise and softness may be named; nothing else not hidden
-        extra = set(t["selected"]) - set(t["hidden"]) - set(CAMERA_NAMED)
+        # the camera's own exposure, noise and softness (and crushed shadows' black level) may
+        # be named; nothing else not hidden
+        extra = set(t["selected"]) - set(t["hidden"]) - set(camera_named(t["crushed_black"]))
         if set(t["hidden"]) & set(OUTSIDE):  # outside the catalogue: must read "unexplained"
             expected = bool(t["unexplained"]) and not geometric
         elif t["hidden"]:

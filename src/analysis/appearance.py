@@ -13,6 +13,8 @@ effect              parameters (bounds)                    fitted on
                                                            and print, not exposure): median
                                                            of the tags' ratios, clipped ones
                                                            censored (:mod:`~.exposure`)
+``black_level``     ``level`` (0.001 - 0.15 of full        share of a tag's pixels at 0 DN
+                    scale)                                 (the camera's crushed shadows)
 ``sensor_noise``    ``full_well_e``, ``read_noise_e``      photon transfer of the excess noise
                                                            variance (EMVA 1288), least squares
                                                            (:mod:`simgap.analysis.sensor_noise`)
@@ -28,9 +30,9 @@ effect              parameters (bounds)                    fitted on
                                                            (:mod:`simgap.analysis.gloss`)
 ==================  =====================================  =====================================
 
-Image-stage effects (blur, exposure, noise, JPEG) re-process the cached renders; defocus and
-the laminate are fitted on the evidence with a physical model and then rendered for scoring
-(their change of corners, pose, statistics and detections comes from the full pipeline, like
+Image-stage effects (blur, exposure, black level, noise, JPEG) re-process the cached renders;
+defocus and the laminate are fitted on the evidence with a physical model and then rendered for
+scoring (their change of corners, pose, statistics and detections comes from the full pipeline, like
 every candidate's). This module holds the generic one-parameter candidate (a bounded scalar search)
 and the gates every appearance candidate passes: its own statistics must differ significantly
 (:func:`signature_significant`) and its fit must explain them (:func:`signature_supported`).

@@ -5,8 +5,8 @@ Geometric and calibration effects are projection candidates
 parameter its typical magnitude (for conditioning) and the largest magnitude searched (inside the
 effect's valid range). Appearance effects are fitted on
 the image statistics named with them (:mod:`simgap.analysis.appearance`,
-:mod:`simgap.analysis.exposure`, :mod:`simgap.analysis.sensor_noise`,
-:mod:`simgap.analysis.defocus`,
+:mod:`simgap.analysis.exposure`, :mod:`simgap.analysis.black_level`,
+:mod:`simgap.analysis.sensor_noise`, :mod:`simgap.analysis.defocus`,
 :mod:`simgap.analysis.gloss`); those statistics are also
 their signature: an appearance effect is a candidate only where one of them differs
 significantly (:func:`simgap.analysis.appearance.signature_significant`).
@@ -21,6 +21,7 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 from simgap.analysis.appearance import AppearanceCandidate, JpegCandidate
+from simgap.analysis.black_level import BlackLevelCandidate
 from simgap.analysis.defocus import DefocusCandidate
 from simgap.analysis.exposure import ExposureCandidate
 from simgap.analysis.fitting import Candidate, ProjectionCandidate
@@ -55,6 +56,8 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
             AppearanceCandidate("blur", EDGE_WIDTHS, "sigma_px", (0.05, 3.0), 0.02),
             # the paper level: ink near black is flare and print, not exposure
             ExposureCandidate(),
+            # the camera's own crushed shadows: its share of a tag at 0 DN
+            BlackLevelCandidate((ExposureCandidate(), SensorNoiseCandidate())),
             SensorNoiseCandidate(),
             DefocusCandidate(),
             JpegCandidate(

@@ -8,7 +8,8 @@ softness leaves was then filled by a camera mount, a tag offset and a carriage p
 Each effect is therefore fitted on the simulation that already holds the effects before it in
 :data:`FIT_ORDER`, the order in which their evidence is least confounded by the others: the
 paper level first (exposure; a blur or a noise barely moves a level measured over a tag's
-paper), then the edge widths (blur, defocus; clipping narrows them, a glint barely moves them),
+paper), then the crushed shadows (a black level: the share of a tag at 0 DN depends on the
+exposure), then the edge widths (blur, defocus; clipping narrows them, a glint barely moves them),
 the glint of a laminate (ink and paper levels against view angle; a soft edge bleeds paper into
 small tags' ink cells), the noise (sensor noise, whose excess over the simulation depends on its
 levels and softness) and last the compression (JPEG, whose blockiness depends on everything
@@ -36,7 +37,15 @@ from simgap.effects.state import VariantState
 
 #: Order in which a model's simulation effects are fitted, each on the simulation with the ones
 #: before it (see module docstring); effects not named here come after, in catalogue order.
-FIT_ORDER = ("exposure", "blur", "defocus", "tag_gloss", "sensor_noise", "jpeg")
+FIT_ORDER = (
+    "exposure",
+    "black_level",
+    "blur",
+    "defocus",
+    "tag_gloss",
+    "sensor_noise",
+    "jpeg",
+)
 
 
 def in_fit_order(candidates: tuple[SimulationCandidate, ...]) -> list[SimulationCandidate]:

@@ -9,6 +9,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis.candidates import geometric_effects
+from simgap.analysis.thresholds import IMAGE_FLOORS
 from simgap.core.rig import Rig
 from simgap.diagnosis.camera_truth import exposure_truth, softness_truth
 from simgap.diagnosis.hidden_effects import CAMERA_NAMED, HIDDEN, OUTSIDE, REPORTED_AS, found
@@ -53,6 +54,19 @@ def crushed_black_share(real: xr.Dataset) -> float | None:
         return None
     values = real.image_stats.sel(stat="black_clipped_fraction").values
     return float(np.nanmax(values)) if np.isfinite(values).any() else None
+
+
+def camera_named(crushed_black: float | None) -> tuple[str, ...]:
+    """Effects a diagnosis may name of a capture that was not hidden in it: the camera's own.
+
+    Those every other camera has (:data:`~simgap.diagnosis.hidden_effects.CAMERA_NAMED`) and,
+    where the capture's shadows are crushed (``crushed_black``, :func:`crushed_black_share`, at
+    least the floor of ``black_clipped_fraction`` in
+    :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`), its black level.
+    """
+    floor = IMAGE_FLOORS["black_clipped_fraction"][1]
+    crushed = crushed_black is not None and crushed_black >= floor
+    return CAMERA_NAMED + (("black_level",) if crushed else ())
 
 
 def pipeline_bins(camera: NuisanceCamera) -> dict[str, str]:
@@ -175,7 +189,7 @@ class Trial:
         Correct: every hidden catalogue effect is named (for a pair: at least one, and the
         recall says how many), and nothing is named that the capture does not have (a geometric
         or calibration effect that was not hidden; an appearance effect that neither was hidden
-        nor is one every camera has, :data:`CAMERA_NAMED`); for an effect outside the catalogue,
+        nor is the camera's own, :func:`camera_named`); for an effect outside the catalogue,
         "unexplained" and no geometric effect; without a hidden effect, nothing but the camera's
         own appearance. ``top1`` is the first named effect that is not only the camera's own.
         Magnitude errors are per scored parameter (``effect.parameter``), relative to
@@ -185,8 +199,9 @@ class Trial:
         hidden = list(self.hidden)
         named = {REPORTED_AS.get(h, h) for h in hidden}
         geometric = [e for e in selected if e in geometric_effects()]
-        spurious = [e for e in selected if e not in named and e not in CAMERA_NAMED]
-        own = [e for e in selected if e in named or e not in CAMERA_NAMED]
+        camera_own = camera_named(self.crushed_black)
+        spurious = [e for e in selected if e not in named and e not in camera_own]
+        own = [e for e in selected if e in named or e not in camera_own]
         out: dict[str, Any] = {
             "hidden": hidden,
             "selected": selected,

@@ -147,7 +147,8 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "captures), with hidden effects drawn per trial. Correct: "
         "the hidden effect named (of a pair: at least one; the strict row asks for both, and the "
         "recall for pairs counts them) and nothing named that the capture does not have (the "
-        "camera's own exposure, sensor noise and softness may always be named).",
+        "camera's own exposure, sensor noise and softness may always be named, and its black "
+        "level where at least 2 % of a tag is at 0 DN).",
         "",
         "| score | value |",
         "|---|---|",
