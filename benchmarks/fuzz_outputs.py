@@ -40,7 +40,7 @@ import numpy as np
 from simgap.cli.outputs import OUTPUT
 from simgap.core.rig import CameraModel, load_rig
 from simgap.pipeline.bag import capture_to_bag
-from simgap.pipeline.capture import ingest, write_capture
+from simgap.pipeline.capture import calibration_to_yaml, ingest, write_capture
 from simgap.results.dataset import write_netcdf
 
 SMALL = CameraModel(64, 48, 60.0, 60.0, 31.5, 23.5)
@@ -395,6 +395,20 @@ def big_frame_peaks(tmp: Path) -> list[BigFramePeak]:
     frames = [BagFrame(0, 0.0, 0, img), BagFrame(7, math.radians(30), 0, (png.read_bytes(), "png"))]
     bag = write_bag(tmp / "big.bag", "ros1", SMALL, frames, load_rig(), compressed=True)
     runs["compressed bag frame"] = ["ingest", str(bag), "-o", str(tmp / "bag.nc"), "--no-progress"]
+    # the calibration vouches for the bomb: refused by the pixel budget (issue 51)
+    vouching = CameraModel(BIG_SIDE_PX, BIG_SIDE_PX, 20000.0, 20000.0, 12499.5, 12499.5)
+    folder = tmp / "vouched"
+    write_capture(folder, [(0, 0.0, 0, img)], SMALL)
+    (folder / "camera.yaml").write_text(calibration_to_yaml(vouching))
+    (folder / "images" / "p00_t000.png").write_bytes(png.read_bytes())
+    runs["capture whose camera.yaml states 25000x25000"] = [
+        "ingest", str(folder), "-o", str(tmp / "vouched.nc"), "--no-progress",
+    ]  # fmt: skip
+    bomb = [BagFrame(0, 0.0, 0, (png.read_bytes(), "png"))]
+    bag = write_bag(tmp / "vouched.bag", "ros1", vouching, bomb, load_rig(), compressed=True)
+    runs["bag whose CameraInfo states 25000x25000"] = [
+        "ingest", str(bag), "-o", str(tmp / "vouched_bag.nc"), "--no-progress",
+    ]  # fmt: skip
     out = []
     for label, argv in runs.items():
         code, peak, message = command_peak(argv)

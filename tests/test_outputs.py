@@ -259,3 +259,63 @@ def test_raw_export_refuses_a_frame_of_another_size(tmp_path, big):
     with pytest.raises(ConfigError, match=r"p07_t030.png: frame is 25000x25000, expected 64x48"):
         capture_to_bag(folder, tmp_path / "x.bag", "ros1")
     capture_to_bag(folder, tmp_path / "x.bag", "ros1", compressed=True)  # bytes kept as they are
+
+
+#: A camera whose calibration vouches for the 25000 x 25000 px bomb (issue 51).
+VOUCHING = CameraModel(25000, 25000, 20000.0, 20000.0, 12499.5, 12499.5)
+
+
+def test_a_bomb_the_calibration_vouches_for_is_refused_by_the_pixel_budget(tmp_path, big):
+    """The calibration states the frame's 25000 x 25000 px: refused from the calibration's size
+    before any frame is decoded (it had decoded at 3.9-6.2 GB; issue 51)."""
+    folder = write_capture(tmp_path / "cap", [(0, 0.0, 0, GREY)], SMALL).parent
+    (folder / "camera.yaml").write_text(calibration_to_yaml(VOUCHING))
+    (folder / "images" / "p00_t000.png").write_bytes(big)
+
+    def refuse():
+        with pytest.raises(
+            ConfigError,
+            match=rf"{folder / 'camera.yaml'}: image_width x image_height: 25000x25000 = "
+            r"625000000 px, expected at most 50000000 px \(the pixel budget",
+        ):
+            ingest(folder)
+
+    # measured: 0.74 MiB traced (the frame's header and the calibration are all that is read)
+    assert _traced_peak(refuse) < TRACED_LIMIT_BYTES
+    result = CliRunner().invoke(app, ["ingest", str(folder), "-o", str(tmp_path / "r.nc")])
+    assert result.exit_code == 2 and "--max-pixels raises it" in result.output
+
+
+def test_a_bag_whose_camera_info_vouches_for_a_bomb_is_refused(tmp_path, big, rig):
+    frames = [BagFrame(0, 0.0, 0, (big, "png"))]
+    bag = write_bag(tmp_path / "c.bag", "ros1", VOUCHING, frames, rig, compressed=True)
+
+    def refuse():
+        with pytest.raises(
+            ConfigError,
+            match=rf"{bag}: topic \S+: message 1: width x height: 25000x25000 = 625000000 px",
+        ):
+            ingest_bag(bag)
+
+    # measured: 2.6 MiB traced (the bag's index and its CameraInfo; no frame is read)
+    assert _traced_peak(refuse) < TRACED_LIMIT_BYTES
+
+
+def test_a_frame_warning_is_one_line_without_python_source(tmp_path, big):
+    """The command line prints ``warning: ...`` (no source file, line or code; issue 51)."""
+    import subprocess
+
+    frames = [(0, 0.0, 0, GREY), (7, math.radians(30), 0, GREY)]
+    folder = write_capture(tmp_path / "cap", frames, SMALL).parent
+    (folder / "images" / "p07_t030.png").write_bytes(big)
+    done = subprocess.run(
+        [sys.executable, "-m", "simgap", "ingest", str(folder), "-o", str(tmp_path / "r.nc"),
+         "--no-progress"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    lines = [line for line in done.stderr.splitlines() if "25000x25000" in line]
+    assert lines == [
+        f"warning: {folder / 'images' / 'p07_t030.png'}: frame is 25000x25000, expected 64x48; "
+        "recorded as not detected"
+    ], done.stderr
+    assert ".py:" not in done.stderr

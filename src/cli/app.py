@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import inspect
 import re
+import warnings
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -190,6 +191,19 @@ def main(
 ) -> None:
     """Simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap."""
     _STATE["debug"] = debug
+    if not debug:
+        warnings.formatwarning = _warning_line
+
+
+def _warning_line(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    line: str | None = None,
+) -> str:
+    """A warning as one line, ``warning: MESSAGE`` (``--debug`` keeps Python's file and line)."""
+    return f"warning: {message}\n"
 
 
 def read_result_dataset(path: Path):

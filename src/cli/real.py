@@ -29,6 +29,7 @@ from simgap.cli.outputs import (
     experiment_inputs,
     simulation_inputs,
 )
+from simgap.core.limits import MAX_PIXELS
 
 
 @app.command()
@@ -65,6 +66,13 @@ def ingest(
         help="Calibration file under any name (ROS ost.yaml / camera_info YAML or OpenCV YAML); "
         "wins over camera.yaml and a bag's CameraInfo.",
     ),
+    max_pixels: int = typer.Option(
+        MAX_PIXELS,
+        "--max-pixels",
+        help="Pixel budget: frames larger than this (px, width x height) are refused before "
+        "any decode, whatever the calibration states (covers real cameras up to 50 MP).",
+        min=1,
+    ),
     overwrite: OverwriteOption = False,
 ) -> None:
     """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
@@ -79,7 +87,7 @@ def ingest(
     outputs = [(OUTPUT, output, RESULT_DATASET)]
     outputs += [("--keep-capture", keep_capture, CAPTURE_FOLDER)] if bag else []
     check_outputs(outputs, inputs, overwrite)
-    kwargs: dict = {"calibration_file": calibration}
+    kwargs: dict = {"calibration_file": calibration, "max_pixels": max_pixels}
     if experiment is not None:
         exp = read_experiment(experiment)
         kwargs |= {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}

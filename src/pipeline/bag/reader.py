@@ -33,7 +33,13 @@ from simgap.pipeline.bag.formats import (
 )
 from simgap.pipeline.bag.ranges import TimeRange, read_time_ranges
 from simgap.pipeline.capture import read_calibration
-from simgap.pipeline.capture.folder import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
+from simgap.pipeline.capture.folder import (
+    CALIBRATION_FILE,
+    IMAGES_DIR,
+    MANIFEST_FILE,
+    MAX_PIXELS,
+    check_pixel_budget,
+)
 from simgap.pipeline.capture.ingest import ingest
 from simgap.pipeline.capture.manifest import turntable_stop
 from simgap.pipeline.capture.writer import image_name
@@ -106,11 +112,19 @@ def _camera_info_yaml(msg: Any) -> str:
     return yaml.safe_dump(data, sort_keys=False)
 
 
-def _read_calibration(reader: Any, conns: list, bag: Path, folder: Path) -> CameraModel:
-    """The bag's calibration, written as ``camera.yaml`` and validated like a capture's."""
+def _read_calibration(
+    reader: Any, conns: list, bag: Path, folder: Path, max_pixels: int
+) -> CameraModel:
+    """The bag's calibration, written as ``camera.yaml`` and validated like a capture's.
+
+    Its image size is held to the pixel budget (``max_pixels``) before any frame is read.
+    """
     texts = []
-    for conn, _, raw in reader.messages(connections=conns):
-        texts.append(_camera_info_yaml(reader.deserialize(raw, conn.msgtype)))
+    for i, (conn, _, raw) in enumerate(reader.messages(connections=conns), start=1):
+        msg = reader.deserialize(raw, conn.msgtype)
+        where = f"{bag}: topic {conn.topic}: message {i}"
+        check_pixel_budget(int(msg.width), int(msg.height), max_pixels, where, "width x height")
+        texts.append(_camera_info_yaml(msg))
         if texts[-1] != texts[0]:
             raise ConfigError(
                 f"{bag}: topic {conns[0].topic}: message {len(texts)}: the calibration differs "
@@ -201,6 +215,7 @@ def bag_to_capture(
     image_topic: str | None = None,
     camera_info_topic: str | None = None,
     fixture_topic: str | None = None,
+    max_pixels: int = MAX_PIXELS,
 ) -> BagConversion:
     """Convert a bag into a capture folder (``camera.yaml``, ``images/``, ``manifest.csv``).
 
@@ -218,6 +233,9 @@ def bag_to_capture(
         Topics of the frames and of the calibration; default: the only one of its type.
     fixture_topic : str, optional
         ``sensor_msgs/JointState`` topic of the fixture; default :data:`FIXTURE_TOPIC`.
+    max_pixels : int
+        The pixel budget (:data:`simgap.pipeline.capture.folder.MAX_PIXELS`): a CameraInfo
+        whose image is larger is refused before any frame is read.
 
     Returns
     -------
@@ -245,7 +263,7 @@ def bag_to_capture(
     try:
         images = _pick_topic(reader, bag, image_topic, (IMAGE_TYPE, COMPRESSED_TYPE), "frames")
         infos = _pick_topic(reader, bag, camera_info_topic, (CAMERA_INFO_TYPE,), "calibration")
-        cal = _read_calibration(reader, infos, bag, folder)
+        cal = _read_calibration(reader, infos, bag, folder, max_pixels)
         joints: list[tuple] = []
         if ranges is None:
             topic = fixture_topic or FIXTURE_TOPIC
@@ -327,6 +345,7 @@ def ingest_bag(
     fixture_topic: str | None = None,
     keep_capture: Path | None = None,
     show_progress: bool = False,
+    max_pixels: int = MAX_PIXELS,
     **estimator: Any,
 ) -> xr.Dataset:
     """Ingest a ROS bag: convert it to a capture folder, then ingest that folder.
@@ -343,6 +362,9 @@ def ingest_bag(
         Write the intermediate capture folder here (default: a temporary folder, deleted).
     show_progress : bool
         Show a progress bar.
+    max_pixels : int
+        The pixel budget (:data:`simgap.pipeline.capture.folder.MAX_PIXELS`), for the bag's
+        CameraInfo and its frames.
     **estimator
         ``detector``, ``pnp``, ``calibration`` and ``calibration_file`` (wins over the bag's
         CameraInfo, which still gives the frames' expected size), passed on to
@@ -364,9 +386,10 @@ def ingest_bag(
     with tempfile.TemporaryDirectory(prefix="simgap-bag-") as tmp:
         folder = Path(keep_capture) if keep_capture is not None else Path(tmp) / "capture"
         info = bag_to_capture(
-            bag, folder, rig, ranges_csv, image_topic, camera_info_topic, fixture_topic
-        )
-        ds = ingest(folder, rig, show_progress=show_progress, **estimator)
+            bag, folder, rig, ranges_csv, image_topic, camera_info_topic, fixture_topic,
+            max_pixels,
+        )  # fmt: skip
+        ds = ingest(folder, rig, show_progress=show_progress, max_pixels=max_pixels, **estimator)
     ds.attrs.update(
         {
             "title": f"simgap result: bag {Path(bag).name}",

@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from simgap.core.config import ConfigError
+from simgap.core.limits import MAX_PIXELS
 from simgap.core.rig import CameraModel, Rig
 from simgap.pipeline.capture.calibration import read_calibration
 from simgap.pipeline.capture.manifest import CaptureFrame, read_manifest
@@ -104,7 +105,31 @@ def read_image(path: Path, width: int, height: int) -> np.ndarray | str:
     return img
 
 
-def read_capture(folder: Path, rig: Rig, calibration_file: Path | None = None) -> Capture:
+def check_pixel_budget(
+    width: int, height: int, max_pixels: int, where: str, key: str = "image_width x image_height"
+) -> None:
+    """Refuse an image size over the pixel budget (:data:`MAX_PIXELS`), naming ``where``/``key``.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        ``"{where}: {key}: WxH = N px, expected at most M px (the pixel budget; --max-pixels
+        raises it)"``.
+    """
+    if width * height > max_pixels:
+        raise ConfigError(
+            f"{where}: {key}: {width}x{height} = {width * height} px, expected at most "
+            f"{max_pixels} px (the pixel budget: no frame is decoded beyond it; --max-pixels "
+            "raises it)"
+        )
+
+
+def read_capture(
+    folder: Path,
+    rig: Rig,
+    calibration_file: Path | None = None,
+    max_pixels: int = MAX_PIXELS,
+) -> Capture:
     """Read and validate a capture folder against a rig.
 
     Parameters
@@ -116,6 +141,8 @@ def read_capture(folder: Path, rig: Rig, calibration_file: Path | None = None) -
     calibration_file : Path, optional
         Read the calibration from this file (any name: ROS ``ost.yaml`` / camera_info YAML or
         OpenCV YAML) instead of the folder's ``camera.yaml``, which then need not exist.
+    max_pixels : int
+        The pixel budget (:data:`MAX_PIXELS`): a calibration whose image is larger is refused.
 
     Returns
     -------
@@ -169,6 +196,7 @@ def read_capture(folder: Path, rig: Rig, calibration_file: Path | None = None) -
                 f"{UNSTATED_SIZE_MAX_PIXELS} px ({frame.image} is {w}x{h}); state the camera's "
                 "image size"
             ) from None
+    check_pixel_budget(cal.width, cal.height, max_pixels, str(cal_path))
     if (cal.width, cal.height) != (w, h):
         raise ConfigError(
             f"{cal_path}: image size {cal.width}x{cal.height} differs from the images' "

@@ -17,6 +17,7 @@ from simgap.core.config import to_mapping
 from simgap.core.rig import CameraModel, Rig, load_rig
 from simgap.pipeline.capture.folder import (
     CALIBRATION_FILE,
+    MAX_PIXELS,
     CaptureWarning,
     read_capture,
     read_image,
@@ -76,6 +77,7 @@ def ingest(
     calibration: CameraModel | None = None,
     show_progress: bool = False,
     calibration_file: Path | None = None,
+    max_pixels: int = MAX_PIXELS,
 ) -> xr.Dataset:
     """Detect markers and estimate poses in a capture; return the result dataset.
 
@@ -106,6 +108,8 @@ def ingest(
     calibration_file : Path, optional
         The calibration file to read instead of the folder's ``camera.yaml`` (any name; see
         :func:`~simgap.pipeline.capture.folder.read_capture`); ``calibration`` still wins.
+    max_pixels : int
+        The pixel budget (:data:`~simgap.pipeline.capture.folder.MAX_PIXELS`).
 
     Returns
     -------
@@ -132,7 +136,7 @@ def ingest(
         For each frame that cannot be decoded or has the wrong size.
     """
     rig = rig or load_rig()
-    cap = read_capture(folder, rig, calibration_file)
+    cap = read_capture(folder, rig, calibration_file, max_pixels)
     cal = calibration or cap.calibration
     cal_path = cap.calibration_path or cap.folder / CALIBRATION_FILE
     source = CALIBRATION_FILE if calibration_file is None else "--calibration"
