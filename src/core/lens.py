@@ -53,21 +53,27 @@ DISTORTION_MODELS: Mapping[str, tuple[str, ...]] = MappingProxyType(
 MODEL_OF_COUNT: Mapping[int, str] = MappingProxyType(
     {len(c): m for m, c in DISTORTION_MODELS.items() if m != "equidistant"}
 )
-#: Bounds of the coefficients by kind (dimensionless; tilt in rad): radial terms may be large
-#: where a rational model's numerator and denominator balance (a RealSense D415's file: k3 100
-#: and k6 103, within about 1 px of a 5-coefficient fit inside the image); tangential and thin
-#: prism terms are small; a sensor tilt beyond 0.5 rad (29 deg) is no lens.
+#: Bounds of the coefficients by kind (dimensionless; tilt in rad): radial terms up to 100, and
+#: up to 1000 in the rational models, whose numerator and denominator balance (a RealSense
+#: D415's file: k3 100 and k6 103, within about 1 px of a 5-coefficient fit inside the image);
+#: tangential and thin-prism terms are small; a sensor tilt beyond 0.5 rad (29 deg) is no lens.
 COEFF_BOUNDS: Mapping[str, float] = MappingProxyType(
-    {"k": 1000.0, "p": 1.0, "s": 1.0, "tau": 0.5}
+    {"k": 100.0, "k_rational": 1000.0, "p": 1.0, "s": 1.0, "tau": 0.5}
 )
+#: The models whose radial terms are a ratio of polynomials (``k4``-``k6`` in the denominator).
+RATIONAL_MODELS = ("rational_polynomial", "thin_prism", "tilted")
 #: Iterations and tolerance of the inverse (undistortion): 100 and 1e-14 in normalised units,
 #: far below a thousandth of a pixel.
 UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
 
 
-def coefficient_bound(name: str) -> float:
-    """The largest magnitude a coefficient may have (:data:`COEFF_BOUNDS`, by its kind)."""
-    return COEFF_BOUNDS["tau" if name.startswith("tau") else name[0]]
+def coefficient_bound(name: str, model: str) -> float:
+    """The largest magnitude coefficient ``name`` of ``model`` may have (:data:`COEFF_BOUNDS`)."""
+    if name.startswith("tau"):
+        return COEFF_BOUNDS["tau"]
+    if name[0] == "k" and model in RATIONAL_MODELS:
+        return COEFF_BOUNDS["k_rational"]
+    return COEFF_BOUNDS[name[0]]
 
 
 def is_fisheye(model: str) -> bool:
@@ -126,6 +132,7 @@ __all__ = [
     "COEFF_BOUNDS",
     "DISTORTION_MODELS",
     "MODEL_OF_COUNT",
+    "RATIONAL_MODELS",
     "UNDISTORT_CRITERIA",
     "coefficient_bound",
     "is_fisheye",

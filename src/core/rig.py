@@ -113,7 +113,7 @@ class CameraModel:
             f"({', '.join(names)}), got {len(self.distortion)}",
         )
         for i, (name, value) in enumerate(zip(names, self.distortion, strict=True)):
-            bound = lens.coefficient_bound(name)
+            bound = lens.coefficient_bound(name, self.distortion_model)
             require(
                 abs(value) <= bound,
                 f"distortion[{i}] ({name}): expected |{name}| <= {bound:g}, got {value:g}",
