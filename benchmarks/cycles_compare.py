@@ -150,7 +150,7 @@ def relative_paper_noise(hdr, offset, pipe: VariantPipeline, p, theta) -> list[f
         if not rig.is_visible(tag, p, theta):
             continue
         corners = project_tag_corners(
-            rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal.matrix, cal.dist_coeffs
+            rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal
         )
         s = tag_stats(gray, corners, layout, offset, edge_widths=())
         out.append(s[STAT_INDEX["noise_paper_linear"]] / s[STAT_INDEX["paper_linear"]])

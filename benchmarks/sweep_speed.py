@@ -50,7 +50,7 @@ def naive(exp, configs) -> float:
         scene.set_pose(p, theta)
         frame = imaging.encode_srgb8(scene.render((0, 0), config_seed(exp.render.seed, p, theta)))
         for corners in det.detect(imaging.to_gray(frame)).values():
-            estimate_pose(corners, rig.tags.size, cam.matrix, cam.dist_coeffs, exp.pnp)
+            estimate_pose(corners, rig.tags.size, cam, exp.pnp)
     return (time.perf_counter() - t0) / len(configs)
 
 

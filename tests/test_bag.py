@@ -51,7 +51,7 @@ def synthetic_frame(rig, p: int, theta: float, shift_px: float = 0.0) -> np.ndar
         texture = tag_texture(rig.tags.dictionary, tag, rig.tags.quiet_zone_cells)
         texture = cv2.resize(texture, (256, 256), interpolation=cv2.INTER_NEAREST)
         m = rig.eyepoint_from_tag(tag, p, theta)
-        dst = project_tag_corners(m, rig.sticker_size(), cam.matrix, cam.dist_coeffs) + shift_px
+        dst = project_tag_corners(m, rig.sticker_size(), cam) + shift_px
         src = np.array([[0, 0], [256, 0], [256, 256], [0, 256]], np.float32) - 0.5
         h = cv2.getPerspectiveTransform(src, dst.astype(np.float32))
         warped = cv2.warpPerspective(texture, h, (cam.width, cam.height), flags=cv2.INTER_AREA)

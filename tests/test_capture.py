@@ -120,8 +120,7 @@ def test_sample_images_are_magnified_by_the_focal_length_error(sample_ds, rig, s
                 pred = project_tag_corners(
                     rig.eyepoint_from_tag(int(tag), int(p), float(theta)),
                     rig.tags.size,
-                    cal.matrix,
-                    cal.dist_coeffs,
+                    cal,
                 )
                 measured.append(c.mean(axis=0) - centre)
                 predicted.append(pred.mean(axis=0) - centre)
@@ -326,7 +325,7 @@ def test_opencv_calibration_bad_matrix(tmp_path):
     ("old", "new", "message"),
     [
         ("- 1.0\ndistortion_model", "distortion_model", r"camera_matrix.data: expected 9 numbers"),
-        ("plumb_bob", "equidistant", r"distortion_model: expected one of plumb_bob.*'equidist"),
+        ("plumb_bob", "ocam", r"distortion_model: expected one of plumb_bob.*'ocam'"),
         ("image_width: 1920", "image_width: -1", r"image_width: expected a positive integer"),
         ("distortion_coefficients:", "dist_coeffs:", r"distortion_coefficients: required key"),
         ("  - 0.0\n  - 1386.0", "  - 5.0\n  - 1386.0", r"camera_matrix.data: expected .* skew"),

@@ -339,3 +339,20 @@ def test_long_commands_pass_progress_and_scheduler_down(runner, tmp_path, monkey
     args, kwargs = seen["validate"]
     simulator = args[5]
     assert (simulator.scheduler, simulator.show_progress) == (address, False)
+
+
+def test_run_with_a_bad_calibration_file_exits_2(runner, tmp_path):
+    """``--calibration`` reads the file as the camera; a wrong one is named with its key."""
+    cal = tmp_path / "ost.yaml"
+    cal.write_text(
+        "image_width: 1920\nimage_height: 1080\ncamera_matrix: {rows: 3, cols: 3, data: "
+        "[1386, 0, 959.5, 0, 1386, 539.5, 0, 0, 1]}\ndistortion_model: rational_polynomial\n"
+        "distortion_coefficients: {rows: 1, cols: 9, data: [0, 0, 0, 0, 0, 0, 0, 0, 0.1]}\n"
+    )
+    out = tmp_path / "out.nc"
+    result = runner.invoke(
+        app, ["run", "experiments/smoke.yaml", "--calibration", str(cal), "-o", str(out)]
+    )
+    assert result.exit_code == 2, result.output
+    assert f"{cal}: distortion_coefficients.data: expected the 8 coefficients" in result.output
+    assert not out.exists()

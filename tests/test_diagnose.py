@@ -81,7 +81,7 @@ def _items(
     def errors(corners):
         out = []
         for (t, p, th), c in zip(rows, corners, strict=True):
-            est = estimate_pose(c, rig.tags.size, cal.matrix, cal.dist_coeffs)
+            est = estimate_pose(c, rig.tags.size, cal)
             out.append(pose_error(est.pose, rig.expected_pose(int(t), p, th)))
         return np.array(out)
 

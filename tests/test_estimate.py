@@ -75,10 +75,9 @@ def true_pose(rig, tag, p, theta, err=TILT) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve(rig, m, settings, dist=(0.0,) * 5):
-    k = rig.camera.matrix
-    d = np.asarray(dist, float)
-    corners = project_tag_corners(m, rig.tags.size, k, d)
-    est = estimate_pose(corners, rig.tags.size, k, d, settings)
+    cam = rig.camera.replace(distortion=tuple(dist))
+    corners = project_tag_corners(m, rig.tags.size, cam)
+    est = estimate_pose(corners, rig.tags.size, cam, settings)
     assert est is not None
     return est
 
@@ -105,7 +104,7 @@ def test_pnp_method_names_match_settings():
 def test_projected_corner_order(rig):
     # Tag 0 facing the camera (theta = 0): TL, TR, BR, BL run clockwise in the image (v down).
     c = project_tag_corners(
-        rig.eyepoint_from_tag(0, 0, 0.0), rig.tags.size, rig.camera.matrix, rig.camera.dist_coeffs
+        rig.eyepoint_from_tag(0, 0, 0.0), rig.tags.size, rig.camera
     )
     tl, tr, br, bl = c
     assert tl[0] < tr[0] and bl[0] < br[0]

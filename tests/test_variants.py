@@ -197,10 +197,10 @@ def test_distorted_render_corners_match_projectpoints(rig, tag, p, theta_deg):
     )
     lo_dist = cam.replace(distortion=dist)
     truth = project_tag_corners(
-        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, lo_dist.matrix, lo_dist.dist_coeffs
+        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, lo_dist
     )
     undistorted = project_tag_corners(
-        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cam.matrix, cam.dist_coeffs
+        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cam
     )
     assert np.linalg.norm(truth - undistorted, axis=1).max() > 1.5  # distortion matters here
     detected = (found[tag] + 0.5) / s - 0.5  # back to the original pixel grid

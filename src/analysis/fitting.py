@@ -29,7 +29,6 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -146,10 +145,7 @@ def project_items(rig: Rig, camera, errors, tag_scale: float, items: Items) -> n
     cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T)[None] @ eye_from_tag
     obj = marker_object_points(rig.tags.size * tag_scale)
     pts = np.einsum("nij,kj->nki", cv_from_tag[:, :3, :3], obj) + cv_from_tag[:, None, :3, 3]
-    uv, _ = cv2.projectPoints(
-        pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs
-    )
-    return uv.reshape(len(items), 4, 2)
+    return camera.project(pts).reshape(len(items), 4, 2)
 
 
 #: Scale of the robust (soft L1) loss of the corner fits (px): corner residuals beyond it count
@@ -341,10 +337,8 @@ class ProjectionCandidate:
             if not np.isfinite(c).all():
                 continue
             exp = rig.expected_pose(int(items.tag[i]), float(items.p[i]), float(items.theta[i]))
-            a = estimate_pose(c, rig.tags.size, cal.matrix, cal.dist_coeffs, base.estimation.pnp)
-            b = estimate_pose(
-                c + shift[i], rig.tags.size, cal.matrix, cal.dist_coeffs, base.estimation.pnp
-            )
+            a = estimate_pose(c, rig.tags.size, cal, base.estimation.pnp)
+            b = estimate_pose(c + shift[i], rig.tags.size, cal, base.estimation.pnp)
             if a is not None and b is not None:
                 out[i] = pose_error(b.pose, exp) - pose_error(a.pose, exp)
         return out

@@ -96,13 +96,13 @@ def pose_draws(
         noise = rng.normal(0.0, sigma_px, (draws, frames, 4, 2))
         if not np.isfinite(c).all():
             continue
-        nominal = estimate_pose(c, rig.tags.size, cal.matrix, cal.dist_coeffs, pnp)
+        nominal = estimate_pose(c, rig.tags.size, cal, pnp)
         if nominal is None:
             continue
         for j, draw in enumerate(noise):
             moved = []
             for d in draw:
-                est = estimate_pose(c + d, rig.tags.size, cal.matrix, cal.dist_coeffs, pnp)
+                est = estimate_pose(c + d, rig.tags.size, cal, pnp)
                 if est is None:
                     continue
                 delta = pose_error(est.pose, nominal.pose)

@@ -220,11 +220,12 @@ def fail(message: str) -> None:
     raise typer.Exit(code=2)
 
 
-def read_experiment(path: Path):
-    """Load an experiment file (errors name the file and key)."""
-    from simgap.pipeline.experiment import load_experiment
+def read_experiment(path: Path, calibration: Path | None = None):
+    """Load an experiment file (errors name the file and key), its camera from ``calibration``."""
+    from simgap.pipeline.experiment import load_experiment, with_calibration
 
-    return load_experiment(path)
+    exp = load_experiment(path)
+    return exp if calibration is None else with_calibration(exp, calibration)
 
 
 def read_simulation(sim: Path):

@@ -7,7 +7,13 @@ from pathlib import Path
 import typer
 
 from simgap.cli.app import app, read_experiment
-from simgap.cli.options import CacheOption, OverwriteOption, ProgressOption, SchedulerOption
+from simgap.cli.options import (
+    CacheOption,
+    CalibrationOption,
+    OverwriteOption,
+    ProgressOption,
+    SchedulerOption,
+)
 from simgap.cli.outputs import (
     OUTPUT,
     REPORT_FOLDER,
@@ -52,13 +58,14 @@ def study(
     cache: CacheOption = None,
     progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
+    calibration: CalibrationOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Run an experiment and write its report: OUTPUT/NAME.nc and OUTPUT/NAME-report/."""
-    inputs = check_experiment_output(experiment, output, STUDY_FOLDER, overwrite)
-    name = read_experiment(experiment).name
+    inputs = check_experiment_output(experiment, output, STUDY_FOLDER, overwrite, calibration)
+    name = read_experiment(experiment, calibration).name
     nc, folder = output / f"{name}.nc", output / f"{name}-report"
     outputs = [(OUTPUT, nc, RESULT_DATASET), (OUTPUT, folder, REPORT_FOLDER)]
     check_outputs(outputs, inputs, overwrite)
-    run(experiment, nc, cache, progress, scheduler, overwrite)
+    run(experiment, nc, cache, progress, scheduler, calibration, overwrite)
     report(nc, folder, None, overwrite)

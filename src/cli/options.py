@@ -35,6 +35,12 @@ ProgressOption = Annotated[bool, typer.Option("--progress/--no-progress", help=P
 VariantOption = Annotated[
     str | None, typer.Option("--variant", help="Variant of the dataset (default: the first).")
 ]
+CALIBRATION_HELP = (
+    "Camera calibration file (ROS camera_info YAML or OpenCV FileStorage; plumb_bob, "
+    "rational_polynomial, thin prism, tilted or equidistant/fisheye): the simulated camera."
+)
+#: ``--calibration FILE`` (default ``None``: the experiment's camera).
+CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help=CALIBRATION_HELP)]
 #: ``--overwrite`` (default ``False``).
 OverwriteOption = Annotated[bool, typer.Option("--overwrite", help=OVERWRITE_HELP)]
 

@@ -90,23 +90,33 @@ STUDY_FOLDER = OutputKind("study folder", folder=True, is_ours=_any_folder)
 
 
 def experiment_inputs(path: Path, label: str) -> list[Input]:
-    """An experiment file and the files it inherits from, as inputs."""
-    from simgap.pipeline.experiment_files import read_chain
+    """An experiment file, the files it inherits from and the calibration files they name."""
+    from simgap.pipeline.experiment_files import calibration_files, read_chain
 
     try:
         chain = read_chain(Path(path))
     except (ConfigError, OSError):  # the command's own loading names the problem
         return [(label, path)]
-    return [(label, path)] + [(f"{label} (inherited)", p) for p, _ in chain[:-1]]
+    inherited = [(f"{label} (inherited)", p) for p, _ in chain[:-1]]
+    return (
+        [(label, path)]
+        + inherited
+        + [(f"{label} (rig.camera.calibration)", p) for p in calibration_files(chain)]
+    )
 
 
 def check_experiment_output(
-    experiment: Path, output: Path, kind: OutputKind, overwrite: bool
+    experiment: Path,
+    output: Path,
+    kind: OutputKind,
+    overwrite: bool,
+    calibration: Path | None = None,
 ) -> list[Input]:
     """Check the ``-o/--output`` of a command that runs the experiment YAML ``EXPERIMENT``.
 
-    Returns the command's inputs (the experiment and the files it inherits from), against
-    which it checks any further outputs.
+    Returns the command's inputs (the experiment, the files it inherits from and the
+    calibration files, ``--calibration`` among them), against which it checks any further
+    outputs.
 
     Raises
     ------
@@ -114,6 +124,7 @@ def check_experiment_output(
         As :func:`check_outputs`.
     """
     inputs = experiment_inputs(experiment, "EXPERIMENT")
+    inputs += [("--calibration", calibration)] if calibration is not None else []
     check_outputs([(OUTPUT, output, kind)], inputs, overwrite)
     return inputs
 

@@ -10,6 +10,7 @@ import typer
 from simgap.cli.app import app, read_experiment, read_result_dataset
 from simgap.cli.options import (
     CacheOption,
+    CalibrationOption,
     OverwriteOption,
     ProgressOption,
     SchedulerOption,
@@ -34,6 +35,7 @@ def run(
     cache: CacheOption = None,
     progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
+    calibration: CalibrationOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Run an experiment and write its result dataset."""
@@ -41,8 +43,8 @@ def run(
     from simgap.pipeline.sweep import run_experiment
     from simgap.results.dataset import write_netcdf
 
-    check_experiment_output(experiment, output, RESULT_DATASET, overwrite)
-    exp = read_experiment(experiment)
+    check_experiment_output(experiment, output, RESULT_DATASET, overwrite, calibration)
+    exp = read_experiment(experiment, calibration)
     ds = run_experiment(exp, cache or default_cache_dir(), progress, scheduler)
     write_netcdf(ds, output)
     vis = ds.visible.values

@@ -8,11 +8,16 @@ y down, z forward; :data:`simgap.core.transforms.GLOBAL_FROM_CV` turns it into t
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import cv2
 import numpy as np
 
 from simgap.core import transforms as tf
 from simgap.core.config import require
+
+if TYPE_CHECKING:
+    from simgap.core.rig import CameraModel
 
 #: OpenCV's predefined ArUco / AprilTag dictionaries: the ``cv2.aruco.DICT_*`` constants that
 #: ``getPredefinedDictionary`` accepts (other ``cv2.aruco`` names, e.g. ``ArucoDetector`` or
@@ -57,9 +62,9 @@ def marker_object_points(size: float) -> np.ndarray:
 
 
 def project_tag_corners(
-    eyepoint_from_tag: np.ndarray, size: float, camera_matrix: np.ndarray, dist_coeffs: np.ndarray
+    eyepoint_from_tag: np.ndarray, size: float, camera: CameraModel
 ) -> np.ndarray:
-    """Project a square's corners TL, TR, BR, BL into the image (``cv2.projectPoints``).
+    """Project a square's corners TL, TR, BR, BL into the image (the camera's OpenCV model).
 
     The one corner projection of the package: expected corners, sticker boxes for render crops
     and projection-stage fits all use it.
@@ -70,10 +75,8 @@ def project_tag_corners(
         The marker frame in the eyepoint (global-orientation) frame (m); batched poses allowed.
     size : float
         Side of the square (m): the marker, or a sticker with its quiet zone.
-    camera_matrix : ndarray, shape (3, 3)
-        Intrinsics (px).
-    dist_coeffs : ndarray
-        Brown-Conrady ``(k1, k2, p1, p2, k3)`` (dimensionless).
+    camera : CameraModel
+        Intrinsics (px) and distortion (:meth:`simgap.core.rig.CameraModel.project`).
 
     Returns
     -------
@@ -84,7 +87,4 @@ def project_tag_corners(
     cv_from_tag = tf.make(tf.GLOBAL_FROM_CV.T) @ m
     obj = marker_object_points(size)
     pts = obj @ np.swapaxes(cv_from_tag[..., :3, :3], -1, -2) + cv_from_tag[..., None, :3, 3]
-    uv, _ = cv2.projectPoints(
-        pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), camera_matrix, dist_coeffs
-    )
-    return uv.reshape(m.shape[:-2] + (4, 2))
+    return camera.project(pts).reshape(m.shape[:-2] + (4, 2))

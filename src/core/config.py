@@ -334,10 +334,23 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], where: str = "") -> T:
         raise ConfigError(f"{where}{sep}{exc}") from exc
 
 
+#: Field metadata: leave the field out of :func:`to_mapping` while it holds its default, so that a
+#: field added later keeps the mappings (and the cache keys hashed from them) of everything that
+#: does not use it.
+OMIT_DEFAULT = {"omit_default": True}
+
+
 def to_mapping(obj: Any) -> Any:
-    """Convert (nested) dataclasses to plain mappings/lists suitable for YAML."""
+    """Convert (nested) dataclasses to plain mappings/lists suitable for YAML.
+
+    Fields marked with :data:`OMIT_DEFAULT` are left out while they hold their default.
+    """
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: to_mapping(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+        return {
+            f.name: to_mapping(getattr(obj, f.name))
+            for f in dataclasses.fields(obj)
+            if not (f.metadata.get("omit_default") and getattr(obj, f.name) == f.default)
+        }
     if isinstance(obj, (list, tuple)):
         return [to_mapping(v) for v in obj]
     if isinstance(obj, dict):

@@ -28,9 +28,10 @@ from typing import Literal
 
 import numpy as np
 
+from simgap.core import lens
 from simgap.core import transforms as tf
 from simgap.core.aruco import check_dictionary, marker_cells
-from simgap.core.config import deep_merge, from_mapping, read_yaml, require
+from simgap.core.config import OMIT_DEFAULT, deep_merge, from_mapping, read_yaml, require
 
 DEFAULT_RIG_FILE = Path(__file__).with_name("rig.yaml")
 #: Largest image side accepted (px).
@@ -39,13 +40,11 @@ MAX_IMAGE_SIDE_PX = 65536
 FOCAL_RANGE_WIDTHS = (0.05, 50.0)
 #: How far the principal point may lie outside the image, as a fraction of the image size.
 PRINCIPAL_POINT_MARGIN = 0.25
-#: Bounds of the Brown-Conrady coefficients: |k1|, |k2|, |k3| and |p1|, |p2| (dimensionless).
-MAX_RADIAL_COEFF, MAX_TANGENTIAL_COEFF = 100.0, 1.0
 
 
 @dataclass(frozen=True)
 class CameraModel:
-    """Pinhole camera with Brown-Conrady distortion, OpenCV convention.
+    """A calibrated camera in OpenCV's convention: intrinsics and one of OpenCV's distortion models.
 
     Attributes
     ----------
@@ -56,8 +55,12 @@ class CameraModel:
         lengths must lie within :data:`FOCAL_RANGE_WIDTHS` times the width, the principal point
         within the image extended by :data:`PRINCIPAL_POINT_MARGIN` of its size on each side.
     distortion : tuple of float
-        ``(k1, k2, p1, p2, k3)``, dimensionless; ``|k| <= MAX_RADIAL_COEFF``,
-        ``|p| <= MAX_TANGENTIAL_COEFF``.
+        The model's coefficients in OpenCV's order (:data:`simgap.core.lens.DISTORTION_MODELS`),
+        dimensionless (a sensor tilt in rad), each within
+        :func:`simgap.core.lens.coefficient_bound`; ``plumb_bob``: ``(k1, k2, p1, p2, k3)``.
+    distortion_model : str
+        ``plumb_bob`` (Brown-Conrady, the default), ``rational_polynomial``, ``thin_prism``,
+        ``tilted`` or ``equidistant`` (OpenCV's fisheye); :mod:`simgap.core.lens`.
     """
 
     width: int = 1920
@@ -66,7 +69,8 @@ class CameraModel:
     fy: float = 1386.0
     cx: float = 959.5
     cy: float = 539.5
-    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    distortion_model: str = field(default="plumb_bob", metadata=OMIT_DEFAULT)
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -97,20 +101,22 @@ class CameraModel:
                 f"{PRINCIPAL_POINT_MARGIN:g} x its size): {-0.5 - m:g}..{size - 0.5 + m:g} px, "
                 f"got {c:g}",
             )
-        require(len(self.distortion) == 5, "distortion: expected (k1, k2, p1, p2, k3)")
-        for i, (name, bound) in enumerate(
-            zip(
-                ("k1", "k2", "p1", "p2", "k3"),
-                (MAX_RADIAL_COEFF, MAX_RADIAL_COEFF)
-                + (MAX_TANGENTIAL_COEFF,) * 2
-                + (MAX_RADIAL_COEFF,),
-                strict=True,
-            )
-        ):
+        names = lens.DISTORTION_MODELS.get(self.distortion_model)
+        require(
+            names is not None,
+            f"distortion_model: expected one of {', '.join(lens.DISTORTION_MODELS)}, got "
+            f"{self.distortion_model!r}",
+        )
+        require(
+            len(self.distortion) == len(names),
+            f"distortion: expected the {len(names)} coefficients of {self.distortion_model} "
+            f"({', '.join(names)}), got {len(self.distortion)}",
+        )
+        for i, (name, value) in enumerate(zip(names, self.distortion, strict=True)):
+            bound = lens.coefficient_bound(name, self.distortion_model)
             require(
-                abs(self.distortion[i]) <= bound,
-                f"distortion[{i}] ({name}): expected |{name}| <= {bound:g}, "
-                f"got {self.distortion[i]:g}",
+                abs(value) <= bound,
+                f"distortion[{i}] ({name}): expected |{name}| <= {bound:g}, got {value:g}",
             )
 
     @property
@@ -120,8 +126,21 @@ class CameraModel:
 
     @property
     def dist_coeffs(self) -> np.ndarray:
-        """Distortion coefficients as OpenCV expects them, shape (5,)."""
+        """Distortion coefficients as OpenCV expects them for the model (4, 5, 8, 12 or 14,)."""
         return np.asarray(self.distortion, dtype=float)
+
+    @property
+    def is_fisheye(self) -> bool:
+        """Whether the model is OpenCV's fisheye (``cv2.fisheye``) rather than the pinhole one."""
+        return lens.is_fisheye(self.distortion_model)
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Pixels (..., 2) (px) of OpenCV camera-frame points (..., 3) (m) in front of it."""
+        return lens.project(points, self.matrix, self.distortion_model, self.dist_coeffs)
+
+    def normalise(self, uv: np.ndarray) -> np.ndarray:
+        """Normalised coordinates (..., 2) of pixels (..., 2): the inverse of :meth:`project`."""
+        return lens.normalise(uv, self.matrix, self.distortion_model, self.dist_coeffs)
 
     def replace(self, **changes) -> CameraModel:
         """Return a copy with some fields changed."""

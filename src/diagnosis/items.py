@@ -38,7 +38,10 @@ def calibration_from_attrs(real: xr.Dataset) -> CameraModel | None:
         return None
     data = yaml.safe_load(text)
     keys = ("width", "height", "fx", "fy", "cx", "cy", "distortion")
-    return CameraModel(**{k: (tuple(data[k]) if k == "distortion" else data[k]) for k in keys})
+    model = {k: (tuple(data[k]) if k == "distortion" else data[k]) for k in keys}
+    if "distortion_model" in data:  # written only for a model other than plumb_bob
+        model["distortion_model"] = data["distortion_model"]
+    return CameraModel(**model)
 
 
 def demosaicing_from_attrs(real: xr.Dataset) -> CfaVerdict | None:

@@ -20,7 +20,9 @@ def _unset_or_positive(v: float | None) -> bool:
 
 
 class Calibration(Effect, name="calibration", stage="estimation"):
-    """The calibration the estimator believes in (px, Brown-Conrady); unset fields keep the rig's.
+    """The calibration the estimator believes in (px; any OpenCV model, :mod:`simgap.core.lens`).
+
+    Unset fields keep the rig's.
 
     Calibration errors move no pixel: they act on corners already detected.
     """
@@ -32,7 +34,8 @@ class Calibration(Effect, name="calibration", stage="estimation"):
         fy: float | None = param(None, "> 0 px", _unset_or_positive, key="fx/fy")
         cx: float | None = None
         cy: float | None = None
-        distortion: tuple[float, float, float, float, float] | None = None
+        distortion: tuple[float, ...] | None = None
+        distortion_model: str | None = None
 
     def apply(self, state: VariantState) -> VariantState:
         """Replace the assumed calibration's set fields."""

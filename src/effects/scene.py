@@ -8,6 +8,7 @@ from typing import Literal
 import colour
 import numpy as np
 
+from simgap.core.rig import CameraModel
 from simgap.effects.base import Check, Effect, EffectParams, RelativeScale, param
 from simgap.effects.state import RenderQuality, VariantState
 from simgap.scene.lights import BT709_LUMINANCE, LightSpec, default_target
@@ -248,7 +249,7 @@ class SamplingQuality(Effect, name="render_quality", stage="scene"):
 
 
 class LensDistortion(Effect, name="lens_distortion", stage="scene"):
-    """Brown-Conrady distortion of the true lens (k1, k2, p1, p2, k3, dimensionless).
+    """Distortion of the true lens: its k1, k2, p1, p2, k3 (dimensionless; :meth:`apply`).
 
     Rendered exactly per ray by the OpenCV sensor (no resampling, no black borders). With
     ``calibrated: true`` the estimator's calibration knows the coefficients too.
@@ -265,15 +266,37 @@ class LensDistortion(Effect, name="lens_distortion", stage="scene"):
         calibrated: bool = False
 
     def apply(self, state: VariantState) -> VariantState:
-        """Distort the true camera (and the calibration when calibrated)."""
+        """Distort the true camera (and the calibration when calibrated).
+
+        The coefficients replace the camera model's own of the same names; a richer model
+        (rational, thin prism, tilted) keeps its others, and a fisheye (``equidistant``) takes
+        ``k1``-``k3`` as its own (its ``p1``, ``p2`` must be 0).
+        """
         p = self.params
-        coeffs = (p.k1, p.k2, p.p1, p.p2, p.k3)
-        out = _scene(state, camera=state.scene.camera.replace(distortion=coeffs))
+        camera = _with_lens(state.scene.camera, p)
+        out = _scene(state, camera=camera)
         if p.calibrated:
             est = out.estimation
-            cal = est.calibration.replace(distortion=coeffs)
+            cal = est.calibration.replace(
+                distortion=camera.distortion, distortion_model=camera.distortion_model
+            )
             out = dataclasses.replace(out, estimation=dataclasses.replace(est, calibration=cal))
         return out
+
+
+def _with_lens(camera: CameraModel, p: LensDistortion.Params) -> CameraModel:
+    """``camera`` whose lens has the coefficients of ``p`` (see :meth:`LensDistortion.apply`)."""
+    coeffs = list(camera.distortion)
+    if camera.is_fisheye:
+        if p.p1 or p.p2:
+            raise ValueError(
+                "lens_distortion: p1/p2: expected 0 on a fisheye (equidistant) camera, whose "
+                f"model has no tangential terms, got {p.p1:g}, {p.p2:g}"
+            )
+        coeffs[:3] = (p.k1, p.k2, p.k3)
+    else:
+        coeffs[:5] = (p.k1, p.k2, p.p1, p.p2, p.k3)
+    return camera.replace(distortion=tuple(coeffs))
 
 
 class FocalLength(Effect, name="focal_length", stage="scene"):

@@ -35,7 +35,7 @@ class SceneState:
         The scene description (:mod:`simgap.scene`): materials, tag print, lights, objects,
         integrator; scene-stage effects replace parts of it.
     camera : CameraModel
-        The true camera (intrinsics px, Brown-Conrady distortion).
+        The true camera (intrinsics px, distortion model and coefficients).
     errors : FixtureErrors
         The true fixture's differences from CAD.
     tag_scale : float

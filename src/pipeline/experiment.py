@@ -56,7 +56,13 @@ from simgap.effects.state import (
     SceneState,
     VariantState,
 )
-from simgap.pipeline.experiment_files import blame_parent, merge_chain, origins, read_chain
+from simgap.pipeline.experiment_files import (
+    blame_parent,
+    camera_mapping,
+    merge_chain,
+    origins,
+    read_chain,
+)
 from simgap.pipeline.experiment_settings import (
     Configurations,
     ImageSettings,
@@ -315,6 +321,27 @@ def experiment_from_yaml(text: str, source: str = "<dataset>") -> Experiment:
         raise ConfigError(f"{source}: experiment_yaml: expected a mapping, got {data!r:.60}")
     data.pop("inherit", None)
     return from_mapping(Experiment, {**data, "source": source}, where=f"{source}: ")
+
+
+def with_calibration(exp: Experiment, path: str | Path) -> Experiment:
+    """``exp`` whose camera is the calibration file at ``path`` (any format and OpenCV model).
+
+    The file gives the whole camera (intrinsics, distortion model and coefficients), as
+    ``rig.camera.calibration`` does in an experiment file
+    (:func:`simgap.pipeline.experiment_files.with_calibration_file`).
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        Naming the calibration file and its key, or the experiment's when the camera does not
+        fit it (an image too small for its configurations, say).
+    """
+    from simgap.pipeline.capture import read_calibration  # the formats register on import
+
+    camera = camera_mapping(read_calibration(Path(path)))
+    out = replace(exp, rig={**exp.rig, "camera": camera})
+    out.rig_model  # noqa: B018  (validate now)
+    return out
 
 
 def load_experiment(path: str | Path) -> Experiment:

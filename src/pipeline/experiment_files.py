@@ -2,7 +2,10 @@
 
 An experiment file may inherit another (``inherit: smoke.yaml``, relative to it); the chain is read
 root first, merged with the child winning (names and descriptions are not inherited), and a
-validation error about a key that an inherited file set is reported against that file.
+validation error about a key that an inherited file set is reported against that file. A file's
+``rig.camera.calibration: FILE`` (relative to it) is read as the camera: a calibration file in any
+format of :mod:`simgap.pipeline.capture.calibration` and any of OpenCV's models; keys beside it
+override the file's.
 """
 
 from __future__ import annotations
@@ -11,7 +14,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from simgap.core.config import ConfigError, deep_merge, read_yaml
+from simgap.core.config import ConfigError, deep_merge, read_yaml, to_mapping
 
 
 def read_chain(path: Path, seen: tuple[Path, ...] = ()) -> list[tuple[Path, dict[str, Any]]]:
@@ -38,14 +41,60 @@ def read_chain(path: Path, seen: tuple[Path, ...] = ()) -> list[tuple[Path, dict
     return chain + [(path, data)]
 
 
+def with_calibration_file(path: Path, data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` with its ``rig.camera.calibration`` file (relative to ``path``) read as the camera.
+
+    The whole camera comes from the file (intrinsics, model, coefficients); other keys of
+    ``rig.camera`` override it. Raises ConfigError naming ``path`` and the key, or the
+    calibration file and its key.
+    """
+    rig = data.get("rig")
+    camera = rig.get("camera") if isinstance(rig, dict) else None
+    if not isinstance(camera, dict) or "calibration" not in camera:
+        return data
+    from simgap.pipeline.capture import read_calibration  # the formats register on import
+
+    name = camera["calibration"]
+    if not isinstance(name, str):
+        raise ConfigError(f"{path}: rig.camera.calibration: expected a file path, got {name!r}")
+    file = (path.parent / name).resolve()
+    if not file.is_file():
+        raise ConfigError(f"{path}: rig.camera.calibration: {file} not found")
+    others = {k: v for k, v in camera.items() if k != "calibration"}
+    resolved = {**camera_mapping(read_calibration(file)), **others}
+    return {**data, "rig": {**rig, "camera": resolved}}
+
+
+def camera_mapping(camera: Any) -> dict[str, Any]:
+    """Every field of a :class:`~simgap.core.rig.CameraModel`, the distortion model included."""
+    out = to_mapping(camera)
+    out["distortion_model"] = camera.distortion_model
+    return out
+
+
 def merge_chain(chain: list[tuple[Path, dict[str, Any]]]) -> dict[str, Any]:
-    """The files of :func:`read_chain` merged (the last file wins; names are not inherited)."""
+    """The files of :func:`read_chain` merged (the last file wins; names are not inherited).
+
+    Each file's ``rig.camera.calibration`` is read first (:func:`with_calibration_file`).
+    """
+    resolved = [with_calibration_file(path, data) for path, data in chain]
     merged: dict[str, Any] = {}
-    for _, data in chain[:-1]:
+    for data in resolved[:-1]:
         merged = deep_merge(merged, data)
     merged.pop("name", None)
     merged.pop("description", None)
-    return deep_merge(merged, chain[-1][1])
+    return deep_merge(merged, resolved[-1])
+
+
+def calibration_files(chain: list[tuple[Path, dict[str, Any]]]) -> list[Path]:
+    """The calibration files the chain's ``rig.camera.calibration`` keys name (resolved)."""
+    out = []
+    for path, data in chain:
+        rig = data.get("rig")
+        camera = rig.get("camera") if isinstance(rig, dict) else None
+        if isinstance(camera, dict) and isinstance(camera.get("calibration"), str):
+            out.append((path.parent / camera["calibration"]).resolve())
+    return out
 
 
 def origins(chain: list[tuple[Path, dict[str, Any]]]) -> dict[tuple[str, ...], Path]:

@@ -9,13 +9,17 @@ axis and ``rotvec(R_est @ R_expected.T)`` per axis. Marker corners and their pro
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import cv2
 import numpy as np
 
 from simgap.core import transforms as tf
 from simgap.core.aruco import marker_object_points, project_tag_corners
+from simgap.core.lens import UNDISTORT_CRITERIA
+
+if TYPE_CHECKING:
+    from simgap.core.rig import CameraModel
 
 __all__ = [
     "PNP_METHODS",
@@ -72,17 +76,22 @@ class PoseEstimate:
 def estimate_pose(
     corners: np.ndarray,
     size: float,
-    camera_matrix: np.ndarray,
-    dist_coeffs: np.ndarray,
+    camera: CameraModel,
     settings: PnPSettings = PnPSettings(),
 ) -> PoseEstimate | None:
-    """Solve the marker pose from its four corners (px); None if PnP fails."""
+    """Solve the marker pose from its four corners (px) seen by ``camera``; None if PnP fails.
+
+    OpenCV's PnP solvers take the pinhole family of distortion models; for a fisheye
+    (``equidistant``) camera the corners are undistorted to normalised coordinates first
+    (:meth:`simgap.core.rig.CameraModel.normalise`) and solved there. The reprojection error is
+    in pixels through the camera's own model either way.
+    """
     obj = marker_object_points(size)
     img = np.asarray(corners, dtype=np.float64).reshape(4, 1, 2)
-    best = _solve(obj, img, camera_matrix, dist_coeffs, settings.method, settings.refine_lm)
+    best = _solve(obj, img, camera, settings.method, settings.refine_lm)
     limit = settings.fallback_reproj_px
     if limit is not None and settings.method != "ITERATIVE" and (best is None or best[2] > limit):
-        other = _solve(obj, img, camera_matrix, dist_coeffs, "ITERATIVE", settings.refine_lm)
+        other = _solve(obj, img, camera, "ITERATIVE", settings.refine_lm)
         if other is not None and (best is None or other[2] < best[2]):
             best = other
     if best is None:
@@ -99,7 +108,6 @@ def estimate_pose(
 #: camera turned by this known rotation (0.5 rad about (1, 2, 3)/sqrt(14)), and the result is turned
 #: back; the geometry is unchanged, only the degenerate parametrisation is avoided.
 VIRTUAL_FROM_CAMERA = tf.rotvec_to_matrix(0.5 * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0))
-_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
 
 
 def _solutions(obj, img, camera_matrix, dist_coeffs, method: str):
@@ -109,7 +117,7 @@ def _solutions(obj, img, camera_matrix, dist_coeffs, method: str):
         n, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, camera_matrix, dist_coeffs, flags=flags)
         return list(zip(rvecs[:n], tvecs[:n], strict=True))
     dist = np.zeros(5) if dist_coeffs is None else dist_coeffs
-    norm = cv2.undistortPoints(img, camera_matrix, dist, criteria=_UNDISTORT_CRITERIA)
+    norm = cv2.undistortPoints(img, camera_matrix, dist, criteria=UNDISTORT_CRITERIA)
     rays = np.concatenate([norm.reshape(-1, 2), np.ones((len(obj), 1))], axis=1)
     rays = rays @ VIRTUAL_FROM_CAMERA.T
     virtual = (rays[:, :2] / rays[:, 2:]).reshape(-1, 1, 2)
@@ -124,20 +132,24 @@ def _solutions(obj, img, camera_matrix, dist_coeffs, method: str):
     ]
 
 
-def _solve(obj, img, camera_matrix, dist_coeffs, method: str, refine_lm: bool):
+def _solve(obj, img, camera: CameraModel, method: str, refine_lm: bool):
     """All solutions of one PnP method; the finite one that reprojects best (rvec, tvec, px)."""
+    if camera.is_fisheye:  # solved on normalised coordinates (estimate_pose)
+        points, matrix, dist = camera.normalise(img), np.eye(3), np.zeros(5)
+    else:
+        points, matrix, dist = img, camera.matrix, camera.dist_coeffs
     try:
-        solutions = _solutions(obj, img, camera_matrix, dist_coeffs, method)
+        solutions = _solutions(obj, points, matrix, dist, method)
     except cv2.error:
         return None
     best = None
     for rvec, tvec in solutions:
         rvec, tvec = np.asarray(rvec, float).reshape(3, 1), np.asarray(tvec, float).reshape(3, 1)
         if refine_lm:
-            rvec, tvec = cv2.solvePnPRefineLM(obj, img, camera_matrix, dist_coeffs, rvec, tvec)
+            rvec, tvec = cv2.solvePnPRefineLM(obj, points, matrix, dist, rvec, tvec)
         if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
             continue
-        proj, _ = cv2.projectPoints(obj, rvec, tvec, camera_matrix, dist_coeffs)
+        proj = camera.project(obj @ tf.rotvec_to_matrix(rvec.ravel()).T + tvec.reshape(1, 3))
         rms = float(np.sqrt(np.mean(np.sum((proj.reshape(4, 2) - img.reshape(4, 2)) ** 2, axis=1))))
         if best is None or rms < best[2]:
             best = (rvec, tvec, rms)

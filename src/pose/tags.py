@@ -31,7 +31,7 @@ class Estimation:
     Attributes
     ----------
     calibration : CameraModel
-        The camera model the estimator believes in (px, Brown-Conrady).
+        The camera model the estimator believes in (px, its OpenCV distortion model).
     detector : DetectorSettings
         ArUco detector settings.
     pnp : PnPSettings
@@ -114,7 +114,7 @@ def estimate_tags(
             continue
         out.detected[i] = True
         out.corners[i] = found[tag]
-        est = estimate_pose(found[tag], rig.tags.size, cal.matrix, cal.dist_coeffs, estimation.pnp)
+        est = estimate_pose(found[tag], rig.tags.size, cal, estimation.pnp)
         if est is None:
             continue
         out.estimated[i] = est.pose
@@ -171,7 +171,7 @@ def add_image_stats(
             corners, edge_widths = found[tag], estimation.edge_widths
         elif rig.is_visible(tag, p, theta):
             corners = project_tag_corners(
-                rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal.matrix, cal.dist_coeffs
+                rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal
             )
             edge_widths = ()
         else:

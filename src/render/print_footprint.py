@@ -36,7 +36,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -159,8 +158,7 @@ def projected_cells(
             [points[:, :2] + np.asarray(lens_point) * (depth / scene.lens[1] - 1.0), depth]
         )
     camera = scene.camera_model
-    uv, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_coeffs)
-    corners = uv.reshape(rows + 1, cols + 1, 2)
+    corners = camera.project(points).reshape(rows + 1, cols + 1, 2)
     return np.stack(
         [corners[:-1, :-1], corners[:-1, 1:], corners[1:, 1:], corners[1:, :-1]], axis=2
     ).reshape(-1, 4, 2)

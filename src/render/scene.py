@@ -138,7 +138,9 @@ class FixtureScene:
         #: the camera that takes the picture, and its thin lens (aperture radius, focus; m)
         self.camera_model = cam = camera or rig.camera
         self.lens = (float(lens[0]), float(lens[1]))
-        self.camera.set_intrinsics(cam.fx, cam.fy, cam.cx, cam.cy, cam.distortion)
+        self.camera.set_intrinsics(
+            cam.fx, cam.fy, cam.cx, cam.cy, cam.distortion, cam.distortion_model
+        )
         self.camera.set_lens(*self.lens)
         self._base = {
             name: np.array(self.params[f"{name}.vertex_positions"]).reshape(-1, 3)
@@ -379,8 +381,7 @@ def projected_sticker_outlines(
             continue
         cv_from_tag = cv_from_eye @ rig.eyepoint_from_tag(face.id, p, theta, errors)
         pts = tf.apply(cv_from_tag, outline)
-        uv, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), cam.matrix, cam.dist_coeffs)
-        outlines[face.id] = uv.reshape(-1, 2)
+        outlines[face.id] = cam.project(pts).reshape(-1, 2)
     return outlines
 
 

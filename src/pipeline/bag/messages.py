@@ -79,7 +79,7 @@ class Messages:
         )  # fmt: skip
 
     def camera_info(self, ns: int, cal: CameraModel):
-        """A ``CameraInfo`` (plumb_bob) of the calibration ``cal``."""
+        """A ``CameraInfo`` of the calibration ``cal`` (its distortion model and coefficients)."""
         proj = [cal.fx, 0.0, cal.cx, 0.0, 0.0, cal.fy, cal.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
         mats = {
             "d": np.asarray(cal.distortion, float),
@@ -94,7 +94,7 @@ class Messages:
         )
         return self.types[CAMERA_INFO_TYPE](
             header=self.header(ns), height=cal.height, width=cal.width,
-            distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi, **mats,
+            distortion_model=cal.distortion_model, binning_x=0, binning_y=0, roi=roi, **mats,
         )  # fmt: skip
 
     def joints(self, ns: int, travel_m: float, theta: float):

@@ -18,12 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from simgap.core.config import ConfigError, read_text
+from simgap.core.lens import DISTORTION_MODELS, MODEL_OF_COUNT
 from simgap.core.rig import MAX_IMAGE_SIDE_PX, CameraModel
 
-#: Distortion models accepted in a calibration file (Brown-Conrady k1, k2, p1, p2, k3).
-DISTORTION_MODELS = ("plumb_bob",)
-#: Brown-Conrady coefficients a camera model holds (k1, k2, p1, p2, k3).
-N_DISTORTION = 5
+#: Other names calibration tools write for a model of :data:`simgap.core.lens.DISTORTION_MODELS`
+#: (Kalibr and camodocal: ``radtan``, ``fisheye``; OpenCV's own flag names).
+MODEL_ALIASES = {"radtan": "plumb_bob", "fisheye": "equidistant", "kannala_brandt": "equidistant"}
 #: Tolerance on the fixed zeros and one of a camera matrix ``[fx, 0, cx, 0, fy, cy, 0, 0, 1]``.
 MATRIX_TOLERANCE = 1e-9
 
@@ -92,6 +92,39 @@ def _size(value: Any, where: str) -> int:
     return value
 
 
+def distortion_model(where: str, model: Any, dist: list[float]) -> tuple[str, list[float]]:
+    """The distortion model a file names (or its coefficient count implies) and its coefficients.
+
+    A named model (:data:`simgap.core.lens.DISTORTION_MODELS`, or an alias of
+    :data:`MODEL_ALIASES`) takes exactly its count, a short list padded with zeros. Without a
+    name (OpenCV files write none), the count says it as OpenCV reads it: up to 5 ``plumb_bob``,
+    8 ``rational_polynomial``, 12 ``thin_prism``, 14 ``tilted``; coefficients beyond the fifth
+    that are all 0 mean ``plumb_bob``.
+    """
+    if model is not None:
+        name = MODEL_ALIASES.get(str(model), str(model))
+        if name not in DISTORTION_MODELS:
+            raise ConfigError(
+                f"{where}distortion_model: expected one of {', '.join(DISTORTION_MODELS)}, "
+                f"got {model!r}"
+            )
+        count = len(DISTORTION_MODELS[name])
+        if len(dist) > count and any(v != 0.0 for v in dist[count:]):
+            raise ConfigError(
+                f"{where}distortion_coefficients.data: expected the {count} coefficients of "
+                f"{name} ({', '.join(DISTORTION_MODELS[name])}), got {len(dist)}"
+            )
+        return name, (dist + [0.0] * count)[:count]
+    if len(dist) <= 5 or not any(v != 0.0 for v in dist[5:]):
+        return "plumb_bob", (dist + [0.0] * 5)[:5]
+    if len(dist) not in MODEL_OF_COUNT:
+        raise ConfigError(
+            f"{where}distortion_coefficients.data: expected 4, 5, 8, 12 or 14 coefficients "
+            f"(OpenCV's models), got {len(dist)}"
+        )
+    return MODEL_OF_COUNT[len(dist)], dist
+
+
 def camera_model(
     where: str,
     width: Any,
@@ -101,11 +134,7 @@ def camera_model(
     model: Any,
 ) -> CameraModel:
     """Validate the parts read from either format and build the camera model."""
-    if model is not None and model not in DISTORTION_MODELS:
-        raise ConfigError(
-            f"{where}distortion_model: expected one of {', '.join(DISTORTION_MODELS)} "
-            f"(k1, k2, p1, p2, k3), got {model!r}"
-        )
+    name, dist = distortion_model(where, model, dist)
     w = _size(width, f"{where}image_width")
     h = _size(height, f"{where}image_height")
     if (
@@ -122,14 +151,8 @@ def camera_model(
             f"{where}camera_matrix.data: expected positive focal lengths fx, fy (px), "
             f"got {k[0]}, {k[4]}"
         )
-    if len(dist) > N_DISTORTION and any(v != 0.0 for v in dist[N_DISTORTION:]):
-        raise ConfigError(
-            f"{where}distortion_coefficients.data: expected at most 5 coefficients "
-            f"(k1, k2, p1, p2, k3; plumb_bob), got {len(dist)} with non-zero k4 and beyond"
-        )
-    dist = (dist + [0.0] * N_DISTORTION)[:N_DISTORTION]
     try:  # plausibility relative to the image size (CameraModel's checks)
-        return CameraModel(w, h, k[0], k[4], k[2], k[5], tuple(dist))
+        return CameraModel(w, h, k[0], k[4], k[2], k[5], tuple(dist), name)
     except ValueError as exc:
         field = str(exc).split(":", 1)[0]
         key = "distortion_coefficients.data" if "distortion" in field else "camera_matrix.data"
@@ -146,8 +169,9 @@ def read_calibration(
     path : Path
         The file. OpenCV FileStorage is recognised by its first line (``%YAML:1.0`` or
         ``%YAML 1.2``); anything else is read as ROS camera_info YAML (``image_width``,
-        ``image_height``, ``camera_matrix{rows, cols, data}``, ``distortion_model: plumb_bob``,
-        ``distortion_coefficients{data: [k1, k2, p1, p2, k3]}``; other keys are ignored).
+        ``image_height``, ``camera_matrix{rows, cols, data}``, ``distortion_model`` (any of
+        :data:`simgap.core.lens.DISTORTION_MODELS`, e.g. ``plumb_bob``, ``rational_polynomial``,
+        ``equidistant``), ``distortion_coefficients{data: [...]}``; other keys are ignored).
     width, height : int, optional
         Image size (px) used when the file does not give ``image_width`` / ``image_height``
         (OpenCV files often do not). The file's values win when present.
@@ -155,15 +179,15 @@ def read_calibration(
     Returns
     -------
     CameraModel
-        Focal lengths and principal point (px), distortion ``(k1, k2, p1, p2, k3)``; shorter
-        distortion lists are padded with zeros.
+        Focal lengths and principal point (px), the distortion model and its coefficients
+        (:func:`distortion_model`).
 
     Raises
     ------
     simgap.core.config.ConfigError
         Naming the file, the key and what was expected, e.g.
         ``capture/camera.yaml: camera_matrix.data: expected 9 numbers, got 8``; also for a
-        distortion model other than ``plumb_bob`` and for a camera matrix with skew.
+        distortion model OpenCV does not have and for a camera matrix with skew.
     """
     path = Path(path)
     text = read_text(path, "calibration file")

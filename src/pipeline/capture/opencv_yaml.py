@@ -105,8 +105,8 @@ def _write(cal: CameraModel) -> str:
     fs.write("image_width", int(cal.width))
     fs.write("image_height", int(cal.height))
     fs.write("camera_matrix", cal.matrix)
-    fs.write("distortion_model", "plumb_bob")
-    fs.write("distortion_coefficients", cal.dist_coeffs.reshape(1, 5))
+    fs.write("distortion_model", cal.distortion_model)
+    fs.write("distortion_coefficients", cal.dist_coeffs.reshape(1, -1))
     return fs.releaseAndGetString()
 
 

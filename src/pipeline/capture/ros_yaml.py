@@ -1,8 +1,9 @@
 """ROS camera_info YAML calibration files (``sensor_msgs/CameraInfo`` as YAML).
 
 Keys read: ``image_width``, ``image_height``, ``camera_matrix{rows, cols, data}``,
-``distortion_model: plumb_bob``, ``distortion_coefficients{data: [k1, k2, p1, p2, k3]}``; other
-keys are ignored. Any file that is not OpenCV FileStorage YAML is read as this format.
+``distortion_model`` (``plumb_bob``, ``rational_polynomial``, ``equidistant``, ... :
+:mod:`simgap.core.lens`), ``distortion_coefficients{data: [...]}``; other keys are ignored.
+Any file that is not OpenCV FileStorage YAML is read as this format.
 """
 
 from __future__ import annotations
@@ -80,8 +81,8 @@ def _write(cal: CameraModel) -> str:
         "image_height": int(cal.height),
         "camera_name": "simgap",
         "camera_matrix": {"rows": 3, "cols": 3, "data": k},
-        "distortion_model": "plumb_bob",
-        "distortion_coefficients": {"rows": 1, "cols": 5, "data": dist},
+        "distortion_model": cal.distortion_model,
+        "distortion_coefficients": {"rows": 1, "cols": len(dist), "data": dist},
         "rectification_matrix": {
             "rows": 3,
             "cols": 3,
