@@ -7,6 +7,7 @@ blank frames for the bad-folder checks."""
 from __future__ import annotations
 
 import csv
+import json
 import math
 import shutil
 from pathlib import Path
@@ -218,22 +219,26 @@ def test_two_frames_of_a_pose_give_its_temporal_noise(tmp_path, sample_rgb, samp
     frames = []
     for k, (p, t, rgb) in enumerate(sample_rgb):
         frames.append((p, t, 0, rgb))
-        if k == 0:  # the same frame again: nothing changed between the exposures
+        if k == 0:  # the same frame again: a copied file, no second exposure
             frames.append((p, t, 1, rgb))
         else:  # 3 DN of new noise in every channel
             noisy = rgb + rng.normal(0.0, 3.0, rgb.shape)
             frames.append((p, t, 1, np.clip(np.round(noisy), 0, 255).astype(np.uint8)))
     folder = tmp_path / "repeats"
     write_capture(folder, frames, cal)
-    ds = ingest(folder)
+    with pytest.warns(CaptureWarning, match=r"1 pose\(s\) offer identical frames as repeats"):
+        ds = ingest(folder)
     temporal = ds.image_stats.sel(stat="temporal_noise_paper_linear", variant="real")
     seen = ds.detected.isel(variant=0, repeat=0) & ds.visible
     first, second = temporal.sel(repeat=0).values[seen], temporal.sel(repeat=1).values[seen]
     assert seen.sum() == 3 and np.isnan(second).all()  # measured once per pose, on its first
     (same, *new) = [temporal.sel(repeat=0, p=p, theta=t, method="nearest") for p, t, _ in
                     sample_rgb]  # fmt: skip
-    assert float(same.max(skipna=True)) == 0.0
-    assert all(float(v.max(skipna=True)) > 0 for v in new) and np.isfinite(first).all()
+    # the copy is no second exposure: no temporal noise (it had read 0, "no noise"; issue 51)
+    assert bool(same.isnull().all())
+    assert all(float(v.max(skipna=True)) > 0 for v in new)
+    copied = json.loads(ds.attrs["frames_identical_repeats"])
+    assert len(copied) == 1 and copied[0].endswith("_r1.png")
     # against a simulation with one frame a pose, the first frames are compared and the
     # temporal noise stays
     one = repeats_of_simulation(ds, ds.isel(repeat=[0]))
@@ -423,6 +428,19 @@ def test_duplicate_rows(tmp_path, rig):
     )
     with pytest.raises(
         ConfigError, match=r"row 3 \(line 4\): duplicate of row 1 \(p=0, theta=0 deg, repeat=0\)"
+    ):
+        read_capture(folder, rig)
+
+
+def test_one_image_file_for_two_poses_is_refused(tmp_path, rig):
+    """The same file on every manifest row had given median pose errors of 192 mm (issue 51)."""
+    folder = make_capture(
+        tmp_path, rig, f"{HEADER}\nimages/p00_t000.png,0,0.0\nimages/p00_t000.png,7,0\n"
+    )
+    with pytest.raises(
+        ConfigError,
+        match=r"row 2 \(line 3\): image: images/p00_t000.png is also row 1's, at another pose "
+        r"\(p=0, theta=0 deg\)",
     ):
         read_capture(folder, rig)
 

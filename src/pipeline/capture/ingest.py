@@ -121,6 +121,8 @@ def ingest(
         ``calibration_file`` (that file's text), ``detector``, ``pnp``, ``frames``,
         ``frames_unreadable`` (count of frames that could not be decoded or had the wrong size,
         each recorded as not detected), ``frames_failed`` (JSON list of their paths),
+        ``frames_identical_repeats`` (JSON list of the second frames of poses whose first two
+        readable frames are identical pixels: no temporal noise is measured there),
         ``camera_demosaicing`` (JSON: the colour filter layout and nearest demosaicing method
         the colour frames show around their markers, :class:`simgap.pose.cfa.CfaVerdict`; null
         layout where none shows), versions.
@@ -154,12 +156,18 @@ def ingest(
     for frame in cap.frames:
         by_pose.setdefault((frame.p, frame.theta), []).append(frame)
     cfa_traces = CfaTraces()
+    identical: list[str] = []  # poses whose first two readable frames are the same pixels
     with _progress(show_progress) as bar:
         task = bar.add_task(f"ingest {cap.folder.name}", total=len(cap.frames))
         for frames in by_pose.values():
             frames = sorted(frames, key=lambda f: f.repeat)
             images = [_read_frame(frame, cal, failed) for frame in frames]
             readable = [k for k, image in enumerate(images) if image is not None]
+            if len(readable) > 1 and np.array_equal(
+                images[readable[0]][0], images[readable[1]][0]
+            ):  # a copied file is no second exposure: its temporal noise would read zero
+                identical.append(str(frames[readable[1]].image))
+                readable = readable[:1]
             for k, (frame, image) in enumerate(zip(frames, images, strict=True)):
                 bar.advance(task)
                 if image is None:
@@ -190,6 +198,14 @@ def ingest(
                 idx = idx + (thetas.index(frame.theta),)
                 for key, v in out.arrays().items():
                     res[key][idx] = v
+    if identical:
+        warnings.warn(
+            f"{cap.folder}: {len(identical)} pose(s) offer identical frames as repeats (e.g. "
+            f"{identical[0]}): a copy is no second exposure, so their temporal noise and gain "
+            "change are not measured",
+            CaptureWarning,
+            stacklevel=2,
+        )
     expected, visible = ground_truth(rig, tags, ps, thetas)
     attrs = {
         "title": f"simgap result: capture {cap.folder.name}",
@@ -204,6 +220,7 @@ def ingest(
         "frames": len(cap.frames),
         "frames_unreadable": len(failed),
         "frames_failed": json.dumps(failed),
+        "frames_identical_repeats": json.dumps(identical),
         "detector": json.dumps({VARIANT: f"{detector}"}),
         "pnp": json.dumps({VARIANT: f"{pnp}"}),
         "camera_demosaicing": json.dumps(dataclasses.asdict(cfa_traces.verdict())),

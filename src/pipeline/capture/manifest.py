@@ -186,8 +186,9 @@ def read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
     Raises
     ------
     simgap.core.config.ConfigError
-        For an unknown, repeated or missing column, a bad row, a duplicate (p, theta, repeat) or
-        no rows at all; naming the file, row and line.
+        For an unknown, repeated or missing column, a bad row, a duplicate (p, theta, repeat),
+        one image file on rows of different poses (the same pose's repeats may share it: ingest
+        warns of identical frames) or no rows at all; naming the file, row and line.
     """
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -217,6 +218,7 @@ def read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
             )
     frames: list[CaptureFrame] = []
     seen: dict[tuple[int, float, int], int] = {}
+    images: dict[Path, tuple[int, int, float]] = {}  # file -> its first row, p, theta
     row = 0
     for cells in reader:
         if not any(c.strip() for c in cells):
@@ -244,6 +246,13 @@ def read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
                 f"repeat={repeat})"
             )
         seen[key] = row
+        first = images.setdefault(image.resolve(), (row, p, theta))
+        if first[1:] != (p, theta):
+            raise ConfigError(
+                f"{where}: image: {rec['image']} is also row {first[0]}'s, at another pose "
+                f"(p={first[1]}, theta={math.degrees(first[2]):g} deg); expected one image file "
+                "for one pose"
+            )
         frames.append(CaptureFrame(image, p, theta, repeat, rec.get("note", "")))
     if not frames:
         raise ConfigError(f"{path}: no frames (the manifest has a header but no rows)")
