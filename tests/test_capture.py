@@ -580,3 +580,24 @@ def test_cli_ingest_bad_calibration_file(tmp_path, rig, text, message):
     assert res.exit_code == 2, res.output
     assert message.format(path=path) in res.output and "Traceback" not in res.output
     assert not out.exists()
+
+
+def test_a_manifest_linked_out_of_the_capture_is_refused_unread(tmp_path, rig):
+    """A manifest.csv that links to a file elsewhere is refused before it is read, so no line of
+    that file reaches the terminal (issue 51)."""
+    folder = make_capture(tmp_path, rig)
+    secret = tmp_path / "secret.txt"
+    secret.write_text("password=hunter2\n")
+    (folder / "manifest.csv").unlink()
+    (folder / "manifest.csv").symlink_to(secret)
+    with pytest.raises(ConfigError, match=r"manifest.csv: resolves to .*secret.txt, outside") as e:
+        read_capture(folder, rig)
+    assert "hunter2" not in str(e.value)
+
+
+def test_a_long_value_is_cut_in_the_message(tmp_path, rig):
+    folder = make_capture(tmp_path, rig, f"{HEADER}\nimages/p00_t000.png,{'9' * 5000},0.0\n")
+    pattern = r"p: expected a pin hole .* got '9{59}\.\.\. \(4942 more characters\)$"
+    with pytest.raises(ConfigError, match=pattern) as e:
+        read_capture(folder, rig)
+    assert len(str(e.value)) < 400

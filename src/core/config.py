@@ -358,6 +358,19 @@ def to_mapping(obj: Any) -> Any:
     return obj
 
 
+#: Characters of a user's value echoed in an error message; longer ones are cut (a 5000-digit
+#: number or a secret file's first line has no place on the terminal).
+MESSAGE_VALUE_CHARS = 60
+
+
+def shown(value: object, limit: int = MESSAGE_VALUE_CHARS) -> str:
+    """``repr(value)`` for a message, cut to ``limit`` characters with the count of the rest."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text) - limit} more characters)"
+
+
 def require(condition: bool, message: str) -> None:
     """Raise ``ValueError(message)`` unless ``condition`` holds (for ``__post_init__`` checks)."""
     if not condition:

@@ -178,6 +178,12 @@ def read_capture(
                 f"{path}: {what} file not found (a capture folder needs {CALIBRATION_FILE}, "
                 f"{MANIFEST_FILE} and the images; or give the calibration with --calibration)"
             )
+    root = folder.resolve()
+    if not manifest_path.resolve().is_relative_to(root):
+        raise ConfigError(
+            f"{manifest_path}: resolves to {manifest_path.resolve()}, outside the capture folder "
+            f"{root} (a symbolic link?); expected the capture's own {MANIFEST_FILE}"
+        )
     frames = read_manifest(manifest_path, folder, rig)
     first = next(((f, size) for f in frames if (size := frame_size(f.image)) is not None), None)
     if first is None:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from simgap.core.config import ConfigError
+from simgap.core.config import ConfigError, shown
 from simgap.core.rig import Rig
 from simgap.render.imaging import png_bit_depth
 
@@ -90,7 +90,7 @@ def turntable_stop(value: Any, rig: Rig, where: str) -> float:
         step = rig.grid.theta_step_deg
         raise ConfigError(
             f"{where}: expected a turntable stop (a multiple of {step:g} deg = "
-            f"{math.radians(step):.6f} rad, within {THETA_TOLERANCE_RAD:g} rad), got {value!r}"
+            f"{math.radians(step):.6f} rad, within {THETA_TOLERANCE_RAD:g} rad), got {shown(value)}"
         )
     return stop
 
@@ -147,7 +147,7 @@ def _image_path(folder: Path, name: str, where: str) -> Path:
     if "\x00" in name or rel.is_absolute() or ".." in rel.parts:
         raise ConfigError(
             f"{where}: image: expected a path inside the capture folder (relative, without "
-            f"'..'), got {name!r}"
+            f"'..'), got {shown(name)}"
         )
     image = folder / rel
     root = folder.resolve()
@@ -205,7 +205,7 @@ def read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
     for name in header:
         if name not in allowed:
             raise ConfigError(
-                f"{path}: column {name!r}: unknown; allowed columns: {', '.join(allowed)}"
+                f"{path}: column {shown(name)}: unknown; allowed columns: {', '.join(allowed)}"
             )
         if header.count(name) > 1:
             raise ConfigError(f"{path}: column {name!r}: appears more than once")
@@ -232,12 +232,14 @@ def read_manifest(path: Path, folder: Path, rig: Rig) -> list[CaptureFrame]:
         if p is None or p not in rig.grid.p:
             raise ConfigError(
                 f"{where}: p: expected a pin hole of the rig ({_holes(rig.grid.p)}), "
-                f"got {rec['p']!r}"
+                f"got {shown(rec['p'])}"
             )
         theta = turntable_stop(rec["theta_rad"], rig, f"{where}: theta_rad")
         repeat = _parse_int(rec["repeat"]) if "repeat" in rec else 0
         if repeat is None or repeat < 0:
-            raise ConfigError(f"{where}: repeat: expected an integer >= 0, got {rec['repeat']!r}")
+            raise ConfigError(
+                f"{where}: repeat: expected an integer >= 0, got {shown(rec['repeat'])}"
+            )
         image = _image_path(folder, rec["image"], where)
         key = (p, round(theta, 9), repeat)
         if key in seen:
