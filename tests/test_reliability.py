@@ -20,7 +20,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from simgap.cli import app
-from simgap.core.atomic import atomic_write, temporary_name
+from simgap.core.atomic import HOST_TAG, atomic_write, temporary_name, writer_tag
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel
 from simgap.pipeline.cache import CacheWarning
@@ -68,8 +68,50 @@ def test_temporary_names_are_unique_per_writer(tmp_path):
     names = {temporary_name(target) for _ in range(50)}
     assert len(names) == 50
     for name in names:
-        assert name.parent == tmp_path and f".{os.getpid()}-" in name.name
+        assert name.parent == tmp_path and f".{writer_tag()}-" in name.name
         assert name.name.startswith(".x.npz.") and name.name.endswith(".tmp")
+
+
+def _dead_pid() -> int:
+    """The process id of a process that has exited."""
+    done = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    return int(done.stdout)
+
+
+def test_the_next_write_removes_what_a_killed_writer_left(tmp_path):
+    """A writer killed outright leaves ``.NAME.HOST-PID-HEX.tmp`` (issue 51: an 11.8 KB .exr in
+    the cache); the next write into that folder removes it, and a staging folder of the same
+    kind, but nothing of a live writer here or of a writer on another host."""
+    dead = _dead_pid()
+    stale = tmp_path / f".frame.exr.{HOST_TAG}-{dead}-0123456789ab.tmp"
+    stale.write_bytes(b"half an exr")
+    staged = tmp_path / f".bag.{HOST_TAG}-{dead}-0123456789ac.tmp"
+    (staged / "bag").mkdir(parents=True)
+    old_format = tmp_path / f".result.nc.{dead}-0123456789ad.tmp"  # before the host tag
+    old_format.write_bytes(b"")
+    alive = tmp_path / f".other.npz.{writer_tag()}-0123456789ae.tmp"
+    alive.write_bytes(b"being written")
+    other_host = "ffffff" if HOST_TAG != "ffffff" else "eeeeee"
+    elsewhere = tmp_path / f".shared.npz.{other_host}-{dead}-0123456789af.tmp"
+    elsewhere.write_bytes(b"a Dask worker on another host")
+    atomic_write(tmp_path / "table.md", "# Table 2\n")
+    assert not stale.exists() and not staged.exists() and not old_format.exists()
+    assert alive.exists() and elsewhere.exists()
+
+
+def test_a_killed_bag_conversions_folder_is_removed_by_the_next(tmp_path, monkeypatch):
+    import tempfile
+
+    from simgap.pipeline.bag.reader import remove_stale_bag_folders
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = tmp_path / f"simgap-bag-{HOST_TAG}-{_dead_pid()}-x1y2z3"
+    (dead / "capture" / "images").mkdir(parents=True)
+    live = tmp_path / f"simgap-bag-{writer_tag()}-a1b2c3"
+    live.mkdir()
+    assert remove_stale_bag_folders() == 1
+    assert not dead.exists() and live.exists()
 
 
 def test_atomic_write_failure_leaves_target_and_no_temporary(tmp_path):
@@ -149,6 +191,8 @@ def test_kill_9_mid_sweep_then_rerun_is_exact(tiny, tmp_path):
     resumed = run_experiment(exp, cache, show_progress=False)
     assert_same_results(resumed, reference)
     assert len(list(cache.glob("results/*/*.npz"))) == 4
+    # what the killed writer left half-written is gone once the rerun wrote there (issue 51)
+    assert not list(cache.rglob("*.tmp"))
 
 
 # --- command line: exit 2, one line, no traceback ---------------------------------------------

@@ -3,8 +3,12 @@
 Every file simgap writes (cache entries, datasets, reports, capture folders, assets) goes through
 :func:`atomic_write`, so a reader sees either the old file or the complete new one, never a partial
 file, and two processes writing the same target at once cannot collide: each writer has its own
-temporary name (process id and a random suffix) in the target's folder (the same file system, so
-the rename is atomic). On failure the temporary file is removed and the target left untouched.
+temporary name (host, process id and a random suffix) in the target's folder (the same file
+system, so the rename is atomic). On failure the temporary file is removed and the target left
+untouched. A writer killed outright (kill -9) cannot remove its temporary file; the next write
+into that folder by any simgap process does (:func:`remove_stale_temporaries`: only files of a
+writer on this host whose process is gone, so a writer still at work, here or on another host
+sharing the folder, keeps its file).
 
 Examples
 --------
@@ -14,25 +18,95 @@ Examples
 
 from __future__ import annotations
 
+import hashlib
 import os
+import re
 import secrets
 import shutil
+import socket
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_write", "staged_path", "temporary_name"]
+__all__ = [
+    "atomic_write",
+    "remove_stale_temporaries",
+    "staged_path",
+    "temporary_name",
+    "writer_alive",
+    "writer_tag",
+]
+
+#: This host, as 6 hex digits of its name's SHA-256 (writers on hosts sharing a folder differ).
+HOST_TAG = hashlib.sha256(socket.gethostname().encode()).hexdigest()[:6]
+#: A temporary name of :func:`temporary_name`: host tag (absent in names written before it was
+#: added), process id.
+_TEMPORARY = re.compile(r"^\..+\.(?:(?P<host>[0-9a-f]{6})-)?(?P<pid>\d+)-[0-9a-f]{12}\.tmp$")
+#: Folders this process has already cleaned of stale temporaries.
+_CLEANED: set[Path] = set()
+
+
+def writer_tag() -> str:
+    """``<host tag>-<pid>``: which writer on which host a temporary file or folder belongs to."""
+    return f"{HOST_TAG}-{os.getpid()}"
+
+
+def writer_alive(host: str | None, pid: int) -> bool:
+    """Whether a writer may still be at work: on another host (unknown), or its process lives."""
+    if host is not None and host != HOST_TAG:
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
 
 
 def temporary_name(path: Path) -> Path:
     """A temporary path beside ``path``, unique to this writer.
 
-    The name is ``.<name>.<pid>-<12 random hex digits>.tmp``: hidden, in the same folder (so the
-    final rename stays on one file system), and ending in ``.tmp`` so that leftovers of a killed
-    writer are easy to recognise. Writers must therefore not choose the format by the extension.
+    The name is ``.<name>.<host tag>-<pid>-<12 random hex digits>.tmp``: hidden, in the same
+    folder (so the final rename stays on one file system), and ending in ``.tmp`` so that
+    leftovers of a killed writer are easy to recognise (:func:`remove_stale_temporaries`).
+    Writers must therefore not choose the format by the extension.
     """
     path = Path(path)
-    return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(6)}.tmp")
+    return path.with_name(f".{path.name}.{writer_tag()}-{secrets.token_hex(6)}.tmp")
+
+
+def remove_stale_temporaries(folder: Path) -> int:
+    """Remove the temporary files and staging folders of dead writers in ``folder``; the count.
+
+    A writer's leftovers are stale when it ran on this host and its process is gone
+    (:func:`writer_alive`); files it cannot remove are left.
+    """
+    removed = 0
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0
+    for entry in entries:
+        match = _TEMPORARY.match(entry.name)
+        if match is None or writer_alive(match["host"], int(match["pid"])):
+            continue
+        try:
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(entry.path)
+            else:
+                os.unlink(entry.path)
+            removed += 1
+        except OSError:
+            pass
+    return removed
+
+
+def _clean_once(folder: Path) -> None:
+    """:func:`remove_stale_temporaries` on ``folder`` the first time this process writes there."""
+    if folder not in _CLEANED:
+        _CLEANED.add(folder)
+        remove_stale_temporaries(folder)
 
 
 def atomic_write(
@@ -67,6 +141,7 @@ def atomic_write(
         left behind.
     """
     path = Path(path)
+    _clean_once(path.parent)
     tmp = temporary_name(path)
     try:
         if callable(content):
@@ -109,6 +184,7 @@ def staged_path(path: Path) -> Iterator[Path]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    _clean_once(path.parent)
     stage = temporary_name(path)
     stage.mkdir()
     try:

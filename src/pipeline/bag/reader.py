@@ -5,6 +5,8 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
+import shutil
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -15,7 +17,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from simgap.core.atomic import atomic_write
+from simgap.core.atomic import atomic_write, writer_alive, writer_tag
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel, Rig, load_rig
 from simgap.pipeline.bag.formats import (
@@ -336,6 +338,28 @@ def _write_frames(
     return rows
 
 
+#: Prefix of the temporary capture folders of bag conversions (``simgap-bag-<host>-<pid>-...``).
+BAG_TEMPORARY_PREFIX = "simgap-bag-"
+_BAG_FOLDER = re.compile(rf"^{BAG_TEMPORARY_PREFIX}(?P<host>[0-9a-f]{{6}})-(?P<pid>\d+)-")
+
+
+def remove_stale_bag_folders() -> int:
+    """Remove the temporary capture folders of bag conversions killed on this host; the count.
+
+    A conversion killed outright (kill -9) leaves its folder in the temporary directory; the
+    next bag ingest removes those whose process is gone (:func:`simgap.core.atomic.writer_alive`).
+    """
+    removed = 0
+    root = Path(tempfile.gettempdir())
+    for entry in root.glob(f"{BAG_TEMPORARY_PREFIX}*"):
+        match = _BAG_FOLDER.match(entry.name)
+        if match is None or writer_alive(match["host"], int(match["pid"])):
+            continue
+        shutil.rmtree(entry, ignore_errors=True)
+        removed += not entry.exists()
+    return removed
+
+
 def ingest_bag(
     bag: Path,
     rig: Rig | None = None,
@@ -383,7 +407,8 @@ def ingest_bag(
         As :func:`bag_to_capture` and :func:`simgap.pipeline.capture.ingest`.
     """
     rig = rig or load_rig()
-    with tempfile.TemporaryDirectory(prefix="simgap-bag-") as tmp:
+    remove_stale_bag_folders()
+    with tempfile.TemporaryDirectory(prefix=f"{BAG_TEMPORARY_PREFIX}{writer_tag()}-") as tmp:
         folder = Path(keep_capture) if keep_capture is not None else Path(tmp) / "capture"
         info = bag_to_capture(
             bag, folder, rig, ranges_csv, image_topic, camera_info_topic, fixture_topic,
