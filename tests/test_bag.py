@@ -325,3 +325,46 @@ def test_export_bag_from_experiment_renders_and_ingests(tmp_path, session_cache,
     assert bool(ds.detected.sel(tag=0).any())
     # rendered tag 0 at p=7 facing the camera: the depth error of a render is a few mm at most
     assert abs(float(ds.error.sel(tag=0, axis="ty").max())) < 5e-3
+
+
+def _lying_bag(path: Path, rig, frames, image_stamps, joint_rows) -> Path:
+    """A ROS 1 bag recorded at 1 s steps: CameraInfo, joint states ``(stamp, p, theta)`` and raw
+    frames whose header stamps are ``image_stamps`` (ns), whatever their recording times."""
+    build = Messages("ros1")
+    with Writer1(path) as w:
+        info = w.add_connection(CAMERA_INFO_TOPIC, "sensor_msgs/msg/CameraInfo", typestore=build.ts)
+        joints = w.add_connection(FIXTURE_TOPIC, "sensor_msgs/msg/JointState", typestore=build.ts)
+        img = w.add_connection(IMAGE_TOPIC, "sensor_msgs/msg/Image", typestore=build.ts)
+        w.write(info, 1, build.serialize(build.camera_info(1, rig.camera)))
+        for k, (ns, p, theta) in enumerate(joint_rows):
+            msg = build.joints(ns, p * rig.links.pin_pitch, theta)
+            w.write(joints, 10 + k, build.serialize(msg))
+        for k, ((_, _, _, rgb), ns) in enumerate(zip(frames, image_stamps, strict=True)):
+            w.write(img, (k + 1) * 10**9, build.serialize(build.image(ns, rgb, False)))
+    return path
+
+
+def test_stamps_that_contradict_the_recording_are_named(tmp_path, frames, rig):
+    """Image stamps reversed against the recording had assigned every frame another pose's joint
+    state (278 mm median pose error), and two joint states at one stamp with different positions
+    errors up to 177 mm (issue 51)."""
+    joints = [(10**9 - 1, 0, 0.0), (2 * 10**9 - 1, 7, 0.0), (3 * 10**9 - 1, 14, 0.0)]
+    fine = _lying_bag(tmp_path / "fine.bag", rig, frames[:3], [10**9, 2 * 10**9, 3 * 10**9], joints)
+    assert bag_to_capture(fine, tmp_path / "c0", rig).frames == 3
+    reversed_ = _lying_bag(
+        tmp_path / "rev.bag", rig, frames[:3], [3 * 10**9, 2 * 10**9, 10**9], joints
+    )
+    with pytest.raises(
+        ConfigError,
+        match=rf"topic {IMAGE_TOPIC}: message 2: header.stamp: 2000000000 ns is earlier than "
+        r"message 1's 3000000000 ns",
+    ):
+        bag_to_capture(reversed_, tmp_path / "c1", rig)
+    twice = joints[:1] + [(10**9 - 1, 7, 0.0)] + joints[2:]
+    double = _lying_bag(tmp_path / "dbl.bag", rig, frames[:3], [10**9, 2 * 10**9, 3 * 10**9], twice)
+    with pytest.raises(
+        ConfigError,
+        match=rf"topic {FIXTURE_TOPIC}: message 2: position: \(p=7, theta=0 deg\) at the stamp "
+        r"of message 1, which claims \(p=0, theta=0 deg\)",
+    ):
+        bag_to_capture(double, tmp_path / "c2", rig)
