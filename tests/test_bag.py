@@ -368,3 +368,58 @@ def test_stamps_that_contradict_the_recording_are_named(tmp_path, frames, rig):
         r"of message 1, which claims \(p=0, theta=0 deg\)",
     ):
         bag_to_capture(double, tmp_path / "c2", rig)
+
+
+def _one_frame_bag(path: Path, rig, msg, compressed: bool = False) -> Path:
+    """A ROS 1 bag with a CameraInfo and the one frame message ``msg``."""
+    build = Messages("ros1")
+    kind = "sensor_msgs/msg/CompressedImage" if compressed else "sensor_msgs/msg/Image"
+    with Writer1(path) as w:
+        info = w.add_connection(CAMERA_INFO_TOPIC, "sensor_msgs/msg/CameraInfo", typestore=build.ts)
+        img = w.add_connection(IMAGE_TOPIC, kind, typestore=build.ts)
+        w.write(info, 10**9, build.serialize(build.camera_info(10**9, rig.camera)))
+        w.write(img, 10**9, build.serialize(msg))
+    return path
+
+
+def test_encodings_that_lie_about_their_data_are_named(tmp_path, frames, rig):
+    """Labels that do not describe the data had been read as garbage frames with 0 detections
+    and exit 0; 16-bit frames had been scaled by 255/65535 in bags while capture folders refuse
+    16-bit PNGs (issue 51)."""
+    import dataclasses
+
+    build = Messages("ros1")
+    rgb = frames[0][3]
+    bgr8 = build.image(10**9, rgb, False)
+    good = write_ranges(tmp_path / "g.csv", [(0, 2 * 10**9, 0, "0.0")])
+    where = rf"topic {IMAGE_TOPIC}: message 1"
+    cases = {
+        "mono8": rf"{where}: data: {rgb.size} bytes, expected step x rows = {rgb.shape[1]} x ",
+        "yuv422": rf"{where}: data: {rgb.size} bytes, expected",
+        "mono16": rf"{where}: encoding: 'mono16' is 16-bit; simgap reads 8-bit frames",
+        "32FC1": rf"{where}: encoding: expected an 8-bit encoding .* got '32FC1'",
+    }
+    for k, (encoding, message) in enumerate(cases.items()):
+        step = {"mono8": rgb.shape[1], "yuv422": 2 * rgb.shape[1]}.get(encoding, bgr8.step)
+        lie = dataclasses.replace(bgr8, encoding=encoding, step=step)
+        bag = _one_frame_bag(tmp_path / f"{k}.bag", rig, lie)
+        with pytest.raises(ConfigError, match=message):
+            bag_to_capture(bag, tmp_path / f"c{k}", rig, good)
+    # rows padded to a 64-byte step are legitimate: read as the unpadded frame
+    step = -(-bgr8.step // 64) * 64
+    padded = np.zeros((rgb.shape[0], step), np.uint8)
+    padded[:, : bgr8.step] = np.asarray(bgr8.data).reshape(rgb.shape[0], -1)
+    msg = dataclasses.replace(bgr8, step=step, data=padded.reshape(-1))
+    plain = _one_frame_bag(tmp_path / "p.bag", rig, bgr8)
+    wide = _one_frame_bag(tmp_path / "w.bag", rig, msg)
+    plain = bag_to_capture(plain, tmp_path / "cp", rig, good)
+    wide = bag_to_capture(wide, tmp_path / "cw", rig, good)
+    assert plain.frames == wide.frames == 1
+    names = [sorted((tmp_path / c / "images").iterdir()) for c in ("cp", "cw")]
+    assert names[0][0].read_bytes() == names[1][0].read_bytes()
+    # a 16-bit PNG in a CompressedImage, named with its topic and message
+    ok, png16 = cv2.imencode(".png", (rgb.astype(np.uint16) * 257))
+    deep = build.image(10**9, (png16.tobytes(), "png"), True)
+    bag = _one_frame_bag(tmp_path / "d.bag", rig, deep, compressed=True)
+    with pytest.raises(ConfigError, match=rf"{where}: data: a 16-bit PNG"):
+        bag_to_capture(bag, tmp_path / "cd", rig, good)
