@@ -217,6 +217,13 @@ def test_cli_errormodel(synthetic, tmp_path):
     assert res.exit_code == 0, res.output
     assert (tmp_path / "m.nc").is_file() and (tmp_path / "m.json").is_file()
     assert "held-out half: 90 % interval coverage" in res.output
+    # -o NAME.json writes the JSON there and the netCDF beside it (it had written the netCDF to
+    # NAME.json, then the JSON over it, printing one path twice; issue 51)
+    res = CliRunner().invoke(app, ["errormodel", str(nc), "-o", str(tmp_path / "j.json")])
+    assert res.exit_code == 0, res.output
+    printed = [line for line in res.output.splitlines() if line.startswith(str(tmp_path))]
+    assert printed == [str(tmp_path / "j.nc"), str(tmp_path / "j.json")]
+    assert ErrorModel.load(tmp_path / "j.nc").tags == ErrorModel.load(tmp_path / "j.json").tags
     rep = CliRunner().invoke(
         app, ["report", str(nc), "-o", str(tmp_path / "rep"), "--model", str(tmp_path / "m.nc")]
     )

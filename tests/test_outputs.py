@@ -90,6 +90,11 @@ def test_own_output_is_replaced_and_a_users_file_needs_overwrite(tmp_path):
     args = ["ingest", str(capture), "-o", str(mine), "--no-progress", "--overwrite"]
     assert runner.invoke(app, args).exit_code == 0
     assert is_result_dataset_file(mine)
+    # a simulation does not replace an ingested dataset (simgap's, but another kind) unasked
+    before = out.read_bytes()
+    res = runner.invoke(app, ["run", "experiments/smoke.yaml", "-o", str(out)])
+    assert res.exit_code == 2 and "pass --overwrite to replace it" in res.output, res.output
+    assert out.read_bytes() == before
 
 
 def test_report_folder_is_marked_and_a_users_folder_needs_overwrite(tmp_path, monkeypatch):
@@ -139,6 +144,28 @@ def test_exported_bags_are_replaced_by_their_next_export(scenario, tmp_path):
             assert res.exit_code == 0, res.output
         assert is_exported_bag(out)
     assert not is_exported_bag(scenario.capture) and not is_exported_bag(scenario.user_file)
+
+
+def test_overwrite_never_deletes_or_replaces_a_users_files(scenario, tmp_path):
+    """``export-bag -o USERDIR --overwrite`` had deleted the user's other files (a ROS 2 bag
+    replaces its whole folder) and ``--keep-capture USERDIR --overwrite`` replaced the user's
+    manifest.csv (issue 51): both refused, every file kept."""
+    before = snapshot(scenario.root)
+    folder = scenario.root / "user_folder"
+    args = ["export-bag", str(scenario.capture), "-o", str(folder), "--format", "ros2",
+            "--overwrite"]  # fmt: skip
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2 and "replaces its whole folder" in res.output, res.output
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "manifest.csv").write_text("my notes\n")
+    args = ["ingest", str(scenario.bag1), "-o", str(tmp_path / "r.nc"), "--keep-capture",
+            str(mine), "--overwrite"]  # fmt: skip
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert f"--keep-capture {mine}: holds manifest.csv that simgap did not write" in res.output
+    assert (mine / "manifest.csv").read_text() == "my notes\n"
+    assert snapshot(scenario.root) == before
 
 
 # --- the check itself ------------------------------------------------------------------------

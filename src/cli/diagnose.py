@@ -41,10 +41,12 @@ def errormodel(
 ) -> None:
     """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
     from simgap.analysis.errormodel import check_error_model, fit_error_model
+    from simgap.analysis.errormodel.io import model_paths
 
+    # the model is written as netCDF and JSON: OUTPUT and its other file
     outputs = [(OUTPUT, output, ERROR_MODEL)]
-    if output.suffix != ".json":  # the model is written as OUTPUT and OUTPUT with .json
-        outputs.append((f"{OUTPUT} (its .json)", output.with_suffix(".json"), ERROR_MODEL))
+    other = next(p for p in model_paths(output) if p != output)
+    outputs.append((f"{OUTPUT} (its {other.suffix})", other, ERROR_MODEL))
     check_outputs(outputs, [("RESULT", result)], overwrite)
     ds = read_result_dataset(result)
     from simgap.analysis.errormodel import FitSettings

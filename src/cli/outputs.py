@@ -12,6 +12,7 @@ from pathlib import Path
 
 from simgap.core.config import ConfigError
 from simgap.core.outputs import OutputKind, OutputPathError, check_output
+from simgap.core.paths import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
 
 #: The ``-o/--output`` option in messages.
 OUTPUT = "-o/--output"
@@ -34,11 +35,32 @@ def _json_object(path: Path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _is_result_dataset(path: Path) -> bool:
-    """A result dataset simgap wrote (netCDF with its provenance attrs)."""
-    from simgap.results.provenance import is_result_dataset_file
+#: The ``source`` attr of a result dataset ingested from a real capture or bag.
+INGESTED_SOURCES = frozenset({"capture", "bag"})
 
-    return is_result_dataset_file(path)
+
+def _dataset_source(path: Path) -> str | None:
+    """The ``source`` attr of a result dataset simgap wrote, or None for any other file.
+
+    ``""`` for a simulated dataset (it has none).
+    """
+    from simgap.results.provenance import is_result_dataset_file, netcdf_header
+
+    if not is_result_dataset_file(path):
+        return None
+    header = netcdf_header(path)
+    return str(header[0].get("source", "")) if header is not None else None
+
+
+def _is_simulated_dataset(path: Path) -> bool:
+    """A simulated result dataset simgap wrote (not one ingested from a capture or bag)."""
+    source = _dataset_source(path)
+    return source is not None and source not in INGESTED_SOURCES
+
+
+def _is_ingested_dataset(path: Path) -> bool:
+    """A result dataset simgap ingested from a capture or a bag."""
+    return _dataset_source(path) in INGESTED_SOURCES
 
 
 def _is_error_model(path: Path) -> bool:
@@ -73,14 +95,20 @@ def _any_folder(folder: Path) -> bool:
     return True
 
 
-RESULT_DATASET = OutputKind("result dataset (netCDF)", is_ours=_is_result_dataset)
+#: What ``run`` and ``study`` write; an ingested dataset is another kind (its replacement by a
+#: simulation needs ``--overwrite``, issue 51).
+RESULT_DATASET = OutputKind("simulated result dataset (netCDF)", is_ours=_is_simulated_dataset)
+#: What ``ingest`` writes.
+INGESTED_DATASET = OutputKind("ingested result dataset (netCDF)", is_ours=_is_ingested_dataset)
 ERROR_MODEL = OutputKind("error model (netCDF or JSON)", is_ours=_is_error_model)
 DIAGNOSIS_JSON = OutputKind("diagnosis result (JSON)", is_ours=_is_diagnosis_json)
 REPORT_FOLDER = OutputKind("report folder", folder=True)
 COMPARISON_FOLDER = OutputKind("comparison folder", folder=True)
 DIAGNOSIS_FOLDER = OutputKind("diagnosis folder", folder=True)
 VALIDATION_FOLDER = OutputKind("validation folder", folder=True)
-CAPTURE_FOLDER = OutputKind("capture folder", folder=True)
+CAPTURE_FOLDER = OutputKind(
+    "capture folder", folder=True, names=(CALIBRATION_FILE, MANIFEST_FILE, IMAGES_DIR)
+)
 ROS1_BAG = OutputKind("ROS 1 bag", is_ours=_is_exported_bag)
 ROS2_BAG_FILE = OutputKind("ROS 2 bag file (.mcap or .db3)", is_ours=_is_exported_bag)
 ROS2_BAG = OutputKind(

@@ -20,8 +20,8 @@ from simgap.cli.options import (
 )
 from simgap.cli.outputs import (
     CAPTURE_FOLDER,
+    INGESTED_DATASET,
     OUTPUT,
-    RESULT_DATASET,
     ROS1_BAG,
     ROS2_BAG,
     ROS2_BAG_FILE,
@@ -84,7 +84,7 @@ def ingest(
     bag = is_bag(capture)
     inputs = [("CAPTURE", capture), ("--ranges", ranges), ("--calibration", calibration)]
     inputs += experiment_inputs(experiment, "--experiment") if experiment is not None else []
-    outputs = [(OUTPUT, output, RESULT_DATASET)]
+    outputs = [(OUTPUT, output, INGESTED_DATASET)]
     outputs += [("--keep-capture", keep_capture, CAPTURE_FOLDER)] if bag else []
     check_outputs(outputs, inputs, overwrite)
     kwargs: dict = {"calibration_file": calibration, "max_pixels": max_pixels}

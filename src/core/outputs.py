@@ -89,13 +89,19 @@ class OutputKind:
         command writes, written by simgap: an earlier output it may replace. ``None`` for a
         folder of files: simgap's when new, empty or marked with :data:`OUTPUT_MARKER`.
     replaced_whole : bool
-        Writing replaces the whole folder (a ROS 2 bag): no input may lie inside it.
+        Writing replaces the whole folder (a ROS 2 bag): no input may lie inside it, and a
+        folder that is not simgap's is refused even with ``--overwrite``.
+    names : tuple of str
+        The entries the command writes in the folder (a capture's ``camera.yaml``, ...): in a
+        folder that is not simgap's, an existing one is refused even with ``--overwrite``, which
+        writes beside a user's files and replaces none.
     """
 
     what: str
     folder: bool = False
     is_ours: Callable[[Path], bool] | None = None
     replaced_whole: bool = False
+    names: tuple[str, ...] = ()
 
 
 def _file_type(mode: int) -> str:
@@ -195,6 +201,18 @@ def check_output(
         refuse(
             f"is {_file_type(mode)}; expected {'a folder' if kind.folder else 'a file'} "
             f"(the {kind.what} to write)"
+        )
+    if kind.replaced_whole and kind.is_ours is not None and not kind.is_ours(path):
+        # writing replaces the whole folder: --overwrite never deletes a user's files
+        refuse(
+            f"holds files simgap did not write, and a {kind.what} replaces its whole folder; "
+            "choose a new or empty folder (--overwrite does not delete a user's files)"
+        )
+    taken = [n for n in kind.names if (path / n).exists()] if kind.folder else []
+    if taken and kind.is_ours is None and not _folder_is_ours(path):
+        refuse(
+            f"holds {', '.join(taken)} that simgap did not write, which the {kind.what} would "
+            "replace; choose a new or empty folder (--overwrite does not replace a user's files)"
         )
     if overwrite:
         return path

@@ -5,6 +5,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+#: A capture folder's layout (docs/conventions.md §3): its calibration, its manifest and the
+#: folder of its frames.
+CALIBRATION_FILE = "camera.yaml"
+MANIFEST_FILE = "manifest.csv"
+IMAGES_DIR = "images"
+
 
 def project_root() -> Path:
     """Return the folder holding ``assets/``, ``mitsuba_scenes/`` and ``experiments/``.

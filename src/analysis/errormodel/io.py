@@ -91,11 +91,23 @@ def read_model_dataset(path: str | Path) -> xr.Dataset:
     return ds
 
 
-def write_model_dataset(ds: xr.Dataset, path: str | Path) -> tuple[Path, Path]:
-    """Write ``path`` (netCDF) and the same name with ``.json``, atomically; return both."""
+def model_paths(path: str | Path) -> tuple[Path, Path]:
+    """The netCDF and JSON files of a model written to ``path``.
+
+    ``path`` and the same name with ``.json``; a ``path`` that ends in ``.json`` is the JSON,
+    beside the same name with ``.nc``.
+    """
     path = Path(path)
-    nc = write_netcdf(ds, path)
-    js = atomic_write(path.with_suffix(".json"), json.dumps(dataset_to_json(ds)))
+    if path.suffix == ".json":
+        return path.with_suffix(".nc"), path
+    return path, path.with_suffix(".json")
+
+
+def write_model_dataset(ds: xr.Dataset, path: str | Path) -> tuple[Path, Path]:
+    """Write the model's netCDF and JSON files (:func:`model_paths`), atomically; return both."""
+    nc_path, json_path = model_paths(path)
+    nc = write_netcdf(ds, nc_path)
+    js = atomic_write(json_path, json.dumps(dataset_to_json(ds)))
     return nc, js
 
 

@@ -20,6 +20,8 @@ import yaml
 
 from simgap.core.atomic import atomic_write, writer_alive, writer_tag
 from simgap.core.config import ConfigError, shown
+from simgap.core.limits import MAX_PIXELS
+from simgap.core.paths import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
 from simgap.core.rig import CameraModel, Rig, load_rig
 from simgap.pipeline.bag.formats import (
     CAMERA_INFO_TYPE,
@@ -36,13 +38,7 @@ from simgap.pipeline.bag.formats import (
 )
 from simgap.pipeline.bag.ranges import TimeRange, read_time_ranges
 from simgap.pipeline.capture import read_calibration
-from simgap.pipeline.capture.folder import (
-    CALIBRATION_FILE,
-    IMAGES_DIR,
-    MANIFEST_FILE,
-    MAX_PIXELS,
-    check_pixel_budget,
-)
+from simgap.pipeline.capture.folder import check_pixel_budget
 from simgap.pipeline.capture.ingest import ingest
 from simgap.pipeline.capture.manifest import turntable_stop
 from simgap.pipeline.capture.writer import image_name
@@ -331,7 +327,7 @@ def bag_to_capture(
     fixture_topic : str, optional
         ``sensor_msgs/JointState`` topic of the fixture; default :data:`FIXTURE_TOPIC`.
     max_pixels : int
-        The pixel budget (:data:`simgap.pipeline.capture.folder.MAX_PIXELS`): a CameraInfo
+        The pixel budget (:data:`simgap.core.limits.MAX_PIXELS`): a CameraInfo
         whose image is larger is refused before any frame is read.
 
     Returns
@@ -485,7 +481,7 @@ def ingest_bag(
     show_progress : bool
         Show a progress bar.
     max_pixels : int
-        The pixel budget (:data:`simgap.pipeline.capture.folder.MAX_PIXELS`), for the bag's
+        The pixel budget (:data:`simgap.core.limits.MAX_PIXELS`), for the bag's
         CameraInfo and its frames.
     **estimator
         ``detector``, ``pnp``, ``calibration`` and ``calibration_file`` (wins over the bag's

@@ -18,6 +18,7 @@ import numpy as np
 
 from simgap.core.config import ConfigError
 from simgap.core.limits import MAX_PIXELS
+from simgap.core.paths import CALIBRATION_FILE, MANIFEST_FILE
 from simgap.core.rig import CameraModel, Rig
 from simgap.pipeline.capture.calibration import read_calibration
 from simgap.pipeline.capture.manifest import CaptureFrame, read_manifest
@@ -28,9 +29,6 @@ from simgap.render.imaging import encoded_size, truncation
 #: decoded): Pillow's decompression-bomb threshold, ``PIL.Image.MAX_IMAGE_PIXELS`` (89.5 MP,
 #: 268 MB decoded as 8-bit colour).
 UNSTATED_SIZE_MAX_PIXELS = 89_478_485
-CALIBRATION_FILE = "camera.yaml"
-MANIFEST_FILE = "manifest.csv"
-IMAGES_DIR = "images"
 
 
 class CaptureWarning(UserWarning):
@@ -108,7 +106,9 @@ def read_image(path: Path, width: int, height: int) -> np.ndarray | str:
 def check_pixel_budget(
     width: int, height: int, max_pixels: int, where: str, key: str = "image_width x image_height"
 ) -> None:
-    """Refuse an image size over the pixel budget (:data:`MAX_PIXELS`), naming ``where``/``key``.
+    """Refuse an image size over the pixel budget, naming ``where`` and ``key``.
+
+    The budget is :data:`simgap.core.limits.MAX_PIXELS` unless raised (``--max-pixels``).
 
     Raises
     ------
@@ -142,7 +142,8 @@ def read_capture(
         Read the calibration from this file (any name: ROS ``ost.yaml`` / camera_info YAML or
         OpenCV YAML) instead of the folder's ``camera.yaml``, which then need not exist.
     max_pixels : int
-        The pixel budget (:data:`MAX_PIXELS`): a calibration whose image is larger is refused.
+        The pixel budget (:data:`simgap.core.limits.MAX_PIXELS`): a calibration whose image
+        is larger is refused.
 
     Returns
     -------

@@ -14,14 +14,10 @@ import yaml
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
 from simgap.core.config import to_mapping
+from simgap.core.limits import MAX_PIXELS
+from simgap.core.paths import CALIBRATION_FILE
 from simgap.core.rig import CameraModel, Rig, load_rig
-from simgap.pipeline.capture.folder import (
-    CALIBRATION_FILE,
-    MAX_PIXELS,
-    CaptureWarning,
-    read_capture,
-    read_image,
-)
+from simgap.pipeline.capture.folder import CaptureWarning, read_capture, read_image
 from simgap.pipeline.capture.manifest import CaptureFrame
 from simgap.pose.cfa import CfaTraces, around_markers
 from simgap.pose.detect import Detector, DetectorSettings
@@ -109,7 +105,7 @@ def ingest(
         The calibration file to read instead of the folder's ``camera.yaml`` (any name; see
         :func:`~simgap.pipeline.capture.folder.read_capture`); ``calibration`` still wins.
     max_pixels : int
-        The pixel budget (:data:`~simgap.pipeline.capture.folder.MAX_PIXELS`).
+        The pixel budget (:data:`~simgap.core.limits.MAX_PIXELS`).
 
     Returns
     -------

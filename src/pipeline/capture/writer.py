@@ -13,9 +13,9 @@ import cv2
 import numpy as np
 
 from simgap.core.atomic import atomic_write
+from simgap.core.paths import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
 from simgap.core.rig import CameraModel
 from simgap.pipeline.capture.calibration import calibration_format, calibration_to_yaml
-from simgap.pipeline.capture.folder import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
 from simgap.pipeline.capture.manifest import REQUIRED_COLUMNS
 from simgap.render import imaging
 
