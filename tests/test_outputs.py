@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import socket
 import sys
 import tracemalloc
@@ -271,8 +272,12 @@ def test_big_later_frame_is_a_recorded_failure_never_decoded(tmp_path, big, fmt)
 def test_bag_frames_are_sized_before_decoding(tmp_path, big, rig):
     frames = [BagFrame(0, 0.0, 0, GREY), BagFrame(7, math.radians(30), 0, (big, "png"))]
     compressed = write_bag(tmp_path / "c.bag", "ros1", SMALL, frames, rig, compressed=True)
-    with pytest.warns(CaptureWarning, match="frame is 25000x25000, expected 64x48"):
-        assert ingest_bag(compressed).attrs["frames_unreadable"] == 1
+    # named by the bag's topic and message, not the deleted temporary folder (issue 51)
+    where = rf"{compressed}: topic \S+: message 2"
+    with pytest.warns(CaptureWarning, match=rf"^{where}: frame is 25000x25000, expected 64x48"):
+        ds = ingest_bag(compressed)
+    assert ds.attrs["frames_unreadable"] == 1
+    assert re.fullmatch(rf'\["{where}"\]', ds.attrs["frames_failed"])
     small = [BagFrame(0, 0.0, 0, GREY[:24, :32])]  # raw Image of 32 x 24 px, CameraInfo 64 x 48
     raw = write_bag(tmp_path / "r.bag", "ros1", SMALL, small, rig)
     with pytest.raises(ConfigError, match=r"message 1: width x height: expected 64x48 .* 32x24"):

@@ -5,10 +5,12 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import json
 import math
 import re
 import shutil
 import tempfile
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +39,7 @@ from simgap.pipeline.bag.formats import (
     bag_format,
 )
 from simgap.pipeline.bag.ranges import TimeRange, read_time_ranges
-from simgap.pipeline.capture import read_calibration
+from simgap.pipeline.capture import CaptureWarning, read_calibration
 from simgap.pipeline.capture.folder import check_pixel_budget
 from simgap.pipeline.capture.ingest import ingest
 from simgap.pipeline.capture.manifest import turntable_stop
@@ -57,6 +59,8 @@ class BagConversion:
     frames: int = 0
     frames_skipped: int = 0
     ranges_without_frames: list[int] = field(default_factory=list)
+    #: each written frame's path in the capture folder (relative) -> ``BAG: topic T: message I``
+    messages: dict[str, str] = field(default_factory=dict)
 
 
 def _stamp_ns(msg: Any, record_ns: int) -> int:
@@ -426,6 +430,7 @@ def _write_frames(
         name = f"{IMAGES_DIR}/{image_name(config[0], config[1], repeat, ext)}"
         (folder / name).parent.mkdir(parents=True, exist_ok=True)
         atomic_write(folder / name, data)
+        info.messages[name] = where
         rows.append([name, config[0], f"{config[1]:.9f}", repeat])
         info.frames += 1
     info.ranges_without_frames = sorted({r.row for r in ranges or []} - used)
@@ -435,6 +440,13 @@ def _write_frames(
 #: Prefix of the temporary capture folders of bag conversions (``simgap-bag-<host>-<pid>-...``).
 BAG_TEMPORARY_PREFIX = "simgap-bag-"
 _BAG_FOLDER = re.compile(rf"^{BAG_TEMPORARY_PREFIX}(?P<host>[0-9a-f]{{6}})-(?P<pid>\d+)-")
+
+
+def _named_by_message(text: str, by_path: dict[str, str]) -> str:
+    """``text`` with each converted frame's path replaced by its bag, topic and message."""
+    for path, where in by_path.items():
+        text = text.replace(path, where)
+    return text
 
 
 def remove_stale_bag_folders() -> int:
@@ -508,7 +520,21 @@ def ingest_bag(
             bag, folder, rig, ranges_csv, image_topic, camera_info_topic, fixture_topic,
             max_pixels,
         )  # fmt: skip
-        ds = ingest(folder, rig, show_progress=show_progress, max_pixels=max_pixels, **estimator)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", CaptureWarning)
+            ds = ingest(
+                folder, rig, show_progress=show_progress, max_pixels=max_pixels, **estimator
+            )
+        by_path = {str(folder / name): where for name, where in info.messages.items()}
+        for warning in caught:  # the frames by topic and message: the folder may be gone
+            if issubclass(warning.category, CaptureWarning):
+                warnings.warn(_named_by_message(str(warning.message), by_path), CaptureWarning, 2)
+            else:
+                warnings.warn_explicit(
+                    warning.message, warning.category, warning.filename, warning.lineno
+                )
+        failed = json.loads(ds.attrs.get("frames_failed", "[]"))
+        ds.attrs["frames_failed"] = json.dumps([by_path.get(f, f) for f in failed])
     ds.attrs.update(
         {
             "title": f"simgap result: bag {Path(bag).name}",
