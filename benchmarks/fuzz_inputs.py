@@ -1,11 +1,12 @@
 """Feed generated bad inputs to simgap's real loaders and count how each one is refused.
 
-Five input families (issue 10): experiment YAML, calibration files, capture manifests, frame
-images (with a 600 KB PNG of 25000 x 25000 px, issue 26) and result datasets, plus command-line
-calls, and the output paths of every command that would destroy an input, a capture's files or
-a device (issue 26, ``benchmarks/fuzz_outputs.py``: for these, named also means the scenario's
-files are byte-identical afterwards and nothing was written). Every input is invalid by
-construction. For each, the outcome is one of
+Six input families (issue 10): experiment YAML, calibration files, capture manifests, frame
+images (with a 600 KB PNG of 25000 x 25000 px, issue 26), result datasets and inputs that lie
+(issue 51: captures and bags whose data contradicts itself, bombs their calibration vouches
+for), plus command-line calls, and the output paths of every command that would destroy an
+input, a capture's files or a device (issue 26, ``benchmarks/fuzz_outputs.py``: for these,
+named also means the scenario's files are byte-identical afterwards and nothing was written).
+Every input is invalid by construction. For each, the outcome is one of
 
 - ``named``: simgap's own error (ConfigError / DatasetError) naming the offending file (for a frame,
   a recorded failure: CaptureWarning and ``frames_unreadable``); for a command-line call, exit code
@@ -299,7 +300,8 @@ def calibration_cases(tmp: Path, rng: random.Random) -> list[Case]:
         ros_with(f"image_width={v}", image_width=v)
         ros_with(f"image_height={v}", image_height=v)
     ros_with("skew", skew=3.0)
-    ros_with("fisheye", distortion_model="equidistant")
+    ros_with("unknown model", distortion_model="ocam")
+    ros_with("fisheye with a 5th coefficient", distortion_model="equidistant", k4=0.1)
     ros_with("no camera_matrix", camera_matrix=None)
     ros_with("no distortion", distortion_coefficients=None)
     ros_with("camera_matrix list", camera_matrix=[1, 2, 3])
@@ -334,7 +336,7 @@ def calibration_cases(tmp: Path, rng: random.Random) -> list[Case]:
         ("image_width: 1920", "image_width: abc", "width string"),
         ("camera_matrix", "camera_matrixx", "no camera matrix"),
         ("rows: 3", "rows: 4", "rows 4"),
-        ("distortion_model: plumb_bob", "distortion_model: fisheye", "fisheye"),
+        ("distortion_model: plumb_bob", "distortion_model: ocam", "unknown model"),
     ]:
         texts[f"opencv {label}"] = ocv.replace(old, new, 1).encode()
     texts["opencv garbage after header"] = b"%YAML:1.0\n---\n{{{{ ::: [[[\n"
@@ -439,6 +441,94 @@ def manifest_cases(tmp: Path, rng: random.Random) -> list[Case]:
         f"{header}\nimages/p00_t000.png,0,0 \xe9\n".encode("latin-1")
     )
     out.append(Case("manifest", "non-UTF-8", lambda f=folder: read_capture(f, rig), str(folder)))
+    return out
+
+
+def _lying_bag(
+    path: Path, frames: list[tuple[int, Any]], joints, info: CameraModel = SMALL
+) -> Path:
+    """A ROS 1 bag recorded at 1 s steps: a CameraInfo of ``info``, joint states ``(stamp, p,
+    theta)`` and raw or compressed frames ``(header stamp, message)``."""
+    from rosbags.rosbag1 import Writer
+
+    from simgap.pipeline.bag import CAMERA_INFO_TOPIC, FIXTURE_TOPIC, IMAGE_TOPIC
+    from simgap.pipeline.bag.messages import Messages
+
+    build = Messages("ros1")
+    kind = type(frames[0][1]).__name__.split("__")[-1]
+    with Writer(path) as w:
+        c = w.add_connection(CAMERA_INFO_TOPIC, "sensor_msgs/msg/CameraInfo", typestore=build.ts)
+        j = w.add_connection(FIXTURE_TOPIC, "sensor_msgs/msg/JointState", typestore=build.ts)
+        i = w.add_connection(IMAGE_TOPIC, f"sensor_msgs/msg/{kind}", typestore=build.ts)
+        w.write(c, 1, build.serialize(build.camera_info(1, info)))
+        rig = load_rig()
+        for k, (ns, p, theta) in enumerate(joints):
+            w.write(j, 10 + k, build.serialize(build.joints(ns, p * rig.links.pin_pitch, theta)))
+        for k, (_, msg) in enumerate(frames):
+            w.write(i, (k + 1) * 10**9, build.serialize(msg))
+    return path
+
+
+def lying_cases(tmp: Path, rng: random.Random) -> list[Case]:
+    """Inputs whose data contradicts itself (issue 51): captures and bags that lie."""
+    import dataclasses
+
+    from simgap.pipeline.bag import bag_to_capture
+    from simgap.pipeline.bag.messages import Messages
+
+    rig = load_rig()
+    out = []
+    header = "image,p,theta_rad"
+    folder = _capture(tmp / "lie_same_file")
+    (folder / "manifest.csv").write_text(
+        f"{header}\nimages/p00_t000.png,0,0\nimages/p00_t000.png,7,0\n"
+    )
+    out.append(Case("lying", "one image for two poses", lambda f=folder: read_capture(f, rig),
+                    str(folder / "manifest.csv")))  # fmt: skip
+    folder = _capture(tmp / "lie_manifest_link")
+    secret = tmp / "secret.txt"
+    secret.write_text("password=hunter2\n")
+    (folder / "manifest.csv").unlink()
+    (folder / "manifest.csv").symlink_to(secret)
+    out.append(Case("lying", "manifest linked out", lambda f=folder: read_capture(f, rig),
+                    str(folder / "manifest.csv")))  # fmt: skip
+    folder = _capture(tmp / "lie_vouched")
+    vouching = CameraModel(25000, 25000, 20000.0, 20000.0, 12499.5, 12499.5)
+    (folder / "camera.yaml").write_text(calibration_to_yaml(vouching))
+    big_png(folder / "images" / "p00_t000.png")
+    out.append(Case("lying", "calibration vouching for a bomb", lambda f=folder: ingest(f),
+                    str(folder / "camera.yaml")))  # fmt: skip
+    build = Messages("ros1")
+    img = np.full((SMALL.height, SMALL.width, 3), 200, np.uint8)
+    joints = [(10**9 - 1, 0, 0.0), (2 * 10**9 - 1, 7, 0.0)]
+    stamped = [(ns, build.image(ns, img, False)) for ns in (10**9, 2 * 10**9)]
+    bags = {
+        "image stamps reversed": (
+            [(ns, build.image(ns, img, False)) for ns in (2 * 10**9, 10**9)], joints, SMALL
+        ),
+        "two joint states at one stamp": (stamped, [joints[0], (joints[0][0], 7, 0.0)], SMALL),
+        "mono8 label on bgr8 data": (
+            [(ns, dataclasses.replace(m, encoding="mono8", step=SMALL.width)) for ns, m in stamped],
+            joints, SMALL,
+        ),
+        "yuv422 label on bgr8 data": (
+            [(ns, dataclasses.replace(m, encoding="yuv422", step=2 * SMALL.width))
+             for ns, m in stamped], joints, SMALL,
+        ),
+        "mono16 frames": (
+            [(ns, dataclasses.replace(m, encoding="mono16", step=2 * SMALL.width,
+                                      data=np.asarray(m.data)[: 2 * SMALL.width * SMALL.height]))
+             for ns, m in stamped], joints, SMALL,
+        ),
+        "CameraInfo vouching for a bomb": (
+            [(ns, build.image(ns, (big_png(tmp / "bomb.png").read_bytes(), "png"), True))
+             for ns in (10**9, 2 * 10**9)], joints, vouching,
+        ),
+    }  # fmt: skip
+    for k, (label, (frames, joint_rows, info)) in enumerate(bags.items()):
+        bag = _lying_bag(tmp / f"lie{k}.bag", frames, joint_rows, info)
+        out.append(Case("lying", label, lambda b=bag, k=k: bag_to_capture(b, tmp / f"lc{k}", rig),
+                        str(bag)))  # fmt: skip
     return out
 
 
@@ -691,6 +781,7 @@ def main() -> None:
             "manifest": manifest_cases(tmp, rng),
             "images": image_cases(tmp, rng),
             "datasets": dataset_cases(tmp, rng),
+            "lying": lying_cases(tmp, rng),
         }
         families["cli"] = cli_cases(tmp, families)
         scenario = make_scenario(tmp / "outputs")

@@ -351,3 +351,16 @@ def test_a_frame_warning_is_one_line_without_python_source(tmp_path, big):
         "recorded as not detected"
     ], done.stderr
     assert ".py:" not in done.stderr
+
+
+def test_a_trailing_slash_names_a_folder(tmp_path):
+    """``ingest -o newdir/`` had written a file named ``newdir`` (issue 51)."""
+    capture = write_capture(tmp_path / "cap", [(0, 0.0, 0, GREY)], SMALL).parent
+    res = CliRunner().invoke(app, ["ingest", str(capture), "-o", f"{tmp_path / 'newdir'}/"])
+    assert res.exit_code == 2, res.output
+    assert "a trailing / names a folder, and the ingested result dataset (netCDF) is a file" in (
+        res.output
+    )
+    assert not (tmp_path / "newdir").exists()
+    report = CliRunner().invoke(app, ["report", str(tmp_path / "absent.nc"), "-o", "rep/"])
+    assert "trailing /" not in report.output  # a folder's path may end in /

@@ -45,9 +45,22 @@ CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help=CA
 OverwriteOption = Annotated[bool, typer.Option("--overwrite", help=OVERWRITE_HELP)]
 
 
+#: Output paths given with a trailing ``/`` this run: they name a folder, whatever follows
+#: (``pathlib`` drops the slash, so the parser records it; :func:`output_path`).
+FOLDER_SPELLED: set[Path] = set()
+
+
+def output_path(text: str) -> Path:
+    """An ``-o`` value as a path, remembering a trailing ``/`` (:data:`FOLDER_SPELLED`)."""
+    path = Path(text)
+    if text.endswith("/") and text.strip("/"):
+        FOLDER_SPELLED.add(path)
+    return path
+
+
 def output_option(help_text: str) -> Any:
     """The ``-o/--output PATH`` option, with what the command writes there as its help."""
-    return typer.Option("-o", "--output", help=help_text)
+    return typer.Option("-o", "--output", help=help_text, parser=output_path)
 
 
 class BagFormat(str, enum.Enum):

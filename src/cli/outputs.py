@@ -10,6 +10,7 @@ import json
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+from simgap.cli.options import FOLDER_SPELLED
 from simgap.core.config import ConfigError
 from simgap.core.outputs import OutputKind, OutputPathError, check_output
 from simgap.core.paths import CALIBRATION_FILE, IMAGES_DIR, MANIFEST_FILE
@@ -174,12 +175,18 @@ def check_outputs(
     Raises
     ------
     simgap.core.outputs.OutputPathError
-        As :func:`simgap.core.outputs.check_output`, or when two outputs are one path.
+        As :func:`simgap.core.outputs.check_output`, when two outputs are one path, or when a
+        file's path was given with a trailing ``/`` (a folder's).
     """
     seen: dict[Path, str] = {}
     for option, path, kind in outputs:
         if path is None:
             continue
+        if not kind.folder and Path(path) in FOLDER_SPELLED:
+            raise OutputPathError(
+                f"{option} {path}/: a trailing / names a folder, and the {kind.what} is a file; "
+                "give the file's name"
+            )
         check_output(path, option, kind, inputs, overwrite)
         real = Path(path).resolve()
         if real in seen:
