@@ -601,3 +601,13 @@ def test_a_long_value_is_cut_in_the_message(tmp_path, rig):
     with pytest.raises(ConfigError, match=pattern) as e:
         read_capture(folder, rig)
     assert len(str(e.value)) < 400
+
+
+def test_an_image_that_is_a_link_loop_is_named(tmp_path, rig):
+    """A manifest image that links to itself had raised "RuntimeError: Symlink loop" (issue 51)."""
+    folder = make_capture(tmp_path, rig, f"{HEADER}\nimages/loop.png,0,0.0\n")
+    (folder / "images" / "loop.png").symlink_to("loop.png")
+    with pytest.raises(
+        ConfigError, match=r"row 1 \(line 2\): image: 'images/loop.png': cannot resolve the path"
+    ):
+        read_capture(folder, rig)

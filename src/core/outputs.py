@@ -42,6 +42,7 @@ from pathlib import Path
 
 from simgap.core.atomic import atomic_write
 from simgap.core.config import ConfigError
+from simgap.core.paths import resolved
 
 __all__ = [
     "OUTPUT_MARKER",
@@ -120,8 +121,8 @@ def _same(a: Path, b: Path) -> bool:
 def _resolve(path: Path, refuse: Callable[[str], None]) -> Path:
     """``path`` with symbolic links resolved (a link loop is refused)."""
     try:
-        return path.resolve()
-    except (OSError, RuntimeError) as exc:  # Python < 3.13 raises RuntimeError for a loop
+        return resolved(path)
+    except OSError as exc:
         refuse(f"cannot resolve the path ({exc})")
         raise  # not reached: refuse raises
 
@@ -136,8 +137,8 @@ def _check_inputs(
             continue
         source = Path(source)
         try:
-            real = source.resolve()
-        except (OSError, RuntimeError):  # a link loop: the command's own reading names it
+            real = resolved(source)
+        except OSError:  # a link loop: the command's own reading names it
             continue
         if target == real or (path.exists() and source.exists() and _same(path, source)):
             how = " (through a symbolic link)" if path.is_symlink() else ""

@@ -12,6 +12,18 @@ MANIFEST_FILE = "manifest.csv"
 IMAGES_DIR = "images"
 
 
+def resolved(path: Path) -> Path:
+    """``path`` with its symbolic links resolved; a link loop raises OSError.
+
+    ``Path.resolve`` raises RuntimeError for a loop before Python 3.13 (OSError after): callers
+    catch one error type.
+    """
+    try:
+        return Path(path).resolve()
+    except RuntimeError as exc:
+        raise OSError(f"symbolic link loop ({exc})") from None
+
+
 def project_root() -> Path:
     """Return the folder holding ``assets/``, ``mitsuba_scenes/`` and ``experiments/``.
 

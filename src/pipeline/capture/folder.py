@@ -18,7 +18,7 @@ import numpy as np
 
 from simgap.core.config import ConfigError
 from simgap.core.limits import MAX_PIXELS
-from simgap.core.paths import CALIBRATION_FILE, MANIFEST_FILE
+from simgap.core.paths import CALIBRATION_FILE, MANIFEST_FILE, resolved
 from simgap.core.rig import CameraModel, Rig
 from simgap.pipeline.capture.calibration import read_calibration
 from simgap.pipeline.capture.manifest import CaptureFrame, read_manifest
@@ -179,10 +179,13 @@ def read_capture(
                 f"{path}: {what} file not found (a capture folder needs {CALIBRATION_FILE}, "
                 f"{MANIFEST_FILE} and the images; or give the calibration with --calibration)"
             )
-    root = folder.resolve()
-    if not manifest_path.resolve().is_relative_to(root):
+    try:
+        root, real = resolved(folder), resolved(manifest_path)
+    except OSError as exc:
+        raise ConfigError(f"{manifest_path}: cannot resolve the path ({exc})") from None
+    if not real.is_relative_to(root):
         raise ConfigError(
-            f"{manifest_path}: resolves to {manifest_path.resolve()}, outside the capture folder "
+            f"{manifest_path}: resolves to {real}, outside the capture folder "
             f"{root} (a symbolic link?); expected the capture's own {MANIFEST_FILE}"
         )
     frames = read_manifest(manifest_path, folder, rig)

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from simgap.core.config import ConfigError, shown
+from simgap.core.paths import resolved
 from simgap.core.rig import Rig
 from simgap.render.imaging import png_bit_depth
 
@@ -150,10 +151,15 @@ def _image_path(folder: Path, name: str, where: str) -> Path:
             f"'..'), got {shown(name)}"
         )
     image = folder / rel
-    root = folder.resolve()
-    if not image.resolve().is_relative_to(root):
+    try:
+        root, real = resolved(folder), resolved(image)
+    except OSError as exc:
         raise ConfigError(
-            f"{where}: image: {name!r} resolves to {image.resolve()}, outside the capture "
+            f"{where}: image: {shown(name)}: cannot resolve the path ({exc})"
+        ) from None
+    if not real.is_relative_to(root):
+        raise ConfigError(
+            f"{where}: image: {name!r} resolves to {real}, outside the capture "
             f"folder {root} (a symbolic link?); expected a file inside the folder"
         )
     if not image.is_file():
