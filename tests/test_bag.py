@@ -423,3 +423,19 @@ def test_encodings_that_lie_about_their_data_are_named(tmp_path, frames, rig):
     bag = _one_frame_bag(tmp_path / "d.bag", rig, deep, compressed=True)
     with pytest.raises(ConfigError, match=rf"{where}: data: a 16-bit PNG"):
         bag_to_capture(bag, tmp_path / "cd", rig, good)
+
+
+def test_a_damaged_bag_is_a_named_error(tmp_path, png_capture, rig):
+    """Corrupt database pages of a ROS 2 bag had surfaced as "CorruptError: database disk image
+    is malformed" (issue 51): named, with the bag, topic and message where the reader failed."""
+    bag = capture_to_bag(png_capture, tmp_path / "b2", "ros2")
+    db = next(bag.glob("*.db3"))
+    data = bytearray(db.read_bytes())
+    rng = np.random.default_rng(0)
+    start = len(data) // 2
+    data[start : start + 3000] = rng.integers(0, 256, 3000, dtype=np.uint8).tobytes()
+    db.write_bytes(bytes(data))
+    # the image topic's message whose page the corruption hit (messages 1-3 at 30-70 % of the file)
+    where = rf"^{bag}: topic \S+: message \d+"
+    with pytest.raises(ConfigError, match=rf"{where}: cannot be read, the bag is damaged \("):
+        ingest_bag(bag)

@@ -11,7 +11,7 @@ import re
 import shutil
 import tempfile
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,6 +61,38 @@ class BagConversion:
     ranges_without_frames: list[int] = field(default_factory=list)
     #: each written frame's path in the capture folder (relative) -> ``BAG: topic T: message I``
     messages: dict[str, str] = field(default_factory=dict)
+
+
+def bag_messages(reader: Any, conns: list, bag: Path) -> Iterator[tuple[int, Any, int, Any]]:
+    """``(index from 1, connection, record time ns, message)`` of the messages on ``conns``.
+
+    A damaged bag (a corrupt database page, a record cut short, a message that does not
+    deserialise as its type) is a ConfigError naming the bag, the topic and the message; the
+    reader's own error types vary by format (rosbags, SQLite, MCAP), so any of them is caught
+    around the reader's calls alone.
+    """
+    topic = conns[0].topic if conns else "?"
+    records = reader.messages(connections=conns)
+    i = 0
+    while True:
+        try:
+            conn, t, raw = next(records)
+        except StopIteration:
+            return
+        except Exception as exc:  # the reader's, on damaged data
+            raise ConfigError(
+                f"{bag}: topic {topic}: message {i + 1}: cannot be read, the bag is damaged "
+                f"({type(exc).__name__}: {shown(str(exc), 120)})"
+            ) from None
+        i += 1
+        try:
+            msg = reader.deserialize(raw, conn.msgtype)
+        except Exception as exc:  # the deserialiser's, on damaged data
+            raise ConfigError(
+                f"{bag}: topic {conn.topic}: message {i}: cannot be read as {conn.msgtype} "
+                f"({type(exc).__name__}: {shown(str(exc), 120)})"
+            ) from None
+        yield i, conn, t, msg
 
 
 def _stamp_ns(msg: Any, record_ns: int) -> int:
@@ -123,8 +155,7 @@ def _read_calibration(
     Its image size is held to the pixel budget (``max_pixels``) before any frame is read.
     """
     texts = []
-    for i, (conn, _, raw) in enumerate(reader.messages(connections=conns), start=1):
-        msg = reader.deserialize(raw, conn.msgtype)
+    for i, conn, _, msg in bag_messages(reader, conns, bag):
         where = f"{bag}: topic {conn.topic}: message {i}"
         check_pixel_budget(int(msg.width), int(msg.height), max_pixels, where, "width x height")
         texts.append(_camera_info_yaml(msg))
@@ -169,8 +200,7 @@ def _fixture_from_joints(reader: Any, conns: list, bag: Path, rig: Rig) -> list[
     out = []
     previous: tuple[int, int] | None = None
     at_stamp: dict[int, tuple[int, int, float]] = {}
-    for i, (conn, t, raw) in enumerate(reader.messages(connections=conns), start=1):
-        msg = reader.deserialize(raw, conn.msgtype)
+    for i, _, t, msg in bag_messages(reader, conns, bag):
         where = f"{bag}: topic {topic}: message {i}"
         names = list(msg.name)
         for joint in (CARRIAGE_JOINT, TURNTABLE_JOINT):
@@ -407,8 +437,7 @@ def _write_frames(
     used: set[int] = set()
     rows = []
     previous: tuple[int, int] | None = None
-    for i, (conn, t, raw) in enumerate(reader.messages(connections=conns), start=1):
-        msg = reader.deserialize(raw, conn.msgtype)
+    for i, conn, t, msg in bag_messages(reader, conns, bag):
         ns = _stamp_ns(msg, t)
         _in_recording_order(ns, previous, f"{bag}: topic {conn.topic}: message {i}")
         previous = (ns, i)
