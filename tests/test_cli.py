@@ -356,3 +356,23 @@ def test_run_with_a_bad_calibration_file_exits_2(runner, tmp_path):
     assert result.exit_code == 2, result.output
     assert f"{cal}: distortion_coefficients.data: expected the 8 coefficients" in result.output
     assert not out.exists()
+
+
+def test_an_output_named_for_another_format_is_refused(runner, tmp_path):
+    """``errormodel -o m.txt`` had written netCDF (HDF5) under a .txt name (issue 53)."""
+    res = runner.invoke(app, ["errormodel", "absent.nc", "-o", str(tmp_path / "m.txt")])
+    assert res.exit_code == 2
+    assert "expected a name ending in .nc or .json (the error model (netCDF or JSON)" in res.output
+    res = runner.invoke(app, ["run", "experiments/smoke.yaml", "-o", str(tmp_path / "r.h5")])
+    assert res.exit_code == 2 and "expected a name ending in .nc" in res.output
+    assert not list(tmp_path.iterdir())
+
+
+def test_effects_are_listed_in_plain_text_and_a_negative_seed_is_refused(runner):
+    """No Sphinx roles or double backquotes on the terminal; ``diagnose --seed -1`` fails at
+    once, naming the option (issue 53)."""
+    out = runner.invoke(app, ["effects"]).output
+    assert ":class:" not in out and "``" not in out and ":mod:" not in out
+    assert "see simgap.pose.detect.DetectorSettings" in out
+    res = runner.invoke(app, ["diagnose", "absent.nc", "--seed", "-1", "-o", "d"])
+    assert res.exit_code == 2 and "--seed" in res.output

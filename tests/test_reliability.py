@@ -239,12 +239,12 @@ def _dataset_file(tmp_path: Path, reference: xr.Dataset, change) -> Path:
 def test_cli_errors_exit_2_with_one_line(tiny, tmp_path, command, setup, expected):
     setup(tmp_path, tiny[2])
     arg = tmp_path / ("e.yaml" if command == "run" else "bad.nc")
-    res = CliRunner().invoke(app, [command, str(arg), "-o", str(tmp_path / "out")])
+    res = CliRunner().invoke(app, [command, str(arg), "-o", str(tmp_path / "out.nc")])
     lines = [line for line in res.output.splitlines() if line.strip()]
     assert res.exit_code == 2, res.output
     assert len(lines) == 1 and "Traceback" not in res.output, res.output
     assert str(arg) in lines[0] and expected in lines[0], lines[0]
-    debug = CliRunner().invoke(app, ["--debug", command, str(arg), "-o", str(tmp_path / "o")])
+    debug = CliRunner().invoke(app, ["--debug", command, str(arg), "-o", str(tmp_path / "o.nc")])
     assert isinstance(debug.exception, ConfigError)  # --debug re-raises (DatasetError included)
 
 

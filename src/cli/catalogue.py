@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import typer
@@ -34,12 +35,21 @@ def effects() -> None:
 
     for name in sorted(EFFECTS, key=lambda n: (EFFECTS[n].stage, n)):
         cls = EFFECTS[name]
-        doc = " ".join((cls.__doc__ or "").split("\n\n")[0].split())
+        doc = plain_text(" ".join((cls.__doc__ or "").split("\n\n")[0].split()))
         defaults = cls.Params()
         params = ", ".join(
             f"{f.name}={getattr(defaults, f.name)!r}" for f in dataclasses.fields(cls.Params)
         )
         typer.echo(f"{name:20s} [{cls.stage}] {doc}\n{'':21s} {params}")
+
+
+#: A Sphinx cross-reference in a docstring (``:class:`~pkg.Name```): shown as its target's name.
+SPHINX_ROLE = re.compile(r":\w+:`~?([^`]+)`")
+
+
+def plain_text(doc: str) -> str:
+    """Docstring text for a terminal: Sphinx roles as their names, double backquotes dropped."""
+    return SPHINX_ROLE.sub(lambda m: m.group(1), doc).replace("``", "")
 
 
 @app.command()

@@ -91,7 +91,9 @@ def diagnose(
     output: Annotated[Path, output_option("Report folder to write.")],
     json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
     cache: CacheOption = None,
-    seed: int = typer.Option(0, "--seed", help="Seed of the fit / choose / report split."),
+    seed: int = typer.Option(
+        0, "--seed", help="Seed of the fit / choose / report split (>= 0).", min=0
+    ),
     converged_simulation: bool = typer.Option(
         True,
         "--converged-simulation/--path-simulation",
@@ -138,7 +140,7 @@ def diagnose(
 @app.command()
 def validate(
     trials: int = typer.Option(30, "--trials", help="Number of blind trials."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the hidden draws."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the hidden draws (>= 0).", min=0),
     output: Path = typer.Option(Path("validation"), "-o", "--output", help="Report folder."),
     experiment: Path = typer.Option(
         Path("experiments/baseline.yaml"), "--experiment", help="Simulation experiment."

@@ -98,11 +98,19 @@ def _any_folder(folder: Path) -> bool:
 
 #: What ``run`` and ``study`` write; an ingested dataset is another kind (its replacement by a
 #: simulation needs ``--overwrite``, issue 51).
-RESULT_DATASET = OutputKind("simulated result dataset (netCDF)", is_ours=_is_simulated_dataset)
+RESULT_DATASET = OutputKind(
+    "simulated result dataset (netCDF)", is_ours=_is_simulated_dataset, suffixes=(".nc",)
+)
 #: What ``ingest`` writes.
-INGESTED_DATASET = OutputKind("ingested result dataset (netCDF)", is_ours=_is_ingested_dataset)
-ERROR_MODEL = OutputKind("error model (netCDF or JSON)", is_ours=_is_error_model)
-DIAGNOSIS_JSON = OutputKind("diagnosis result (JSON)", is_ours=_is_diagnosis_json)
+INGESTED_DATASET = OutputKind(
+    "ingested result dataset (netCDF)", is_ours=_is_ingested_dataset, suffixes=(".nc",)
+)
+ERROR_MODEL = OutputKind(
+    "error model (netCDF or JSON)", is_ours=_is_error_model, suffixes=(".nc", ".json")
+)
+DIAGNOSIS_JSON = OutputKind(
+    "diagnosis result (JSON)", is_ours=_is_diagnosis_json, suffixes=(".json",)
+)
 REPORT_FOLDER = OutputKind("report folder", folder=True)
 COMPARISON_FOLDER = OutputKind("comparison folder", folder=True)
 DIAGNOSIS_FOLDER = OutputKind("diagnosis folder", folder=True)

@@ -96,6 +96,9 @@ class OutputKind:
         The entries the command writes in the folder (a capture's ``camera.yaml``, ...): in a
         folder that is not simgap's, an existing one is refused even with ``--overwrite``, which
         writes beside a user's files and replaces none.
+    suffixes : tuple of str
+        The file name endings of the format written (``.nc``, ...): another is refused, so a
+        file's name says what it holds (none: any name).
     """
 
     what: str
@@ -103,6 +106,7 @@ class OutputKind:
     is_ours: Callable[[Path], bool] | None = None
     replaced_whole: bool = False
     names: tuple[str, ...] = ()
+    suffixes: tuple[str, ...] = ()
 
 
 def _file_type(mode: int) -> str:
@@ -195,6 +199,7 @@ def check_output(
     if below is not None:
         refuse(f"{below} is {_file_type(below.stat().st_mode)}, not a folder")
     if not path.exists():
+        _check_suffix(path, kind, refuse)
         return path
     mode = path.stat().st_mode
     expected = stat.S_ISDIR(mode) if kind.folder else stat.S_ISREG(mode)
@@ -216,6 +221,7 @@ def check_output(
             "replace; choose a new or empty folder (--overwrite does not replace a user's files)"
         )
     if overwrite:
+        _check_suffix(path, kind, refuse)
         return path
     if kind.is_ours is None and not _folder_is_ours(path):
         refuse(
@@ -224,7 +230,17 @@ def check_output(
         )
     if kind.is_ours is not None and not kind.is_ours(path):
         refuse(f"exists and is not a simgap {kind.what}; pass --overwrite to replace it")
+    _check_suffix(path, kind, refuse)
     return path
+
+
+def _check_suffix(path: Path, kind: OutputKind, refuse: Callable[[str], None]) -> None:
+    """Refuse a file name whose ending is not one of the format's (:attr:`OutputKind.suffixes`)."""
+    if kind.suffixes and path.suffix.lower() not in kind.suffixes:
+        refuse(
+            f"expected a name ending in {' or '.join(kind.suffixes)} (the {kind.what} is written "
+            f"in that format), got {path.name!r}"
+        )
 
 
 def claim_folder(folder: Path) -> Path:
