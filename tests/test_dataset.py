@@ -209,3 +209,19 @@ def test_reads_files_written_before_the_cf_form(tmp_path):
     path = tmp_path / "old.nc"
     ds.to_netcdf(path, engine="netcdf4")
     assert read_netcdf(path).identical(ds)
+
+
+def test_flags_say_what_they_mean_on_disk(tmp_path):
+    """``visible`` and ``detected`` are 0/1 bytes with CF's flag_values and flag_meanings, so
+    plain xarray or netCDF4 readers see what each value means (issue 53); read back as booleans."""
+    ds = build()[0]
+    path = write_netcdf(ds, tmp_path / "flags.nc")
+    with netCDF4.Dataset(path) as nc:
+        for name in ("visible", "detected"):
+            var = nc[name]
+            assert var.dtype == np.int8
+            assert list(var.getncattr("flag_values")) == [0, 1]
+            assert var.getncattr("flag_meanings") == f"not_{name} {name}"
+    back = read_netcdf(path)
+    assert back.visible.dtype == bool and back.detected.dtype == bool
+    assert bool((back.visible == ds.visible).all()) and bool((back.detected == ds.detected).all())

@@ -10,6 +10,8 @@ so :func:`encode_cf` writes, and :func:`decode_cf` reads back (docs/conventions.
   ``m``) and ``X_rotation`` (dim ``rotation_axis``: rx, ry, rz; units ``rad``);
 - each string dimension coordinate ``D`` as the label variable ``D_label`` (dim ``D``; a CF
   auxiliary coordinate, a char array), every other string coordinate as a char array too;
+- each boolean variable (``visible``, ``detected``) as 0/1 bytes with CF's ``flag_values`` and
+  ``flag_meanings`` (``not_visible visible``);
 - the global attr ``Conventions = "CF-1.10"``.
 
 Files written before this form (one ``X`` with mixed units, string dimension coordinates) read
@@ -94,6 +96,16 @@ def encode_cf(ds: xr.Dataset) -> xr.Dataset:
             out = out.drop_vars(name).assign_coords({name + LABEL_SUFFIX: coord})
         else:
             out = out.assign_coords({name: coord})
+    for name in list(out.data_vars):  # 0/1 flags say what they mean (CF flag attributes)
+        if out[name].dtype == bool:
+            flag = out[name].variable.copy()
+            flag.attrs = {
+                **flag.attrs,
+                "flag_values": np.array([0, 1], np.int8),
+                "flag_meanings": f"not_{name} {name}",
+            }
+            flag.encoding = {**flag.encoding, "dtype": "int8"}
+            out[name] = flag
     out.attrs["Conventions"] = CF_CONVENTIONS
     return out
 
@@ -102,6 +114,10 @@ def decode_cf(ds: xr.Dataset) -> xr.Dataset:
     """The in-memory form of a dataset read from a netCDF file (undoes :func:`encode_cf`)."""
     out = ds.copy()
     out.attrs.pop("Conventions", None)
+    for name in list(out.data_vars):  # a boolean's flag attributes (read back as booleans)
+        if out[name].attrs.get("flag_meanings") == f"not_{name} {name}":
+            flags = ("flag_values", "flag_meanings")
+            out[name].attrs = {k: v for k, v in out[name].attrs.items() if k not in flags}
     for name in list(out.variables):
         dim = name.removesuffix(LABEL_SUFFIX)
         if name != dim and out[name].dims == (dim,):
