@@ -376,3 +376,15 @@ def test_effects_are_listed_in_plain_text_and_a_negative_seed_is_refused(runner)
     assert "see simgap.pose.detect.DetectorSettings" in out
     res = runner.invoke(app, ["diagnose", "absent.nc", "--seed", "-1", "-o", "d"])
     assert res.exit_code == 2 and "--seed" in res.output
+
+
+def test_unexplained_evidence_is_named_for_a_reader():
+    """The one-line summary names image statistics by their readable names and units, not their
+    code names (issue 53)."""
+    from simgap.cli.diagnose import evidence_name
+
+    assert evidence_name("paper_linear") == "paper level, linear [fraction of full scale]"
+    assert evidence_name("black_clipped_fraction") == (
+        "black-clipped pixels (0 DN) [fraction of sticker pixels]"
+    )
+    assert evidence_name("pose") == "pose"

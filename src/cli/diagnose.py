@@ -133,8 +133,20 @@ def diagnose(
     else:  # a calibration effect the corners single out is a finding without a significant gap
         verdict = "selected: " + selected_names(result)
         if result.unexplained:
-            verdict += f"; unexplained: {', '.join(result.unexplained_evidence)}"
+            names = "; ".join(map(evidence_name, result.unexplained_evidence))
+            verdict += f"; unexplained: {names}"
     typer.echo(f"diagnosis: {verdict}")
+
+
+def evidence_name(name: str) -> str:
+    """A piece of evidence as a reader names it.
+
+    An image statistic by its readable name and unit (``paper level, linear [fraction of full
+    scale]``), other evidence (``pose``, ``detection``) as it is.
+    """
+    from simgap.pose.stat_labels import STAT_LABELS
+
+    return STAT_LABELS[name].text if name in STAT_LABELS else name
 
 
 @app.command()
