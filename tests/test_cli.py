@@ -263,7 +263,7 @@ def test_bad_bag_format_names_the_allowed_values(runner, tmp_path):
     assert "Traceback" not in result.output and not out.exists()
 
 
-def test_step_bars_draw_each_step_on_a_terminal_only():
+def test_step_bars_draw_each_step_as_bars_or_plain_lines():
     import io
 
     from rich.console import Console
@@ -284,8 +284,15 @@ def test_step_bars_draw_each_step_on_a_terminal_only():
     assert "fitting candidates" in shown and "3/3" in shown
     # a search of unknown length is marked done with its count when the display stops
     assert "model search" in shown and "7/7" in shown
-    assert draw(False, terminal=True) == ""  # --no-progress
-    assert draw(True, terminal=False) == ""  # a pipe, a log file, the test runner
+    assert draw(False, terminal=True) == draw(False, terminal=False) == ""  # --no-progress
+    # a pipe, a log file, a notebook cell: plain lines at each step's start and end (and every
+    # PLAIN_INTERVAL_S between; issue 53: the fitting had printed nothing off a terminal)
+    assert draw(True, terminal=False).splitlines() == [
+        "fitting candidates: 0/3 after 0 s",
+        "fitting candidates: 3/3 after 0 s",
+        "model search: 0 after 0 s",
+        "model search: 7 after 0 s",
+    ]
 
 
 class Stop(ValueError):
@@ -388,3 +395,24 @@ def test_unexplained_evidence_is_named_for_a_reader():
         "black-clipped pixels (0 DN) [fraction of sticker pixels]"
     )
     assert evidence_name("pose") == "pose"
+
+
+def test_plain_progress_lines_come_every_interval_with_an_estimate(monkeypatch):
+    import io
+
+    from rich.console import Console
+
+    import simgap.cli.progress as progress
+
+    clock = iter([0.0, 40.0, 50.0, 100.0])  # start, 40 s (a line), 50 s (none), 100 s (done)
+    monkeypatch.setattr(progress.time, "monotonic", lambda: next(clock))
+    file = io.StringIO()
+    console = Console(file=file, force_terminal=False, width=100, color_system=None)
+    with progress.StepBars(True, console) as bars:
+        for done in (0, 2, 3, 5):
+            bars("fitting candidates", done, 5)
+    assert file.getvalue().splitlines() == [
+        "fitting candidates: 0/5 after 0 s",
+        "fitting candidates: 2/5 after 40 s, about 60 s left",
+        "fitting candidates: 5/5 after 100 s",
+    ]

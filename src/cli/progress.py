@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from types import TracebackType
 
 from rich.console import Console
@@ -14,31 +15,41 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 
+#: Seconds between two plain progress lines of a step when not on a terminal.
+PLAIN_INTERVAL_S = 30.0
+
 
 class StepBars:
-    """One rich progress bar per step, on stderr, shown only on a terminal and when asked.
+    """One rich progress bar per step on a terminal, else plain lines; on stderr, when asked.
 
     Called as ``bars(step, done, total)`` (total None: a pulsing bar until the next step). The
     display starts at the first call, so a progress display of the steps before (the
-    simulation's) has ended by then; use it as a context manager to stop it.
+    simulation's) has ended by then; use it as a context manager to stop it. Not on a terminal
+    (a CI log, a notebook cell), each step prints a line when it starts, every
+    :data:`PLAIN_INTERVAL_S` and when it ends: ``step: done/total after N s, about M s left``.
 
     Parameters
     ----------
     show : bool
         ``--progress``; False (``--no-progress``) shows nothing.
     console : rich.console.Console, optional
-        Where to draw (default: stderr); nothing is drawn unless it is a terminal.
+        Where to draw (default: stderr): bars on a terminal, plain lines elsewhere.
     """
 
     def __init__(self, show: bool, console: Console | None = None) -> None:
         self.console = console or Console(stderr=True)
         self.show = show and self.console.is_terminal
+        self.plain = show and not self.console.is_terminal
         self._bars: Progress | None = None
         self._tasks: dict[str, TaskID] = {}
         self._last: str | None = None
+        #: the plain step: (name, its start, the last line's time, done, total)
+        self._line: tuple[str, float, float, int, int | None] | None = None
 
     def __call__(self, step: str, done: int, total: int | None) -> None:
         """Show that ``done`` of ``total`` units of ``step`` are done."""
+        if self.plain:
+            self._plain(step, done, total)
         if not self.show:
             return
         if self._bars is None:
@@ -56,6 +67,36 @@ class StepBars:
         self._bars.update(self._tasks[step], completed=done, total=total)
         self._last = step
 
+    def _plain(self, step: str, done: int, total: int | None) -> None:
+        """A plain line at a step's start, every :data:`PLAIN_INTERVAL_S` and at its end."""
+        now = time.monotonic()
+        if self._line is None or self._line[0] != step:
+            self._end_plain()
+            self._line = (step, now, now, done, total)
+            self._print_line(step, done, total, 0.0)
+            return
+        _, start, last, _, _ = self._line
+        finished = total is not None and done >= total
+        if finished or now - last >= PLAIN_INTERVAL_S:
+            self._print_line(step, done, total, now - start)
+            last = now
+        self._line = (step, start, last, done, total) if not finished else None
+
+    def _end_plain(self) -> None:
+        """The last line of an unfinished plain step (its count when the next one starts)."""
+        if self._line is not None:
+            step, start, _, done, total = self._line
+            self._print_line(step, done, total, time.monotonic() - start)
+            self._line = None
+
+    def _print_line(self, step: str, done: int, total: int | None, elapsed: float) -> None:
+        """``step: done/total after N s, about M s left`` (plain text, no markup)."""
+        left = ""
+        if total and 0 < done < total:
+            left = f", about {elapsed / done * (total - done):.0f} s left"
+        count = f"{done}/{total}" if total is not None else f"{done}"
+        self.console.print(f"{step}: {count} after {elapsed:.0f} s{left}", markup=False)
+
     def _finish_last(self) -> None:
         """Mark the previous step done (a step of unknown length stops pulsing)."""
         if self._bars is None or self._last is None:
@@ -66,6 +107,7 @@ class StepBars:
 
     def close(self) -> None:
         """Stop the display (the bars stay on the screen)."""
+        self._end_plain()
         if self._bars is not None:
             self._finish_last()
             self._bars.stop()
