@@ -321,6 +321,9 @@ def test_export_bag_from_experiment_renders_and_ingests(tmp_path, session_cache,
         app, ["export-bag", str(yaml_path), "-o", str(out), "--cache", str(session_cache)]
     )
     assert res.exit_code == 0, res.output
+    # the export's progress, as plain lines off a terminal (it had shown none; issue 53)
+    assert "exporting frames: 0/1 after" in res.output
+    assert "exporting frames: 1/1 after" in res.output
     ds = ingest_bag(out)
     assert bool(ds.detected.sel(tag=0).any())
     # rendered tag 0 at p=7 facing the camera: the depth error of a render is a few mm at most

@@ -138,6 +138,7 @@ def export_bag(
     ),
     variant: VariantOption = None,
     cache: CacheOption = None,
+    progress: ProgressOption = True,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Write frames, CameraInfo, fixture joints, /tf_static, /tf and tag poses as a ROS bag."""
@@ -165,8 +166,13 @@ def export_bag(
         dataset = None
         if source.suffix == ".nc":
             dataset = read_result_dataset(source)
+        from simgap.cli.progress import StepBars
+
         exp = read_simulation(source)
         cache_dir = cache or default_cache_dir()
-        path = experiment_to_bag(exp, cache_dir, output, target.format, dataset, variant, **opts)
+        with StepBars(progress) as bars:
+            path = experiment_to_bag(
+                exp, cache_dir, output, target.format, dataset, variant, **opts, progress=bars
+            )
     what = target.format if target.storage is None else f"{target.format}, {target.storage}"
     typer.echo(f"wrote {path} ({what})")

@@ -20,6 +20,7 @@ import xarray as xr
 
 from simgap.core.atomic import staged_path
 from simgap.core.config import ConfigError
+from simgap.core.progress import ProgressCallback, Steps
 from simgap.core.rig import CameraModel, Rig, load_rig
 from simgap.pipeline.bag.formats import (
     CAMERA_INFO_TOPIC,
@@ -237,6 +238,7 @@ def experiment_to_bag(
     variant: str | None = None,
     compressed: bool = False,
     storage: BagStorage | None = None,
+    progress: ProgressCallback | None = None,
 ) -> Path:
     """Export an experiment's frames (from the render cache, rendered where missing) as a bag.
 
@@ -256,6 +258,9 @@ def experiment_to_bag(
         Variant to export (default: the first).
     compressed, storage
         As :func:`write_bag`.
+    progress : ProgressCallback, optional
+        Told of each configuration exported (step ``exporting frames``; rendering them where
+        the cache has none is most of the work).
 
     Raises
     ------
@@ -277,10 +282,14 @@ def experiment_to_bag(
         ps, thetas, _ = exp.configuration_axes()
         repeats = range(exp.repeats)
 
+    steps = Steps(progress)
+    steps.start("exporting frames", len(repeats) * len(ps) * len(thetas))
+
     def frames() -> Iterator[BagFrame]:
         for repeat in repeats:
             for p in ps:
                 for theta in thetas:
+                    steps.advance()
                     render_repeat = exp.render.render_repeat(repeat)
                     frame = pipe.frame(int(p), float(theta), int(repeat), render_repeat)
                     if frame is None:
