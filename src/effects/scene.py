@@ -112,6 +112,53 @@ class CameraLight(Effect, name="camera_light", stage="scene"):
         return _spec(state, state.scene.spec.with_light("camera", light))
 
 
+#: The solar constant: the sun's irradiance above the atmosphere at 1 AU (W m^-2; Kopp & Lean,
+#: "A new, lower value of total solar irradiance", Geophys. Res. Lett. 38, L01706, 2011).
+SOLAR_CONSTANT_W_M2 = 1361.0
+
+
+class Sun(Effect, name="sun", stage="scene"):
+    """The sun: a distant light of parallel rays from a direction, at an irradiance (W m^-2).
+
+    The direction points from the fixture towards the sun, as ``azimuth_deg`` from the rail
+    frame's +Y (along the rail, towards the node) turning towards +X, and ``elevation_deg`` above
+    its XY plane (the table). ``irradiance_w_m2`` is what a surface facing the sun receives (in
+    orbit the solar constant, 1361). The rays are parallel (Mitsuba's ``directional`` emitter):
+    the sun's 0.53 deg disc is left out, so shadow edges are sharp; the fixture's own geometry
+    casts them. A surface at angle ``t`` to the rays receives ``E cos(t)``
+    (:func:`simgap.scene.lights.irradiance`). Black sky and a camera exposed for the sunlit
+    paper are other effects (``ambient`` at 0, ``exposure``).
+    """
+
+    class Params(EffectParams):
+        """Direction (deg, rail frame), irradiance (W m^-2) and colour temperature."""
+
+        azimuth_deg: float = param(0.0, "-360..360 deg", lambda v: -360 <= v <= 360)
+        elevation_deg: float = param(30.0, "-90..90 deg", lambda v: -90 <= v <= 90)
+        irradiance_w_m2: float = param(SOLAR_CONSTANT_W_M2, ">= 0 W/m^2", lambda v: v >= 0)
+        cct_k: float | None = param(
+            5772.0, "1000..25000 K", lambda v: v is None or 1e3 <= v <= 25e3
+        )
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Add (or replace) the scene's ``sun`` light."""
+        p = self.params
+        light = LightSpec(
+            type="directional",
+            position=tuple(float(v) for v in sun_direction(p.azimuth_deg, p.elevation_deg)),
+            target=(0.0, 0.0, 0.0),
+            irradiance=p.irradiance_w_m2,
+            rgb=cct_to_rgb(p.cct_k),
+        )
+        return _spec(state, state.scene.spec.with_light("sun", light))
+
+
+def sun_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+    """Unit vector towards the sun in the rail frame (see :class:`Sun`)."""
+    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    return np.array([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)])
+
+
 class Ambient(Effect, name="ambient", stage="scene"):
     """Uniform environment light (room ambient): radiance (W m^-2 sr^-1) and colour temperature."""
 

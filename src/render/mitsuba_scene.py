@@ -86,11 +86,14 @@ def sampling_weight(light: LightSpec) -> float:
     noise once a Gaussian pixel filter mixes neighbouring pixels' samples (measured
     2026-11-22). Picking lights in proportion to the light they give removes most of it
     (Mitsuba's ``sampling_weight``). Constant environment: ``pi L``; area light:
-    ``L A / d^2``; point and spot: ``I / d^2`` (``d``: distance to the aim point).
+    ``L A / d^2``; point and spot: ``I / d^2`` (``d``: distance to the aim point); directional:
+    ``E``.
     """
     tint = float(np.mean(light.rgb))
     if light.type == "constant":
         return max(np.pi * light.radiance * tint, 1e-9)
+    if light.type == "directional":
+        return max(light.irradiance * tint, 1e-9)
     d2 = float(np.sum((np.asarray(light.position) - np.asarray(light.target)) ** 2))
     area = light.size[0] * light.size[1]
     power = light.radiance * area if light.type == "area" else light.intensity
@@ -134,6 +137,13 @@ def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
                 "sampling_weight": weight,
             },
             "bsdf": {"type": "diffuse", "reflectance": 0.0},
+        }
+    if light.type == "directional":  # Mitsuba's: the direction the light travels
+        return {
+            "type": "directional",
+            "direction": [float(t - p) for t, p in zip(light.target, light.position, strict=True)],
+            "irradiance": {"type": "rgb", "value": colour * light.irradiance},
+            "sampling_weight": weight,
         }
     if light.type == "point":
         return {

@@ -8,7 +8,7 @@ from typing import Literal
 
 import numpy as np
 
-from simgap.core.config import require
+from simgap.core.config import OMIT_DEFAULT, require
 from simgap.core.rig import load_rig
 
 #: Height (m, rail frame) that lights aim at by default: about the middle of the tag node.
@@ -31,10 +31,12 @@ class LightSpec:
 
     Attributes
     ----------
-    type : {"area", "point", "spot", "constant"}
-        Rectangle area light, isotropic point, spot light or uniform environment.
+    type : {"area", "point", "spot", "constant", "directional"}
+        Rectangle area light, isotropic point, spot light, uniform environment, or a distant
+        source such as the sun (parallel rays, no fall-off with distance).
     position, target : tuple of float
-        Light position and aim point (m, in ``frame``); unused for ``constant``.
+        Light position and aim point (m, in ``frame``); unused for ``constant``. A directional
+        light shines from ``position`` towards ``target``: only their direction counts.
     frame : {"rail", "eyepoint"}
         The rig frame the light is fixed to: ``rail`` (a lab light, still while the carriage
         moves) or ``eyepoint`` (a light on the camera, beside the lens, moving with it; the
@@ -49,9 +51,12 @@ class LightSpec:
         Spot light cut-off angle (deg).
     rgb : tuple of float
         Linear RGB tint multiplying radiance/intensity (white = 1, 1, 1).
+    irradiance : float
+        Irradiance of a ``directional`` light on a surface facing it (W m^-2; the sun above the
+        atmosphere: 1361).
     """
 
-    type: Literal["area", "point", "spot", "constant"]
+    type: Literal["area", "point", "spot", "constant", "directional"]
     position: tuple[float, float, float] = (0.0, -0.3, 0.4)
     target: tuple[float, float, float] = field(default_factory=default_target)
     frame: Literal["rail", "eyepoint"] = "rail"
@@ -60,10 +65,16 @@ class LightSpec:
     intensity: float = 1.0
     cutoff_deg: float = 30.0
     rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    irradiance: float = field(default=0.0, metadata=OMIT_DEFAULT)
 
     def __post_init__(self) -> None:
         require(self.radiance >= 0 and self.intensity >= 0, "radiance/intensity: expected >= 0")
+        require(self.irradiance >= 0, "irradiance: expected >= 0 (W m^-2)")
         require(0 < self.cutoff_deg < 90, "cutoff_deg: expected 0 < x < 90 (deg)")
+        require(
+            self.type != "directional" or self.frame == "rail",
+            "frame: a directional light is distant: expected the rail frame",
+        )
 
     def placed(self, rail_from_frame: np.ndarray) -> LightSpec:
         """The light with its position and target in the rail frame (m), ``frame`` ``rail``.
@@ -118,6 +129,9 @@ def irradiance(light: LightSpec, points: np.ndarray, normals: np.ndarray) -> np.
     if light.type == "constant":
         return np.full(len(points), np.pi * light.radiance * tint)
     position, target = np.asarray(light.position, float), np.asarray(light.target, float)
+    if light.type == "directional":  # E cos(t) towards the source, whatever the distance
+        towards = (position - target) / np.linalg.norm(position - target)
+        return light.irradiance * tint * np.clip(normals @ towards, 0.0, None)
     if light.type == "area":
         forward = target - position
         forward /= np.linalg.norm(forward)
