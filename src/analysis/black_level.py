@@ -3,9 +3,8 @@
 A camera whose black-level correction subtracts more than its sensor's offset (or whose
 contrast setting clips the shadows) reads dark ink as 0 DN
 (:class:`simgap.effects.camera_pipeline.BlackLevel`). The clipped ink moves the edges the
-corners are refined on: a focal length of -0.85 % behind a 4.7 % black level, a steep tone
-curve and sharpening was answered as a camera mount moved 2.1 mm along the optical axis
-(blind seed 53 trial 29); with the black level simulated through, as the focal length.
+corners are refined on, so a simulation without it can read the shift as geometry (a focal
+length answered as a camera mount along the optical axis; docs/results/camera_pipeline.md).
 
 Which ink pixels a level crushes depends on the ink's level and noise: on a converged
 simulation every ink pixel of a tag has one level, so its share at 0 DN jumps from none to all

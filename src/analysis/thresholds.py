@@ -81,8 +81,8 @@ IMAGE_FLOORS: Final = MappingProxyType(
         "clipped_fraction": ("diff", 0.02),
         # the shadows' share at 0 DN, read as the paper's at 255 is (the same floor); the most
         # crushed tag of a capture without a black level or tone curve: at most 0.015 in 45 of
-        # 46 captures of blind seed 53 and dev seeds 908-912, 0.038 in one; with a black level
-        # at least 0.1 in 29 of 37
+        # 46 validation captures, 0.038 in one; with a black level at least 0.1 in 29 of 37
+        # (docs/results/camera_pipeline.md)
         "black_clipped_fraction": ("diff", 0.02),
         "highlight_fraction": ("diff", 0.02),
         "rejected_candidates": ("diff", None),

@@ -45,12 +45,10 @@ def _dataset_source(path: Path) -> str | None:
 
     ``""`` for a simulated dataset (it has none).
     """
-    from simgap.results.provenance import is_result_dataset_file, netcdf_header
+    from simgap.results.provenance import result_dataset_attrs
 
-    if not is_result_dataset_file(path):
-        return None
-    header = netcdf_header(path)
-    return str(header[0].get("source", "")) if header is not None else None
+    attrs = result_dataset_attrs(path)
+    return None if attrs is None else str(attrs.get("source", ""))
 
 
 def _is_simulated_dataset(path: Path) -> bool:
@@ -97,7 +95,7 @@ def _any_folder(folder: Path) -> bool:
 
 
 #: What ``run`` and ``study`` write; an ingested dataset is another kind (its replacement by a
-#: simulation needs ``--overwrite``, issue 51).
+#: simulation needs ``--overwrite``).
 RESULT_DATASET = OutputKind(
     "simulated result dataset (netCDF)", is_ours=_is_simulated_dataset, suffixes=(".nc",)
 )

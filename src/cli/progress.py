@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from types import TracebackType
 
 from rich.console import Console
@@ -17,6 +18,17 @@ from rich.progress import (
 
 #: Seconds between two plain progress lines of a step when not on a terminal.
 PLAIN_INTERVAL_S = 30.0
+
+
+@dataclass
+class _PlainStep:
+    """The step a plain display follows: its name, start and last line (monotonic s), count."""
+
+    name: str
+    start: float
+    last: float
+    done: int
+    total: int | None
 
 
 class StepBars:
@@ -43,8 +55,7 @@ class StepBars:
         self._bars: Progress | None = None
         self._tasks: dict[str, TaskID] = {}
         self._last: str | None = None
-        #: the plain step: (name, its start, the last line's time, done, total)
-        self._line: tuple[str, float, float, int, int | None] | None = None
+        self._line: _PlainStep | None = None
 
     def __call__(self, step: str, done: int, total: int | None) -> None:
         """Show that ``done`` of ``total`` units of ``step`` are done."""
@@ -70,24 +81,25 @@ class StepBars:
     def _plain(self, step: str, done: int, total: int | None) -> None:
         """A plain line at a step's start, every :data:`PLAIN_INTERVAL_S` and at its end."""
         now = time.monotonic()
-        if self._line is None or self._line[0] != step:
+        line = self._line
+        if line is None or line.name != step:
             self._end_plain()
-            self._line = (step, now, now, done, total)
+            self._line = _PlainStep(step, now, now, done, total)
             self._print_line(step, done, total, 0.0)
             return
-        _, start, last, _, _ = self._line
+        line.done, line.total = done, total
         finished = total is not None and done >= total
-        if finished or now - last >= PLAIN_INTERVAL_S:
-            self._print_line(step, done, total, now - start)
-            last = now
-        self._line = (step, start, last, done, total) if not finished else None
+        if finished or now - line.last >= PLAIN_INTERVAL_S:
+            self._print_line(step, done, total, now - line.start)
+            line.last = now
+        if finished:
+            self._line = None
 
     def _end_plain(self) -> None:
         """The last line of an unfinished plain step (its count when the next one starts)."""
         if self._line is not None:
-            step, start, _, done, total = self._line
-            self._print_line(step, done, total, time.monotonic() - start)
-            self._line = None
+            line, self._line = self._line, None
+            self._print_line(line.name, line.done, line.total, time.monotonic() - line.start)
 
     def _print_line(self, step: str, done: int, total: int | None, elapsed: float) -> None:
         """``step: done/total after N s, about M s left`` (plain text, no markup)."""

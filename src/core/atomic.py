@@ -30,6 +30,7 @@ from pathlib import Path
 
 __all__ = [
     "atomic_write",
+    "remove_dead_writers",
     "remove_stale_temporaries",
     "staged_path",
     "temporary_name",
@@ -82,13 +83,23 @@ def remove_stale_temporaries(folder: Path) -> int:
     A writer's leftovers are stale when it ran on this host and its process is gone
     (:func:`writer_alive`); files it cannot remove are left.
     """
+    return remove_dead_writers(folder, _TEMPORARY)
+
+
+def remove_dead_writers(folder: Path, names: re.Pattern[str]) -> int:
+    """Remove the entries of ``folder`` that ``names`` matches and whose writer is dead.
+
+    ``names`` matches an entry's name from its start and captures the writer's ``host`` tag
+    (optional) and ``pid`` (:func:`writer_tag`); an entry is removed when :func:`writer_alive`
+    says no. A file or folder that cannot be removed is left. Returns the count removed.
+    """
     removed = 0
     try:
         entries = list(os.scandir(folder))
     except OSError:
         return 0
     for entry in entries:
-        match = _TEMPORARY.match(entry.name)
+        match = names.match(entry.name)
         if match is None or writer_alive(match["host"], int(match["pid"])):
             continue
         try:

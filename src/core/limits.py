@@ -4,9 +4,9 @@ from __future__ import annotations
 
 #: The pixel budget: frames are read (from capture folders and bags) only where the calibration's
 #: image size is at most this many pixels, whatever it states, so a small file whose header and
-#: calibration both claim 32000 x 32000 px is refused before any decode (it had decoded at
-#: 6.2 GB). 50 MP covers real cameras (the largest machine-vision sensors, about 50 MP; a
-#: RealSense D435i's colour sensor, 2.1 MP) and decodes to 150 MB as 8-bit colour.
+#: calibration both claim 32000 x 32000 px is refused before any decode (its pixels would take
+#: 3 GB as 8-bit colour). 50 MP covers real cameras (the largest machine-vision sensors, about
+#: 50 MP; a RealSense D435i's colour sensor, 2.1 MP) and decodes to 150 MB as 8-bit colour.
 #: ``simgap ingest --max-pixels`` raises it.
 MAX_PIXELS = 50_000_000
 

@@ -198,9 +198,20 @@ def check_output(
     below = next((p for p in _resolve(path, refuse).parents if p.exists() and not p.is_dir()), None)
     if below is not None:
         refuse(f"{below} is {_file_type(below.stat().st_mode)}, not a folder")
-    if not path.exists():
-        _check_suffix(path, kind, refuse)
-        return path
+    if path.exists():
+        _check_existing(path, kind, overwrite, refuse)
+    if kind.suffixes and path.suffix.lower() not in kind.suffixes:
+        refuse(
+            f"expected a name ending in {' or '.join(kind.suffixes)} (the {kind.what} is written "
+            f"in that format), got {path.name!r}"
+        )
+    return path
+
+
+def _check_existing(
+    path: Path, kind: OutputKind, overwrite: bool, refuse: Callable[[str], None]
+) -> None:
+    """Refuse an existing output of the wrong type, or one simgap may not replace."""
     mode = path.stat().st_mode
     expected = stat.S_ISDIR(mode) if kind.folder else stat.S_ISREG(mode)
     if not expected:
@@ -221,8 +232,7 @@ def check_output(
             "replace; choose a new or empty folder (--overwrite does not replace a user's files)"
         )
     if overwrite:
-        _check_suffix(path, kind, refuse)
-        return path
+        return
     if kind.is_ours is None and not _folder_is_ours(path):
         refuse(
             f"holds files simgap did not write (no {OUTPUT_MARKER}); choose a new or empty "
@@ -230,17 +240,6 @@ def check_output(
         )
     if kind.is_ours is not None and not kind.is_ours(path):
         refuse(f"exists and is not a simgap {kind.what}; pass --overwrite to replace it")
-    _check_suffix(path, kind, refuse)
-    return path
-
-
-def _check_suffix(path: Path, kind: OutputKind, refuse: Callable[[str], None]) -> None:
-    """Refuse a file name whose ending is not one of the format's (:attr:`OutputKind.suffixes`)."""
-    if kind.suffixes and path.suffix.lower() not in kind.suffixes:
-        refuse(
-            f"expected a name ending in {' or '.join(kind.suffixes)} (the {kind.what} is written "
-            f"in that format), got {path.name!r}"
-        )
 
 
 def claim_folder(folder: Path) -> Path:

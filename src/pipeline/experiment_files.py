@@ -48,9 +48,8 @@ def with_calibration_file(path: Path, data: dict[str, Any]) -> dict[str, Any]:
     ``rig.camera`` override it. Raises ConfigError naming ``path`` and the key, or the
     calibration file and its key.
     """
-    rig = data.get("rig")
-    camera = rig.get("camera") if isinstance(rig, dict) else None
-    if not isinstance(camera, dict) or "calibration" not in camera:
+    camera = _camera_section(data)
+    if camera is None or "calibration" not in camera:
         return data
     from simgap.pipeline.capture import read_calibration  # the formats register on import
 
@@ -62,7 +61,14 @@ def with_calibration_file(path: Path, data: dict[str, Any]) -> dict[str, Any]:
         raise ConfigError(f"{path}: rig.camera.calibration: {file} not found")
     others = {k: v for k, v in camera.items() if k != "calibration"}
     resolved = {**camera_mapping(read_calibration(file)), **others}
-    return {**data, "rig": {**rig, "camera": resolved}}
+    return {**data, "rig": {**data["rig"], "camera": resolved}}
+
+
+def _camera_section(data: dict[str, Any]) -> dict[str, Any] | None:
+    """An experiment file's ``rig.camera`` mapping, or None where it has none."""
+    rig = data.get("rig")
+    camera = rig.get("camera") if isinstance(rig, dict) else None
+    return camera if isinstance(camera, dict) else None
 
 
 def camera_mapping(camera: Any) -> dict[str, Any]:
@@ -90,9 +96,8 @@ def calibration_files(chain: list[tuple[Path, dict[str, Any]]]) -> list[Path]:
     """The calibration files the chain's ``rig.camera.calibration`` keys name (resolved)."""
     out = []
     for path, data in chain:
-        rig = data.get("rig")
-        camera = rig.get("camera") if isinstance(rig, dict) else None
-        if isinstance(camera, dict) and isinstance(camera.get("calibration"), str):
+        camera = _camera_section(data)
+        if camera is not None and isinstance(camera.get("calibration"), str):
             out.append((path.parent / camera["calibration"]).resolve())
     return out
 

@@ -52,10 +52,8 @@ _CODES = {
 }
 _CHANNEL = {"R": 0, "G": 1, "B": 2}
 #: Exponents of the power-law tone responses searched (code value ** gamma = linear level): from
-#: linear data to a steep response. With sRGB linearisation alone the method was misread behind a
-#: 1.9 gamma, an S-curve and a 17 DN bilateral denoise (blind seed 53 trial 21: bilinear read as
-#: edge-aware, 1.36 against 1.46); searched over these, it is read right (1.55 against 1.89, at
-#: 1.5), as are the layout and method of every demosaiced capture of seeds 53 and 908-912.
+#: linear data to a steep response. With sRGB linearisation alone the method is misread behind a
+#: gamma, an S-curve and denoising (tests/test_camera_pipeline.py; docs/results/camera_pipeline.md).
 TRANSFER_GAMMAS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.25, 2.5, 3.0)
 _CODES_01 = np.arange(256) / 255.0
 #: Per transfer: 8-bit code -> linear level on a 16-bit scale.
@@ -68,11 +66,11 @@ EDGE_RANGE_DN = 24
 MIN_EDGE_PIXELS = 200
 #: Largest ratio (best layout's residual over the others') read as a demosaiced frame. Set on
 #: renders of near to far, frontal and oblique tags (tests/test_camera_pipeline.py), measured on
-#: the captures of seeds 53 and 908-912 with the tone response searched: demosaiced 0.02-0.43 (43
-#: captures, layout and method right in 43; 41 with sRGB linearisation alone, where one of them,
-#: at 0.73, was not read); without a colour filter array 0.97-1.00 (55 captures through noise,
+#: validation captures with the tone response searched: demosaiced 0.02-0.43 (43 captures, layout
+#: and method right in 43), without a colour filter array 0.97-1.00 (55 captures through noise,
 #: blur, sharpening, denoising, JPEG), 0.93 through 1.5 px of lateral colour. JPEG's 4:2:0 chroma
-#: subsampling erases the traces (0.92-1.00 on 9 demosaiced, then compressed captures).
+#: subsampling erases the traces (0.92-1.00 on 9 demosaiced, then compressed captures;
+#: docs/results/camera_pipeline.md).
 DEMOSAICED_RATIO = 0.7
 
 

@@ -34,10 +34,19 @@ def netcdf_header(path: Path) -> tuple[dict[str, object], set[str]] | None:
         return None
 
 
-def is_result_dataset_file(path: Path) -> bool:
-    """Whether ``path`` is a result dataset simgap wrote (provenance attr, required variables)."""
+def result_dataset_attrs(path: Path) -> dict[str, object] | None:
+    """The global attrs of a result dataset simgap wrote, or None for any other file.
+
+    simgap's: the provenance attr and every required variable (only the header is read).
+    """
     header = netcdf_header(path)
     if header is None:
-        return False
+        return None
     attrs, variables = header
-    return PROVENANCE_ATTR in attrs and set(REQUIRED) <= logical_names(variables)
+    ours = PROVENANCE_ATTR in attrs and set(REQUIRED) <= logical_names(variables)
+    return attrs if ours else None
+
+
+def is_result_dataset_file(path: Path) -> bool:
+    """Whether ``path`` is a result dataset simgap wrote (provenance attr, required variables)."""
+    return result_dataset_attrs(path) is not None
