@@ -72,6 +72,15 @@ def _is_error_model(path: Path) -> bool:
     return schema == SCHEMA
 
 
+def _is_photo_dataset(path: Path) -> bool:
+    """A photo dataset simgap measured (``ingest --board``)."""
+    from simgap.pipeline.photos import PHOTO_SOURCE
+    from simgap.results.provenance import netcdf_header
+
+    header = netcdf_header(path)
+    return header is not None and header[0].get("source") == PHOTO_SOURCE
+
+
 def _is_diagnosis_json(path: Path) -> bool:
     """A diagnosis ``result.json`` (its top-level keys)."""
     return DIAGNOSIS_KEYS <= _json_object(path).keys()
@@ -102,6 +111,29 @@ RESULT_DATASET = OutputKind(
 #: What ``ingest`` writes.
 INGESTED_DATASET = OutputKind(
     "ingested result dataset (netCDF)", is_ours=_is_ingested_dataset, suffixes=(".nc",)
+)
+#: First line of a calibration file ``calibrate`` writes (how it knows one of its own).
+CALIBRATION_HEADER = "# simgap calibrate:"
+
+
+def _is_calibration_output(path: Path) -> bool:
+    """A calibration file ``simgap calibrate`` wrote (its first line)."""
+    try:
+        with path.open("rb") as f:
+            return f.readline().startswith(CALIBRATION_HEADER.encode())
+    except OSError:
+        return False
+
+
+#: What ``calibrate`` writes.
+CALIBRATION_OUTPUT = OutputKind(
+    "calibration file (ROS camera_info YAML)",
+    is_ours=_is_calibration_output,
+    suffixes=(".yaml", ".yml"),
+)
+#: What ``ingest --board`` writes.
+PHOTO_DATASET = OutputKind(
+    "board photo dataset (netCDF)", is_ours=_is_photo_dataset, suffixes=(".nc",)
 )
 ERROR_MODEL = OutputKind(
     "error model (netCDF or JSON)", is_ours=_is_error_model, suffixes=(".nc", ".json")

@@ -19,9 +19,12 @@ from simgap.cli.options import (
     output_option,
 )
 from simgap.cli.outputs import (
+    CALIBRATION_HEADER,
+    CALIBRATION_OUTPUT,
     CAPTURE_FOLDER,
     INGESTED_DATASET,
     OUTPUT,
+    PHOTO_DATASET,
     ROS1_BAG,
     ROS2_BAG,
     ROS2_BAG_FILE,
@@ -37,7 +40,8 @@ def ingest(
     capture: Annotated[
         Path,
         typer.Argument(
-            help="Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag."
+            help="Capture folder (camera.yaml, manifest.csv, images), ROS 1 .bag or ROS 2 bag; "
+            "with --board, a folder of photos of that board."
         ),
     ],
     output: Annotated[Path, output_option("Result dataset to write (netCDF).")],
@@ -73,9 +77,24 @@ def ingest(
         "any decode, whatever the calibration states (covers real cameras up to 50 MP).",
         min=1,
     ),
+    board: Path | None = typer.Option(
+        None,
+        "--board",
+        help="Board file (YAML: kind charuco or grid, columns, rows, marker_m, square_m or "
+        "separation_m, dictionary): CAPTURE is then a folder of photos of it, each marker's "
+        "pose measured against the board's own (needs --calibration).",
+    ),
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset."""
+    """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset.
+
+    With --board, a folder of photos of a board of markers: each marker's single-marker pose
+    error against the board's pose from all its points, printed near / mid / far.
+    """
+    if board is not None:
+        _ingest_photos(capture, output, board, calibration, experiment, max_pixels, progress,
+                       overwrite)  # fmt: skip
+        return
     from simgap.core.outputs import claimed_folder
     from simgap.pipeline.bag import ingest_bag, is_bag
     from simgap.pipeline.capture import ingest as ingest_capture
@@ -110,6 +129,114 @@ def ingest(
         f"wrote {output}: {ds.attrs['frames']} frame(s), {ds.attrs['frames_unreadable']} "
         f"unreadable; {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
     )
+
+
+def _ingest_photos(
+    photos: Path,
+    output: Path,
+    board_file: Path,
+    calibration: Path | None,
+    experiment: Path | None,
+    max_pixels: int,
+    progress: bool,
+    overwrite: bool,
+) -> None:
+    """``ingest --board``: measure a folder of board photos (see :func:`ingest`)."""
+    from simgap.cli.progress import StepBars
+    from simgap.core.board import read_board
+    from simgap.pipeline.capture.calibration import read_calibration
+    from simgap.pipeline.photos import measure_photos, write_photo_dataset
+    from simgap.results.photo_summary import errors_by_distance, errors_table
+
+    if calibration is None:
+        fail("--board: the photos' calibration is needed (--calibration FILE)")
+    inputs = [("CAPTURE", photos), ("--board", board_file), ("--calibration", calibration)]
+    inputs += experiment_inputs(experiment, "--experiment") if experiment is not None else []
+    check_outputs([(OUTPUT, output, PHOTO_DATASET)], inputs, overwrite)
+    spec = read_board(board_file)
+    camera = read_calibration(calibration)
+    kwargs: dict = {}
+    if experiment is not None:
+        exp = read_experiment(experiment)
+        kwargs = {"pnp": exp.pnp}
+    with StepBars(progress) as bars:
+        ds = measure_photos(photos, spec, camera, max_pixels=max_pixels, progress=bars, **kwargs)
+    write_photo_dataset(ds, output)
+    seen = int(ds.detected.sum())
+    typer.echo(
+        f"wrote {output}: {ds.attrs['frames']} photo(s), {ds.attrs['frames_unreadable']} "
+        f"unreadable; {seen} marker sightings against the board's {ds.attrs['reference']}"
+    )
+    typer.echo(errors_table(errors_by_distance(ds)))
+
+
+@app.command()
+def calibrate(
+    photos: Annotated[Path, typer.Argument(help="Folder of photos (PNG or JPEG) of the board.")],
+    board: Path = typer.Option(..., "--board", help="Board file (YAML; see ingest --board)."),
+    output: Path | None = typer.Option(
+        None, "-o", "--output", help="Write the fitted calibration here (ROS camera_info YAML)."
+    ),
+    calibration: Path | None = typer.Option(
+        None,
+        "--calibration",
+        help="A calibration file to hold against the photos, parameter by parameter.",
+    ),
+    model: str = typer.Option(
+        "plumb_bob", "--model", help="Distortion model fitted: plumb_bob or rational_polynomial."
+    ),
+    max_pixels: int = typer.Option(
+        MAX_PIXELS, "--max-pixels", help="Pixel budget per photo (px).", min=1
+    ),
+    overwrite: OverwriteOption = False,
+) -> None:
+    """Calibrate the camera from photos of a board; hold a calibration file against them.
+
+    Each parameter's standard deviation is the larger of OpenCV's and the leave-one-photo-out
+    jackknife's; a parameter of the given file 3 of them away does not describe the photos.
+    """
+    from simgap.core.atomic import atomic_write
+    from simgap.core.board import read_board
+    from simgap.pipeline.capture.calibration import calibration_to_yaml, read_calibration
+    from simgap.pipeline.photos import calibrate_photos
+    from simgap.pose.board_calibration import DISAGREE_SIGMAS, compare_calibrations
+
+    inputs = [("PHOTOS", photos), ("--board", board), ("--calibration", calibration)]
+    check_outputs([(OUTPUT, output, CALIBRATION_OUTPUT)], inputs, overwrite)
+    if model not in ("plumb_bob", "rational_polynomial"):
+        fail(f"--model: expected plumb_bob or rational_polynomial, got {model!r}")
+    spec = read_board(board)
+    given = read_calibration(calibration) if calibration is not None else None
+    fit = calibrate_photos(photos, spec, model, max_pixels)
+    cam = fit.camera
+    typer.echo(
+        f"{fit.photos} photo(s), {fit.points} points, RMS {fit.rms_px:.3f} px; "
+        f"fx {cam.fx:.2f} +- {fit.std['fx']:.2f} px ({100 * fit.std['fx'] / cam.fx:.2f} %), "
+        f"fy {cam.fy:.2f} +- {fit.std['fy']:.2f}, cx {cam.cx:.2f} +- {fit.std['cx']:.2f}, "
+        f"cy {cam.cy:.2f} +- {fit.std['cy']:.2f}"
+    )
+    if given is not None:
+        typer.echo(f"{calibration} against the photos (given - fitted, in standard deviations):")
+        checks = compare_calibrations(given, fit)
+        for c in checks:
+            flag = "  DOES NOT DESCRIBE THE PHOTOS" if c.disagrees else ""
+            typer.echo(
+                f"  {c.name:<3} given {c.given:.6g}  fitted {c.fitted:.6g} +- {c.std:.3g}  "
+                f"({c.sigmas:+.1f} sd){flag}"
+            )
+        bad = [c.name for c in checks if c.disagrees]
+        typer.echo(
+            f"{calibration}: " + (f"{', '.join(bad)} more than {DISAGREE_SIGMAS:g} sd from the "
+            "photos: the file does not describe this camera" if bad else
+            f"every parameter within {DISAGREE_SIGMAS:g} sd of the photos")
+        )  # fmt: skip
+    if output is not None:
+        header = (
+            f"{CALIBRATION_HEADER} {fit.photos} photos of {board.name}, RMS {fit.rms_px:.3f} px\n"
+        )
+        text = header + calibration_to_yaml(cam)
+        atomic_write(output, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+        typer.echo(f"wrote {output}")
 
 
 @app.command("export-bag")

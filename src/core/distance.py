@@ -35,3 +35,23 @@ def camera_to_tag_distance(poses: np.ndarray) -> np.ndarray:
     if poses.shape[-1] not in (3, 6):
         raise ValueError(f"poses must end in 3 or 6 components; got shape {poses.shape}")
     return np.linalg.norm(poses[..., :3], axis=-1)
+
+
+#: Names of the three distance bands of :func:`distance_thirds`, nearest first.
+BAND_NAMES: Final[tuple[str, str, str]] = ("near", "mid", "far")
+
+
+def distance_thirds(distances: np.ndarray) -> np.ndarray:
+    """Band index (0 near, 1 mid, 2 far; -1 where NaN) of each distance, by the data's terciles.
+
+    Thirds of the finite distances given (m): each band holds a third of them, so the bands
+    of a photo set follow its own range of distances.
+    """
+    d = np.asarray(distances, dtype=float)
+    out = np.full(d.shape, -1, dtype=int)
+    finite = np.isfinite(d)
+    if not finite.any():
+        return out
+    edges = np.quantile(d[finite], [1 / 3, 2 / 3])
+    out[finite] = np.searchsorted(edges, d[finite], side="right")
+    return out

@@ -1,0 +1,288 @@
+"""A folder of real photos of a board: each marker's single-marker pose error against the board.
+
+The rig beyond PASS (docs/conventions.md §6): photos of a planar board of markers
+(:class:`simgap.core.board.Board`) taken by a calibrated camera from any poses. Each photo's
+reference is the board's pose from all its points (:func:`simgap.pose.board_pose.view_board`);
+each detected marker is then posed from its own four corners, as a robot that sees one marker
+would, and compared with it (:func:`simgap.pose.board_pose.marker_error`).
+
+The dataset (:func:`measure_photos`) has a ``frame`` dimension (the photo's file name) and a
+``marker`` dimension (board marker id); the board's reference pose per frame is a coordinate.
+Every label dimension is indexed, so plain ``xarray.open_dataset`` selects by name
+(``.sel(camera_axis="z")``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import xarray as xr
+
+from simgap.core.atomic import atomic_write
+from simgap.core.board import Board
+from simgap.core.config import ConfigError, to_mapping
+from simgap.core.limits import MAX_PIXELS
+from simgap.core.progress import ProgressCallback, Steps
+from simgap.core.rig import CameraModel
+from simgap.pipeline.capture.folder import check_pixel_budget, frame_size, read_image
+from simgap.pose.board_calibration import PhotoCalibration, calibrate_from_photos
+from simgap.pose.board_pose import marker_error, view_board
+from simgap.pose.detect import Detector, DetectorSettings
+from simgap.pose.estimate import PnPSettings
+
+#: File endings read as photos (case-insensitive); PNG and JPEG only, whose size is read from
+#: the header before any decode (the pixel budget).
+PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg")
+#: The ``source`` attribute of a photo dataset (what simgap's output checks recognise).
+PHOTO_SOURCE = "board_photos"
+#: Labels of the camera-frame axes (OpenCV: x right, y down, z forward = depth).
+CAMERA_AXES = ("x", "y", "z")
+#: Labels of the board-frame axes (OpenCV's board frame: x along a row, y down, z into it).
+BOARD_AXES = ("x", "y", "z")
+
+
+def photo_files(folder: Path) -> list[Path]:
+    """The photos of ``folder`` (:data:`PHOTO_SUFFIXES`), sorted by name.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        Where ``folder`` is not a folder or holds no photo.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ConfigError(f"{folder}: expected a folder of photos (PNG or JPEG)")
+    files = sorted(
+        p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES
+    )
+    if not files:
+        raise ConfigError(f"{folder}: no photo in it (expected files ending {PHOTO_SUFFIXES})")
+    return files
+
+
+def _gray(path: Path, width: int, height: int, max_pixels: int) -> np.ndarray | str:
+    """A photo as 8-bit grey, or why it cannot be used (the pixel budget checked first)."""
+    size = frame_size(path)
+    if size is not None:
+        check_pixel_budget(*size, max_pixels, str(path), key="image size")
+    img = read_image(path, width, height)
+    return img if isinstance(img, str) else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+
+
+def calibrate_photos(
+    folder: Path, board: Board, model: str = "plumb_bob", max_pixels: int = MAX_PIXELS
+) -> PhotoCalibration:
+    """Calibrate the camera of a folder of board photos (:func:`calibrate_from_photos`).
+
+    Every photo must have the size of the first one (px); one that cannot be decoded is left
+    out.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        For a folder without photos, a photo over the pixel budget, a first photo whose size
+        cannot be read, or too few photos that show the board.
+    """
+    files = photo_files(folder)
+    size = frame_size(files[0])
+    if size is None:
+        raise ConfigError(f"{files[0]}: cannot be decoded (its size is not readable)")
+    grays = [g for g in (_gray(p, *size, max_pixels) for p in files) if not isinstance(g, str)]
+    try:
+        return calibrate_from_photos(
+            grays, board, Detector(DetectorSettings(board.dictionary)), model
+        )
+    except ValueError as exc:
+        raise ConfigError(f"{folder}: {exc}") from exc
+
+
+def measure_photos(
+    folder: Path,
+    board: Board,
+    camera: CameraModel,
+    detector: DetectorSettings | None = None,
+    pnp: PnPSettings | None = None,
+    max_pixels: int = MAX_PIXELS,
+    progress: ProgressCallback | None = None,
+) -> xr.Dataset:
+    """Every marker's single-marker pose error against its board, photo by photo.
+
+    Parameters
+    ----------
+    folder : Path
+        Photos (:func:`photo_files`), each ``camera.width`` x ``camera.height`` px.
+    board : Board
+        The printed board.
+    camera : CameraModel
+        The photos' calibration (any distortion model).
+    detector : DetectorSettings, optional
+        The ArUco detector; by default simgap's (SUBPIX) with the board's dictionary.
+    pnp : PnPSettings, optional
+        The single-marker PnP solver (default :class:`~simgap.pose.estimate.PnPSettings`).
+    max_pixels : int
+        Pixel budget checked from each file's header before decoding (px).
+    progress : ProgressCallback, optional
+        Told of each photo measured (step ``"photos"``).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions ``frame``, ``marker``, ``camera_axis``, ``board_axis``. Variables:
+        ``detected`` (0/1), ``error_translation`` (m, camera frame), ``error_rotation`` (rad),
+        ``error_board_translation`` (m, board frame), ``distance`` (m), ``view_angle`` (deg),
+        ``centre_u`` / ``centre_v`` (px), ``marker_reproj`` (px); per frame ``reference_points``,
+        ``reference_reproj`` (px), and the coordinates ``board_translation`` (m) and
+        ``board_rotation`` (rad): the board's reference pose. NaN where a marker was not seen or
+        a photo had no reference. A photo that cannot be decoded or is of another size is
+        listed in the ``frames_unreadable`` attribute with the reason.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        For a folder without photos or a photo over the pixel budget.
+    """
+    settings = detector or DetectorSettings(dictionary=board.dictionary)
+    pnp = pnp or PnPSettings()
+    det = Detector(settings)
+    files = photo_files(folder)
+    ids = sorted(board.marker_corners)
+    n_f, n_m = len(files), len(ids)
+    nan3 = np.full((n_f, n_m, 3), np.nan)
+    out = {
+        "error_translation": nan3.copy(),
+        "error_rotation": nan3.copy(),
+        "error_board_translation": nan3.copy(),
+    }
+    per_marker = {
+        k: np.full((n_f, n_m), np.nan)
+        for k in ("distance", "view_angle", "centre_u", "centre_v", "marker_reproj")
+    }
+    detected = np.zeros((n_f, n_m), np.int8)
+    ref_points = np.zeros(n_f, np.int32)
+    ref_reproj = np.full(n_f, np.nan)
+    board_t, board_r = np.full((n_f, 3), np.nan), np.full((n_f, 3), np.nan)
+    unreadable: list[str] = []
+    reference_kind = ""
+    steps = Steps(progress)
+    steps.start("photos", n_f)
+    for f, path in enumerate(files):
+        if f:
+            steps.advance()
+        gray = _gray(path, camera.width, camera.height, max_pixels)
+        if isinstance(gray, str):
+            unreadable.append(f"{path.name}: {gray}")
+            continue
+        view = view_board(gray, board, camera, det)
+        reference_kind = view.reference
+        ref_points[f], ref_reproj[f] = view.points, view.reproj_px
+        if view.rvec_cv is not None and view.tvec_cv is not None:
+            board_r[f], board_t[f] = view.rvec_cv, view.tvec_cv
+        for m, marker in enumerate(ids):
+            detected[f, m] = marker in view.markers
+            err = marker_error(view, board, marker, camera, pnp)
+            if err is None:
+                continue
+            out["error_translation"][f, m] = err.translation_m
+            out["error_rotation"][f, m] = err.rotation_rad
+            out["error_board_translation"][f, m] = err.board_translation_m
+            per_marker["distance"][f, m] = err.distance_m
+            per_marker["view_angle"][f, m] = err.view_angle_deg
+            per_marker["centre_u"][f, m], per_marker["centre_v"][f, m] = err.centre_px
+            per_marker["marker_reproj"][f, m] = err.reproj_px
+    steps.advance()
+    return _dataset(
+        files, ids, out, per_marker, detected, ref_points, ref_reproj, board_t, board_r,
+        board, camera, settings, pnp, unreadable, reference_kind,
+    )  # fmt: skip
+
+
+#: (units, long_name) of each variable and coordinate of a photo dataset.
+_ATTRS = {
+    "error_translation": (
+        "m",
+        "single-marker position error (estimated - reference), camera frame",
+    ),
+    "error_rotation": ("rad", "single-marker rotation error rotvec(R_est R_ref^T), camera frame"),
+    "error_board_translation": ("m", "single-marker position error in the board frame"),
+    "distance": ("m", "distance from the camera centre to the marker centre (reference)"),
+    "view_angle": ("degree", "angle between the marker normal and its line of sight"),
+    "centre_u": ("pixel", "marker centre's image column (reference projection)"),
+    "centre_v": ("pixel", "marker centre's image row (reference projection)"),
+    "marker_reproj": ("pixel", "RMS reprojection error of the single-marker pose"),
+    "reference_points": ("1", "number of board points the reference pose was solved from"),
+    "reference_reproj": ("pixel", "RMS reprojection error of the board's reference pose"),
+    "board_translation": ("m", "board origin in the camera frame (reference pose)"),
+    "board_rotation": ("rad", "board rotation vector in the camera frame (reference pose)"),
+    "detected": ("1", "marker detected in the photo"),
+}
+
+
+def _dataset(
+    files, ids, out, per_marker, detected, ref_points, ref_reproj, board_t, board_r,
+    board, camera, settings, pnp, unreadable, reference_kind,
+) -> xr.Dataset:  # fmt: skip
+    """The photo dataset of :func:`measure_photos` (its Returns section)."""
+    fm, fma, fmb = (
+        ("frame", "marker"),
+        ("frame", "marker", "camera_axis"),
+        ("frame", "marker", "board_axis"),
+    )
+    data = {
+        "error_translation": (fma, out["error_translation"]),
+        "error_rotation": (fma, out["error_rotation"]),
+        "error_board_translation": (fmb, out["error_board_translation"]),
+        **{k: (fm, v) for k, v in per_marker.items()},
+        "detected": (fm, detected),
+        "reference_points": (("frame",), ref_points),
+        "reference_reproj": (("frame",), ref_reproj),
+    }
+    coords = {
+        "frame": [p.name for p in files],
+        "marker": np.asarray(ids, np.int32),
+        "camera_axis": list(CAMERA_AXES),
+        "board_axis": list(BOARD_AXES),
+        "board_translation": (("frame", "camera_axis"), board_t),
+        "board_rotation": (("frame", "camera_axis"), board_r),
+    }
+    ds = xr.Dataset(data, coords=coords)
+    for name, (units, long_name) in _ATTRS.items():
+        ds[name].attrs.update(units=units, long_name=long_name)
+    ds["detected"].attrs.update(flag_values=np.array([0, 1], np.int8), flag_meanings="no yes")
+    ds.attrs.update(
+        Conventions="CF-1.10",
+        title="single-marker pose errors against a board's reference, real photos",
+        source=PHOTO_SOURCE,
+        reference=reference_kind or "none",
+        board=repr(to_mapping(board)),
+        calibration=repr(to_mapping(camera)),
+        detector=repr(to_mapping(settings)),
+        pnp=repr(to_mapping(pnp)),
+        frames=len(files),
+        frames_unreadable=len(unreadable),
+        unreadable="; ".join(unreadable),
+    )
+    return ds
+
+
+def write_photo_dataset(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write a photo dataset as netCDF4 atomically (temporary file + rename); return the path.
+
+    Plain ``xarray.open_dataset`` reads it back with every label dimension indexed.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4"))
+
+
+__all__ = [
+    "BOARD_AXES",
+    "CAMERA_AXES",
+    "PHOTO_SOURCE",
+    "PHOTO_SUFFIXES",
+    "calibrate_photos",
+    "measure_photos",
+    "photo_files",
+    "write_photo_dataset",
+]

@@ -1,0 +1,185 @@
+"""A camera calibrated from photos of a board, with each parameter's uncertainty.
+
+OpenCV's calibration (``cv2.calibrateCameraExtended``) on the board's reference points of every
+photo (:func:`simgap.pose.board_pose.reference_points`: a ChArUco board's chessboard corners, a
+grid board's marker corners), in the model of a given calibration file (plumb_bob or
+rational_polynomial; 5 coefficients without one).
+
+Each parameter's standard deviation is the larger of OpenCV's (from the Jacobian at the
+solution and the residuals' variance: it assumes independent corner errors) and the
+leave-one-photo-out jackknife's (Efron & Tibshirani 1993, ch. 11; what a different set of views
+would have given). On eight real RealSense photos OpenCV's were 1.4-5.3 times smaller than the
+jackknife's (docs/results/real_photos.md): the views, not the corners, limit a calibration. A
+given file is held against the fit parameter by parameter (:func:`compare_calibrations`): a
+parameter :data:`DISAGREE_SIGMAS` standard deviations away does not describe the photos.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Final
+
+import cv2
+import numpy as np
+
+from simgap.core.board import Board
+from simgap.core.rig import CameraModel
+from simgap.pose.board_pose import MIN_REFERENCE_POINTS, reference_points
+from simgap.pose.detect import Detector
+
+#: Distortion models a calibration from photos fits, with OpenCV's flags for each.
+CALIBRATION_FLAGS: Final = {"plumb_bob": 0, "rational_polynomial": cv2.CALIB_RATIONAL_MODEL}
+#: A parameter of a given file this many standard deviations from the photos' fit does not
+#: describe them: the two-sided 99.7 % level of a normal estimate (3 sigma).
+DISAGREE_SIGMAS: Final[float] = 3.0
+#: Fewest photos whose leave-one-out jackknife enters the standard deviations (module doc).
+JACKKNIFE_MIN_PHOTOS: Final[int] = 4
+#: Names of the intrinsics in OpenCV's order (``stdDeviationsIntrinsics``), coefficients after.
+INTRINSIC_NAMES: Final = ("fx", "fy", "cx", "cy")
+COEFFICIENT_NAMES: Final = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
+
+
+@dataclass(frozen=True)
+class PhotoCalibration:
+    """A calibration fitted on photos.
+
+    Attributes
+    ----------
+    camera : CameraModel
+        The fitted camera.
+    std : dict of str to float
+        Standard deviation of each fitted parameter (px for fx, fy, cx, cy; 1 for
+        coefficients): the larger of OpenCV's and the jackknife's (module doc).
+    rms_px : float
+        RMS reprojection error over all points (px).
+    photos : int
+        Photos used (at least :data:`~simgap.pose.board_pose.MIN_REFERENCE_POINTS` points each).
+    points : int
+        Points used.
+    """
+
+    camera: CameraModel
+    std: dict[str, float]
+    rms_px: float
+    photos: int
+    points: int
+
+
+def calibrate_from_photos(
+    grays: list[np.ndarray], board: Board, detector: Detector, model: str = "plumb_bob"
+) -> PhotoCalibration:
+    """Calibrate a camera from 8-bit grey photos of ``board`` in the distortion ``model``.
+
+    Raises
+    ------
+    ValueError
+        ``"model: ..."`` for a model not in :data:`CALIBRATION_FLAGS`; ``"photos: ..."`` where
+        fewer than three photos show enough of the board (OpenCV needs views of several poses).
+    """
+    if model not in CALIBRATION_FLAGS:
+        raise ValueError(f"model: calibration from photos fits {', '.join(CALIBRATION_FLAGS)}")
+    obj_all, img_all = [], []
+    for gray in grays:
+        markers = {i: c for i, c in detector.detect(gray).items() if i in board.marker_corners}
+        obj, img, _ = reference_points(gray, board, markers)
+        if len(obj) >= MIN_REFERENCE_POINTS:
+            obj_all.append(obj.astype(np.float32))
+            img_all.append(img.astype(np.float32).reshape(-1, 1, 2))
+    if len(obj_all) < 3:
+        raise ValueError(
+            f"photos: {len(obj_all)} show at least {MIN_REFERENCE_POINTS} board points; "
+            "calibration needs at least 3"
+        )
+    h, w = grays[0].shape[:2]
+    camera, std, rms = _calibrate(obj_all, img_all, (w, h), model)
+    if len(obj_all) >= JACKKNIFE_MIN_PHOTOS:
+        values = np.array([_values(camera)] + [
+            _values(_calibrate(obj_all[:i] + obj_all[i + 1:], img_all[:i] + img_all[i + 1:],
+                               (w, h), model)[0])
+            for i in range(len(obj_all))
+        ])  # fmt: skip
+        n = len(obj_all)
+        loo = values[1:]
+        jack = np.sqrt((n - 1) / n * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+        std = {k: max(v, float(j)) for (k, v), j in zip(std.items(), jack, strict=True)}
+    return PhotoCalibration(camera, std, rms, len(obj_all), sum(len(o) for o in obj_all))
+
+
+def _values(camera: CameraModel) -> np.ndarray:
+    """fx, fy, cx, cy and the coefficients of ``camera``, in :data:`INTRINSIC_NAMES` order."""
+    return np.array([camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion])
+
+
+def _calibrate(
+    obj: list[np.ndarray], img: list[np.ndarray], size: tuple[int, int], model: str
+) -> tuple[CameraModel, dict[str, float], float]:
+    """OpenCV's calibration: the camera, OpenCV's standard deviations and the RMS (px)."""
+    rms, k, dist, _, _, std_int, _, _ = cv2.calibrateCameraExtended(
+        obj, img, size, None, None, flags=CALIBRATION_FLAGS[model]
+    )
+    n_coeffs = 8 if model == "rational_polynomial" else 5
+    names = INTRINSIC_NAMES + COEFFICIENT_NAMES[:n_coeffs]
+    std = dict(zip(names, np.asarray(std_int, float).ravel()[: len(names)].tolist(), strict=True))
+    camera = CameraModel(
+        width=size[0], height=size[1], fx=float(k[0, 0]), fy=float(k[1, 1]), cx=float(k[0, 2]),
+        cy=float(k[1, 2]), distortion=tuple(float(v) for v in np.ravel(dist)[:n_coeffs]),
+        distortion_model=model,
+    )  # fmt: skip
+    return camera, std, float(rms)
+
+
+@dataclass(frozen=True)
+class ParameterCheck:
+    """One parameter of a given calibration file held against the photos' fit.
+
+    Attributes
+    ----------
+    name : str
+        ``fx``, ``fy``, ``cx``, ``cy`` or a coefficient (``k1`` ...).
+    given, fitted, std : float
+        The file's value, the photos' and its standard deviation (px or 1).
+    sigmas : float
+        ``(given - fitted) / std``.
+    disagrees : bool
+        ``|sigmas| > DISAGREE_SIGMAS``.
+    """
+
+    name: str
+    given: float
+    fitted: float
+    std: float
+    sigmas: float
+    disagrees: bool
+
+
+def compare_calibrations(given: CameraModel, fit: PhotoCalibration) -> list[ParameterCheck]:
+    """Each parameter of ``given`` against the photos' fit, in its standard deviations.
+
+    The coefficients are compared where both are of the same distortion model.
+    """
+    values = {"fx": given.fx, "fy": given.fy, "cx": given.cx, "cy": given.cy}
+    fitted = {"fx": fit.camera.fx, "fy": fit.camera.fy, "cx": fit.camera.cx, "cy": fit.camera.cy}
+    if given.distortion_model == fit.camera.distortion_model:
+        for name, a, b in zip(
+            COEFFICIENT_NAMES, given.distortion, fit.camera.distortion, strict=False
+        ):
+            values[name], fitted[name] = a, b
+    out = []
+    for name, value in values.items():
+        std = fit.std.get(name, float("nan"))
+        sigmas = (value - fitted[name]) / std if std > 0 else float("nan")
+        out.append(
+            ParameterCheck(name, value, fitted[name], std, sigmas, abs(sigmas) > DISAGREE_SIGMAS)
+        )
+    return out
+
+
+__all__ = [
+    "CALIBRATION_FLAGS",
+    "DISAGREE_SIGMAS",
+    "JACKKNIFE_MIN_PHOTOS",
+    "ParameterCheck",
+    "PhotoCalibration",
+    "calibrate_from_photos",
+    "compare_calibrations",
+]
