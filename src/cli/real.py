@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from contextlib import nullcontext
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -32,7 +33,7 @@ from simgap.cli.outputs import (
     experiment_inputs,
     simulation_inputs,
 )
-from simgap.core.limits import MAX_PIXELS
+from simgap.core.limits import MAX_PIXELS, PHOTO_SPP
 
 
 @app.command()
@@ -77,6 +78,18 @@ def ingest(
         "any decode, whatever the calibration states (covers real cameras up to 50 MP).",
         min=1,
     ),
+    simulate: bool = typer.Option(
+        False,
+        "--simulate",
+        help="With --board: render each photo at its reference pose, fit the camera's exposure "
+        "and blur on the markers' image statistics, and print the gap before and after "
+        "(held-out photos); the dataset gains an image dimension (real, simulated, "
+        "simulated_fitted).",
+    ),
+    spp: int = typer.Option(
+        PHOTO_SPP, "--spp", help="With --simulate: samples per pixel of the renders.", min=1
+    ),
+    seed: int = typer.Option(0, "--seed", help="With --simulate: the renders' seed.", min=0),
     board: Path | None = typer.Option(
         None,
         "--board",
@@ -92,9 +105,11 @@ def ingest(
     error against the board's pose from all its points, printed near / mid / far.
     """
     if board is not None:
-        _ingest_photos(capture, output, board, calibration, experiment, max_pixels, progress,
-                       overwrite)  # fmt: skip
+        photo_options = _PhotoOptions(calibration, experiment, max_pixels, simulate, spp, seed)
+        _ingest_photos(capture, output, board, photo_options, progress, overwrite)
         return
+    if simulate:
+        fail("--simulate: only with --board (a folder of board photos)")
     from simgap.core.outputs import claimed_folder
     from simgap.pipeline.bag import ingest_bag, is_bag
     from simgap.pipeline.capture import ingest as ingest_capture
@@ -131,43 +146,67 @@ def ingest(
     )
 
 
+@dataclass(frozen=True)
+class _PhotoOptions:
+    """The options of ``ingest --board`` (see :func:`ingest`)."""
+
+    calibration: Path | None
+    experiment: Path | None
+    max_pixels: int
+    simulate: bool
+    spp: int
+    seed: int
+
+
 def _ingest_photos(
-    photos: Path,
-    output: Path,
-    board_file: Path,
-    calibration: Path | None,
-    experiment: Path | None,
-    max_pixels: int,
-    progress: bool,
+    photos: Path, output: Path, board_file: Path, opts: _PhotoOptions, progress: bool,
     overwrite: bool,
-) -> None:
-    """``ingest --board``: measure a folder of board photos (see :func:`ingest`)."""
+) -> None:  # fmt: skip
+    """``ingest --board``: measure a folder of board photos, and simulate them if asked."""
     from simgap.cli.progress import StepBars
     from simgap.core.board import read_board
     from simgap.pipeline.capture.calibration import read_calibration
     from simgap.pipeline.photos import measure_photos, write_photo_dataset
-    from simgap.results.photo_summary import errors_by_distance, errors_table
+    from simgap.results.photo_summary import errors_by_distance, errors_table, gap_table
 
-    if calibration is None:
+    if opts.calibration is None:
         fail("--board: the photos' calibration is needed (--calibration FILE)")
-    inputs = [("CAPTURE", photos), ("--board", board_file), ("--calibration", calibration)]
-    inputs += experiment_inputs(experiment, "--experiment") if experiment is not None else []
+    inputs = [("CAPTURE", photos), ("--board", board_file), ("--calibration", opts.calibration)]
+    if opts.experiment is not None:
+        inputs += experiment_inputs(opts.experiment, "--experiment")
     check_outputs([(OUTPUT, output, PHOTO_DATASET)], inputs, overwrite)
-    spec = read_board(board_file)
-    camera = read_calibration(calibration)
-    kwargs: dict = {}
-    if experiment is not None:
-        exp = read_experiment(experiment)
-        kwargs = {"pnp": exp.pnp}
+    board = read_board(board_file)
+    camera = read_calibration(opts.calibration)
+    exp = read_experiment(opts.experiment) if opts.experiment is not None else None
+    pnp = exp.pnp if exp is not None else None
     with StepBars(progress) as bars:
-        ds = measure_photos(photos, spec, camera, max_pixels=max_pixels, progress=bars, **kwargs)
-    write_photo_dataset(ds, output)
+        ds = measure_photos(photos, board, camera, pnp=pnp, max_pixels=opts.max_pixels,
+                            progress=bars)  # fmt: skip
+        diagnosis = None
+        if opts.simulate:
+            from simgap.analysis.photo_gap import diagnose_photos
+
+            spec = exp.scene_spec if exp is not None else None
+            diagnosis = diagnose_photos(ds, board, camera, spec, opts.spp, opts.seed, bars)
+    write_photo_dataset(diagnosis.dataset if diagnosis is not None else ds, output)
     seen = int(ds.detected.sum())
     typer.echo(
         f"wrote {output}: {ds.attrs['frames']} photo(s), {ds.attrs['frames_unreadable']} "
         f"unreadable; {seen} marker sightings against the board's {ds.attrs['reference']}"
     )
     typer.echo(errors_table(errors_by_distance(ds)))
+    if diagnosis is not None:
+        fit = diagnosis.fit
+        typer.echo(
+            f"the camera, fitted on the markers' images: exposure {fit.exposure_ev:+.2f} EV "
+            f"(paper {fit.real_paper_level:.3f} against {fit.simulated_paper_level:.3f}), blur "
+            f"{fit.blur_sigma_px:.3f} px (edge width {fit.real_edge_width_px:.3f} px against "
+            f"{fit.simulated_edge_width_px:.3f}; {diagnosis.edge_width_after_px:.3f} with it)"
+        )
+        typer.echo("real - simulated, the simulation as it is:")
+        typer.echo(gap_table(diagnosis.before))
+        typer.echo("real - simulated, with the camera fitted on the other half of the photos:")
+        typer.echo(gap_table(diagnosis.after))
 
 
 @app.command()

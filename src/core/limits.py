@@ -10,4 +10,10 @@ from __future__ import annotations
 #: ``simgap ingest --max-pixels`` raises it.
 MAX_PIXELS = 50_000_000
 
-__all__ = ["MAX_PIXELS"]
+#: Samples per pixel of a board photo's render (``ingest --board --simulate``): on OpenCV's
+#: tutorial photos (markers of about 25 px) the median single-marker depth per distance third
+#: moved by up to 2.1 mm between seeds at 64, by at most 0.3 mm from 256 to 1024
+#: (docs/results/real_photos.md).
+PHOTO_SPP = 256
+
+__all__ = ["MAX_PIXELS", "PHOTO_SPP"]

@@ -14,29 +14,52 @@ Every label dimension is indexed, so plain ``xarray.open_dataset`` selects by na
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import numpy as np
 import xarray as xr
 
+from simgap.core import transforms as tf
+from simgap.core.aruco import marker_cells
 from simgap.core.atomic import atomic_write
 from simgap.core.board import Board
 from simgap.core.config import ConfigError, to_mapping
-from simgap.core.limits import MAX_PIXELS
+from simgap.core.limits import MAX_PIXELS, PHOTO_SPP
 from simgap.core.progress import ProgressCallback, Steps
 from simgap.core.rig import CameraModel
+from simgap.effects.image import ImageContext, run_pipeline
+from simgap.effects.state import ImageState
 from simgap.pipeline.capture.folder import check_pixel_budget, frame_size, read_image
 from simgap.pose.board_calibration import PhotoCalibration, calibrate_from_photos
 from simgap.pose.board_pose import marker_error, view_board
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
+from simgap.pose.image_stats import STAT_INDEX, MarkerLayout, tag_stats
+from simgap.render.imaging import to_gray
+from simgap.scene.spec import SceneSpec
 
 #: File endings read as photos (case-insensitive); PNG and JPEG only, whose size is read from
 #: the header before any decode (the pixel budget).
 PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg")
 #: The ``source`` attribute of a photo dataset (what simgap's output checks recognise).
 PHOTO_SOURCE = "board_photos"
+#: Per-marker image statistics of a photo dataset: variable -> the statistic of
+#: :mod:`simgap.pose.image_stats` it holds (the sticker's paper and ink levels, linear fraction of
+#: full scale, and the 10-90 % edge width of its black border, px).
+IMAGE_STATS = {
+    "paper_level": "paper_linear",
+    "ink_level": "ink_linear",
+    "edge_width": "edge_width_px",
+}
+#: Per-marker variables of a photo dataset (frame x marker), besides the errors.
+PER_MARKER = ("distance", "view_angle", "centre_u", "centre_v", "marker_reproj", *IMAGE_STATS)
+#: White cells around a marker the image statistics read its paper from
+#: (:class:`simgap.pose.image_stats.MarkerLayout`): their least. A ChArUco marker's white square
+#: may be narrower (a calib.io board's: 1.1 cells); the ring then reaches the black squares
+#: beside it and the paper's median holds while more than half the ring is paper.
+QUIET_CELLS = 2
 #: Labels of the camera-frame axes (OpenCV: x right, y down, z forward = depth).
 CAMERA_AXES = ("x", "y", "z")
 #: Labels of the board-frame axes (OpenCV's board frame: x along a row, y down, z into it).
@@ -133,8 +156,8 @@ def measure_photos(
         ``detected`` (0/1), ``error_translation`` (m, camera frame), ``error_rotation`` (rad),
         ``error_board_translation`` (m, board frame), ``distance`` (m), ``view_angle`` (deg),
         ``centre_u`` / ``centre_v`` (px), ``marker_reproj`` (px); per frame ``reference_points``,
-        ``reference_reproj`` (px), and the coordinates ``board_translation`` (m) and
-        ``board_rotation`` (rad): the board's reference pose. NaN where a marker was not seen or
+        ``reference_reproj`` (px), ``board_translation`` (m) and ``board_rotation`` (rad): the
+        board's reference pose in the camera frame. NaN where a marker was not seen or
         a photo had no reference. A photo that cannot be decoded or is of another size is
         listed in the ``frames_unreadable`` attribute with the reason.
 
@@ -143,36 +166,115 @@ def measure_photos(
     simgap.core.config.ConfigError
         For a folder without photos or a photo over the pixel budget.
     """
+    files = photo_files(folder)
+    return _measure(
+        [p.name for p in files],
+        lambda f: _gray(files[f], camera.width, camera.height, max_pixels),
+        board, camera, detector, pnp, Steps(progress), "photos",
+    )  # fmt: skip
+
+
+def render_photos(
+    real: xr.Dataset,
+    board: Board,
+    camera: CameraModel,
+    spec: SceneSpec | None = None,
+    spp: int = PHOTO_SPP,
+    seed: int = 0,
+    progress: ProgressCallback | None = None,
+) -> list[np.ndarray | None]:
+    """Each photo of ``real`` rendered at its reference pose: linear RGB, or None without one.
+
+    :class:`simgap.render.board_scene.BoardScene` through ``camera`` (the scene's tag print,
+    integrator and pixel filter; path traced at ``spp`` samples per pixel, sampler seed
+    ``seed`` + the frame's index). ``real`` is :func:`measure_photos`'s dataset.
+    """
+    from simgap.render.board_scene import BoardScene
+    from simgap.scene.spec import default_scene_spec
+
+    scene = BoardScene(board, camera, spec or default_scene_spec(), spp)
+    rotations, translations = real["board_rotation"].values, real["board_translation"].values
+    steps = Steps(progress)
+    steps.start("rendering", len(rotations))
+    out: list[np.ndarray | None] = []
+    for f, (r, t) in enumerate(zip(rotations, translations, strict=True)):
+        if not (np.isfinite(r).all() and np.isfinite(t).all()):
+            out.append(None)
+        else:
+            camera_from_board = np.eye(4)
+            camera_from_board[:3, :3], camera_from_board[:3, 3] = tf.rotvec_to_matrix(r), t
+            out.append(scene.render(camera_from_board, seed + f))
+        steps.advance()
+    return out
+
+
+def simulate_photos(
+    real: xr.Dataset,
+    renders: list[np.ndarray | None],
+    board: Board,
+    camera: CameraModel,
+    image: ImageState | None = None,
+    detector: DetectorSettings | None = None,
+    pnp: PnPSettings | None = None,
+    progress: ProgressCallback | None = None,
+) -> xr.Dataset:
+    """The photo set simulated: its renders (:func:`render_photos`) measured as photos are.
+
+    Each render goes through the camera pipeline ``image`` (:func:`simgap.effects.image.
+    run_pipeline`: the catalogue's image effects, then the encoding; default: sRGB alone) and is
+    measured as a photo is: its own reference from its points, then each marker. A frame
+    without a render is listed in ``frames_unreadable``. The layout of :func:`measure_photos`.
+    """
+    state = image or ImageState()
+
+    def load(f: int) -> np.ndarray | str:
+        hdr = renders[f]
+        if hdr is None:
+            return "no reference pose in the photo"
+        ctx = ImageContext((0, 0), camera, np.random.default_rng(f))
+        return to_gray(run_pipeline(hdr, state, ctx))
+
+    names = [str(n) for n in real["frame"].values]
+    return _measure(names, load, board, camera, detector, pnp, Steps(progress), "measuring")
+
+
+def _measure(
+    names: list[str],
+    load: Callable[[int], np.ndarray | str],
+    board: Board,
+    camera: CameraModel,
+    detector: DetectorSettings | None,
+    pnp: PnPSettings | None,
+    steps: Steps,
+    step: str,
+) -> xr.Dataset:
+    """Measure frames ``names``: ``load(f)`` gives frame f as 8-bit grey, or why not."""
     settings = detector or DetectorSettings(dictionary=board.dictionary)
     pnp = pnp or PnPSettings()
     det = Detector(settings)
-    files = photo_files(folder)
+    layout = MarkerLayout(marker_cells(board.dictionary), QUIET_CELLS)
     ids = sorted(board.marker_corners)
-    n_f, n_m = len(files), len(ids)
+    n_f, n_m = len(names), len(ids)
     nan3 = np.full((n_f, n_m, 3), np.nan)
     out = {
         "error_translation": nan3.copy(),
         "error_rotation": nan3.copy(),
         "error_board_translation": nan3.copy(),
     }
-    per_marker = {
-        k: np.full((n_f, n_m), np.nan)
-        for k in ("distance", "view_angle", "centre_u", "centre_v", "marker_reproj")
-    }
+    per_marker = {k: np.full((n_f, n_m), np.nan) for k in PER_MARKER}
     detected = np.zeros((n_f, n_m), np.int8)
     ref_points = np.zeros(n_f, np.int32)
     ref_reproj = np.full(n_f, np.nan)
     board_t, board_r = np.full((n_f, 3), np.nan), np.full((n_f, 3), np.nan)
     unreadable: list[str] = []
     reference_kind = ""
-    steps = Steps(progress)
-    steps.start("photos", n_f)
-    for f, path in enumerate(files):
+    steps.start(step, n_f)
+    for f, name in enumerate(names):
         if f:
             steps.advance()
-        gray = _gray(path, camera.width, camera.height, max_pixels)
+        gray = load(f)
         if isinstance(gray, str):
-            unreadable.append(f"{path.name}: {gray}")
+            unreadable.append(f"{name}: {gray}")
             continue
         view = view_board(gray, board, camera, det)
         reference_kind = view.reference
@@ -191,9 +293,12 @@ def measure_photos(
             per_marker["view_angle"][f, m] = err.view_angle_deg
             per_marker["centre_u"][f, m], per_marker["centre_v"][f, m] = err.centre_px
             per_marker["marker_reproj"][f, m] = err.reproj_px
+            stats = tag_stats(gray, view.markers[marker], layout, edge_widths=("edge_width_px",))
+            for name, stat in IMAGE_STATS.items():
+                per_marker[name][f, m] = stats[STAT_INDEX[stat]]
     steps.advance()
     return _dataset(
-        files, ids, out, per_marker, detected, ref_points, ref_reproj, board_t, board_r,
+        names, ids, out, per_marker, detected, ref_points, ref_reproj, board_t, board_r,
         board, camera, settings, pnp, unreadable, reference_kind,
     )  # fmt: skip
 
@@ -216,6 +321,9 @@ _ATTRS = {
     "board_translation": ("m", "board origin in the camera frame (reference pose)"),
     "board_rotation": ("rad", "board rotation vector in the camera frame (reference pose)"),
     "detected": ("1", "marker detected in the photo"),
+    "paper_level": ("1", "median linear level of the paper around the marker (of full scale)"),
+    "ink_level": ("1", "median linear level of the marker's black border (of full scale)"),
+    "edge_width": ("pixel", "10-90 % edge width of the marker's black border"),
 }
 
 
@@ -237,14 +345,14 @@ def _dataset(
         "detected": (fm, detected),
         "reference_points": (("frame",), ref_points),
         "reference_reproj": (("frame",), ref_reproj),
+        "board_translation": (("frame", "camera_axis"), board_t),
+        "board_rotation": (("frame", "camera_axis"), board_r),
     }
     coords = {
-        "frame": [p.name for p in files],
+        "frame": list(files),
         "marker": np.asarray(ids, np.int32),
         "camera_axis": list(CAMERA_AXES),
         "board_axis": list(BOARD_AXES),
-        "board_translation": (("frame", "camera_axis"), board_t),
-        "board_rotation": (("frame", "camera_axis"), board_r),
     }
     ds = xr.Dataset(data, coords=coords)
     for name, (units, long_name) in _ATTRS.items():
@@ -284,5 +392,7 @@ __all__ = [
     "calibrate_photos",
     "measure_photos",
     "photo_files",
+    "render_photos",
+    "simulate_photos",
     "write_photo_dataset",
 ]

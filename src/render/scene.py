@@ -28,6 +28,8 @@ SAMPLES_PER_LAUNCH = 1 << 22
 
 __all__ = [
     "FixtureScene",
+    "PixelTracer",
+    "sensor_dict",
     "SceneSpec",
     "load_scene_spec",
     "pose_transforms",
@@ -36,152 +38,20 @@ __all__ = [
 ]
 
 
-class FixtureScene:
-    """The fixture loaded in Mitsuba, posable per (p, theta).
+class PixelTracer:
+    """Renders any set of a loaded scene's pixels through its OpenCV sensor (one kernel).
 
-    Parameters
-    ----------
-    rig : Rig
-        Fixture description; its camera model is what the renderer images with.
-    spec : SceneSpec
-        The scene description (:mod:`simgap.scene`): materials, tag print, lights, objects and
-        integrator; converted by :mod:`simgap.render.mitsuba_scene`.
-    film_size : tuple of int
-        Film width, height (px): the crop size, or the full image size.
-    spp : int
-        Samples per pixel.
-    sampler : str
-        Mitsuba sampler plugin (``multijitter``, ``ldsampler``, ``independent`` ...).
-    errors : FixtureErrors
-        The true fixture's differences from CAD, used for rendering (the ground truth stays CAD).
-    camera : CameraModel, optional
-        The true camera that takes the picture (default: the rig's).
-    tag_scale : float
-        Printed size of the stickers relative to nominal (dimensionless).
-    lens : tuple of float
-        Thin lens ``(aperture_radius_m, focus_distance_m)``; radius 0 is a pinhole.
-    max_depth : int, optional
-        Path tracer depth (default: the template integrator's).
+    A subclass sets ``mi`` (the Mitsuba module), ``scene`` (the loaded scene), ``camera`` (its
+    :mod:`simgap.render.camera` sensor), ``spp``, ``spec`` (its pixel filter: ``spec.rfilter``)
+    and ``pose`` (None until the scene is posed).
     """
 
-    def __init__(
-        self,
-        rig: Rig,
-        spec: SceneSpec,
-        film_size: tuple[int, int],
-        spp: int = 16,
-        sampler: str = "multijitter",
-        errors: FixtureErrors = NOMINAL,
-        camera: CameraModel | None = None,
-        tag_scale: float = 1.0,
-        lens: tuple[float, float] = (0.0, 1.0),
-        max_depth: int | None = None,
-    ) -> None:
-        self.mi = mi = mitsuba()
-        self.rig, self.spec, self.errors, self.tag_scale = rig, spec, errors, float(tag_scale)
-        self.film_size, self.spp = tuple(film_size), int(spp)
-        scene_dict: dict[str, Any] = {
-            "type": "scene",
-            "integrator": {
-                **copy.deepcopy(spec.integrator),
-                **({} if max_depth is None else {"max_depth": int(max_depth)}),
-            },
-            "sensor": {
-                "type": SENSOR_PLUGIN,
-                "film": {
-                    "type": "hdrfilm",
-                    "width": int(film_size[0]),
-                    "height": int(film_size[1]),
-                    "rfilter": copy.deepcopy(spec.rfilter),
-                    "pixel_format": "rgb",
-                    "component_format": "float32",
-                },
-                "sampler": {"type": sampler, "sample_count": self.spp},
-            },
-        }
-        for name, obj in spec.objects.items():
-            mesh_path = assets_dir() / obj.mesh
-            if not mesh_path.is_file():
-                raise ConfigError(
-                    f"objects.{name}.mesh: {mesh_path} not found (run `simgap assets`)"
-                )
-            scene_dict[name] = {
-                "type": "ply",
-                "filename": str(mesh_path),
-                "face_normals": True,
-                "bsdf": bsdf(spec.materials[obj.material]),
-            }
-        #: per tag id, the print's albedo texture the tag BSDF looks up (rows x columns; one
-        #: texel per cell with nearest lookup, each cell repeated with bilinear)
-        self.print_albedo: dict[int, np.ndarray] = {}
-        for face in rig.tags.faces:
-            texture = cv2.imread(str(assets_dir() / f"tag_{face.id}.png"), cv2.IMREAD_GRAYSCALE)
-            if texture is None:
-                raise ConfigError(f"assets/tag_{face.id}.png not found (run `simgap assets`)")
-            self.print_albedo[face.id] = print_albedo(spec.tag, texture)
-            scene_dict[f"tag_{face.id}"] = {
-                "type": "rectangle",
-                "bsdf": tag_bsdf(spec.tag, self.print_albedo[face.id], mi),
-            }
-        rail_from_eyepoint = rig.rail_from_eyepoint(0, errors)
-        for name, light in spec.lights.items():
-            scene_dict[f"light_{name}"] = emitter(light.placed(rail_from_eyepoint), mi)
-        try:
-            # optimize=False: Mitsuba would merge meshes sharing a BSDF, and we move them apart
-            self.scene = mi.load_dict(scene_dict, optimize=False)
-        except RuntimeError as exc:
-            raise ConfigError(f"scene: Mitsuba could not build the scene: {exc}") from exc
-        self.params = mi.traverse(self.scene)
-        self.camera = self.scene.sensors()[0]
-        # the sampler may round the count up (multijitter: to a product of two near-equal sides)
-        self.spp = int(self.camera.sampler().sample_count())
-        #: the camera that takes the picture, and its thin lens (aperture radius, focus; m)
-        self.camera_model = cam = camera or rig.camera
-        self.lens = (float(lens[0]), float(lens[1]))
-        self.camera.set_intrinsics(
-            cam.fx, cam.fy, cam.cx, cam.cy, cam.distortion, cam.distortion_model
-        )
-        self.camera.set_lens(*self.lens)
-        self._base = {
-            name: np.array(self.params[f"{name}.vertex_positions"]).reshape(-1, 3)
-            for name, obj in spec.objects.items()
-            if obj.frame != "rail"
-        }
-        self.pose: tuple[float, float] | None = None
-
-    def set_pose(self, p: float, theta: float) -> None:
-        """Move carriage, camera, turntable and tags to pin hole ``p`` and angle ``theta`` (rad)."""
-        mi = self.mi
-        world = pose_transforms(self.rig, p, theta, self.errors, self.tag_scale)
-        for name, base in self._base.items():
-            moved = tf.apply(world[self.spec.objects[name].frame], base)
-            self.params[f"{name}.vertex_positions"] = mi.Float(moved.ravel().astype(np.float32))
-        for face in self.rig.tags.faces:
-            self.params[f"tag_{face.id}.to_world"] = mi.ScalarTransform4f(world[f"tag_{face.id}"])
-        for name, light in self.spec.lights.items():
-            if light.frame == "rail" or light.type == "constant":
-                continue
-            placed = light.placed(world[light.frame])
-            if light.type == "point":
-                self.params[f"light_{name}.position"] = mi.ScalarPoint3f(placed.position)
-            else:
-                self.params[f"light_{name}.to_world"] = light_transform(placed, mi)
-        self.params.update()
-        self.camera.set_pose(world["camera"])
-        self.pose = (p, theta)
-
-    def render(self, crop_offset: tuple[int, int] = (0, 0), seed: int = 0) -> np.ndarray:
-        """Render the film's rectangle at ``crop_offset`` (px, top-left in the full image).
-
-        Returns
-        -------
-        numpy.ndarray
-            Linear RGB radiance, float32, shape (height, width, 3).
-        """
-        w, h = self.film_size
-        rows, cols = np.mgrid[0:h, 0:w]
-        pixels = np.stack([cols.ravel() + crop_offset[0], rows.ravel() + crop_offset[1]], axis=1)
-        return self.render_pixels(pixels, seed).reshape(h, w, 3)
+    mi: ModuleType
+    scene: Any
+    camera: Any
+    spp: int
+    spec: SceneSpec
+    pose: Any
 
     def render_pixels(self, pixels: np.ndarray, seed: int = 0) -> np.ndarray:
         """Render any set of full-image pixels: only these are sampled.
@@ -274,6 +144,161 @@ class FixtureScene:
         means = [dr.block_sum(c, spp) / spp for c in (radiance.x, radiance.y, radiance.z)]
         dr.eval(means)
         return np.stack([np.asarray(c) for c in means], axis=-1)
+
+
+class FixtureScene(PixelTracer):
+    """The fixture loaded in Mitsuba, posable per (p, theta).
+
+    Parameters
+    ----------
+    rig : Rig
+        Fixture description; its camera model is what the renderer images with.
+    spec : SceneSpec
+        The scene description (:mod:`simgap.scene`): materials, tag print, lights, objects and
+        integrator; converted by :mod:`simgap.render.mitsuba_scene`.
+    film_size : tuple of int
+        Film width, height (px): the crop size, or the full image size.
+    spp : int
+        Samples per pixel.
+    sampler : str
+        Mitsuba sampler plugin (``multijitter``, ``ldsampler``, ``independent`` ...).
+    errors : FixtureErrors
+        The true fixture's differences from CAD, used for rendering (the ground truth stays CAD).
+    camera : CameraModel, optional
+        The true camera that takes the picture (default: the rig's).
+    tag_scale : float
+        Printed size of the stickers relative to nominal (dimensionless).
+    lens : tuple of float
+        Thin lens ``(aperture_radius_m, focus_distance_m)``; radius 0 is a pinhole.
+    max_depth : int, optional
+        Path tracer depth (default: the template integrator's).
+    """
+
+    def __init__(
+        self,
+        rig: Rig,
+        spec: SceneSpec,
+        film_size: tuple[int, int],
+        spp: int = 16,
+        sampler: str = "multijitter",
+        errors: FixtureErrors = NOMINAL,
+        camera: CameraModel | None = None,
+        tag_scale: float = 1.0,
+        lens: tuple[float, float] = (0.0, 1.0),
+        max_depth: int | None = None,
+    ) -> None:
+        self.mi = mi = mitsuba()
+        self.rig, self.spec, self.errors, self.tag_scale = rig, spec, errors, float(tag_scale)
+        self.film_size, self.spp = tuple(film_size), int(spp)
+        scene_dict: dict[str, Any] = {
+            "type": "scene",
+            "integrator": {
+                **copy.deepcopy(spec.integrator),
+                **({} if max_depth is None else {"max_depth": int(max_depth)}),
+            },
+            "sensor": sensor_dict(film_size, spec.rfilter, sampler, self.spp),
+        }
+        for name, obj in spec.objects.items():
+            mesh_path = assets_dir() / obj.mesh
+            if not mesh_path.is_file():
+                raise ConfigError(
+                    f"objects.{name}.mesh: {mesh_path} not found (run `simgap assets`)"
+                )
+            scene_dict[name] = {
+                "type": "ply",
+                "filename": str(mesh_path),
+                "face_normals": True,
+                "bsdf": bsdf(spec.materials[obj.material]),
+            }
+        #: per tag id, the print's albedo texture the tag BSDF looks up (rows x columns; one
+        #: texel per cell with nearest lookup, each cell repeated with bilinear)
+        self.print_albedo: dict[int, np.ndarray] = {}
+        for face in rig.tags.faces:
+            texture = cv2.imread(str(assets_dir() / f"tag_{face.id}.png"), cv2.IMREAD_GRAYSCALE)
+            if texture is None:
+                raise ConfigError(f"assets/tag_{face.id}.png not found (run `simgap assets`)")
+            self.print_albedo[face.id] = print_albedo(spec.tag, texture)
+            scene_dict[f"tag_{face.id}"] = {
+                "type": "rectangle",
+                "bsdf": tag_bsdf(spec.tag, self.print_albedo[face.id], mi),
+            }
+        rail_from_eyepoint = rig.rail_from_eyepoint(0, errors)
+        for name, light in spec.lights.items():
+            scene_dict[f"light_{name}"] = emitter(light.placed(rail_from_eyepoint), mi)
+        try:
+            # optimize=False: Mitsuba would merge meshes sharing a BSDF, and we move them apart
+            self.scene = mi.load_dict(scene_dict, optimize=False)
+        except RuntimeError as exc:
+            raise ConfigError(f"scene: Mitsuba could not build the scene: {exc}") from exc
+        self.params = mi.traverse(self.scene)
+        self.camera = self.scene.sensors()[0]
+        # the sampler may round the count up (multijitter: to a product of two near-equal sides)
+        self.spp = int(self.camera.sampler().sample_count())
+        #: the camera that takes the picture, and its thin lens (aperture radius, focus; m)
+        self.camera_model = cam = camera or rig.camera
+        self.lens = (float(lens[0]), float(lens[1]))
+        self.camera.set_intrinsics(
+            cam.fx, cam.fy, cam.cx, cam.cy, cam.distortion, cam.distortion_model
+        )
+        self.camera.set_lens(*self.lens)
+        self._base = {
+            name: np.array(self.params[f"{name}.vertex_positions"]).reshape(-1, 3)
+            for name, obj in spec.objects.items()
+            if obj.frame != "rail"
+        }
+        self.pose: tuple[float, float] | None = None
+
+    def set_pose(self, p: float, theta: float) -> None:
+        """Move carriage, camera, turntable and tags to pin hole ``p`` and angle ``theta`` (rad)."""
+        mi = self.mi
+        world = pose_transforms(self.rig, p, theta, self.errors, self.tag_scale)
+        for name, base in self._base.items():
+            moved = tf.apply(world[self.spec.objects[name].frame], base)
+            self.params[f"{name}.vertex_positions"] = mi.Float(moved.ravel().astype(np.float32))
+        for face in self.rig.tags.faces:
+            self.params[f"tag_{face.id}.to_world"] = mi.ScalarTransform4f(world[f"tag_{face.id}"])
+        for name, light in self.spec.lights.items():
+            if light.frame == "rail" or light.type == "constant":
+                continue
+            placed = light.placed(world[light.frame])
+            if light.type == "point":
+                self.params[f"light_{name}.position"] = mi.ScalarPoint3f(placed.position)
+            else:
+                self.params[f"light_{name}.to_world"] = light_transform(placed, mi)
+        self.params.update()
+        self.camera.set_pose(world["camera"])
+        self.pose = (p, theta)
+
+    def render(self, crop_offset: tuple[int, int] = (0, 0), seed: int = 0) -> np.ndarray:
+        """Render the film's rectangle at ``crop_offset`` (px, top-left in the full image).
+
+        Returns
+        -------
+        numpy.ndarray
+            Linear RGB radiance, float32, shape (height, width, 3).
+        """
+        w, h = self.film_size
+        rows, cols = np.mgrid[0:h, 0:w]
+        pixels = np.stack([cols.ravel() + crop_offset[0], rows.ravel() + crop_offset[1]], axis=1)
+        return self.render_pixels(pixels, seed).reshape(h, w, 3)
+
+
+def sensor_dict(
+    film_size: tuple[int, int], rfilter: dict[str, Any], sampler: str, spp: int
+) -> dict[str, Any]:
+    """The dict of simgap's OpenCV sensor (:mod:`simgap.render.camera`), linear RGB film (px)."""
+    return {
+        "type": SENSOR_PLUGIN,
+        "film": {
+            "type": "hdrfilm",
+            "width": int(film_size[0]),
+            "height": int(film_size[1]),
+            "rfilter": copy.deepcopy(rfilter),
+            "pixel_format": "rgb",
+            "component_format": "float32",
+        },
+        "sampler": {"type": sampler, "sample_count": int(spp)},
+    }
 
 
 def launches(pixels: np.ndarray, seed: int, spp: int, *stream: int):

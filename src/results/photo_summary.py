@@ -41,22 +41,32 @@ class DistanceBandErrors:
     rotation_median_abs_mrad: tuple[float, float, float]
 
 
+def _sightings(ds: xr.Dataset, name: str) -> np.ndarray:
+    """A per-axis error of a photo dataset, one row per sighting (frame x marker), (n, 3)."""
+    return ds[name].transpose("frame", "marker", "camera_axis").values.reshape(-1, 3)
+
+
+def _bands(dist: np.ndarray) -> list[tuple[str, np.ndarray, float, float]]:
+    """Each non-empty distance third: its name, its sightings (mask) and its range (m)."""
+    band = distance_thirds(dist)
+    return [
+        (name, band == k, float(dist[band == k].min()), float(dist[band == k].max()))
+        for k, name in enumerate(BAND_NAMES)
+        if (band == k).any()
+    ]
+
+
 def errors_by_distance(ds: xr.Dataset) -> list[DistanceBandErrors]:
     """The photo dataset's errors in the near, mid and far thirds of its distances."""
     dist = ds["distance"].values.ravel()
-    dt = ds["error_translation"].transpose("frame", "marker", "camera_axis").values.reshape(-1, 3)
-    dr = ds["error_rotation"].transpose("frame", "marker", "camera_axis").values.reshape(-1, 3)
-    band = distance_thirds(dist)
+    dt, dr = _sightings(ds, "error_translation"), _sightings(ds, "error_rotation")
     out = []
-    for k, name in enumerate(BAND_NAMES):
-        sel = band == k
-        if not sel.any():
-            continue
+    for name, sel, lo, hi in _bands(dist):
         out.append(
             DistanceBandErrors(
                 band=name,
-                distance_min_m=float(dist[sel].min()),
-                distance_max_m=float(dist[sel].max()),
+                distance_min_m=lo,
+                distance_max_m=hi,
                 markers=int(sel.sum()),
                 translation_median_mm=tuple(1e3 * np.median(dt[sel], axis=0)),  # type: ignore[arg-type]
                 rotation_median_abs_mrad=tuple(1e3 * np.median(np.abs(dr[sel]), axis=0)),  # type: ignore[arg-type]
@@ -80,4 +90,73 @@ def errors_table(bands: list[DistanceBandErrors]) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["DistanceBandErrors", "errors_by_distance", "errors_table"]
+@dataclass(frozen=True)
+class DistanceBandGap:
+    """Real against simulated single-marker errors in one distance band (the real distances).
+
+    Attributes
+    ----------
+    band, distance_min_m, distance_max_m, markers
+        As :class:`DistanceBandErrors`; ``markers`` counts sightings seen in both.
+    real_median_mm, simulated_median_mm : tuple of float
+        Median signed position error along x, y, z (mm) of the photos and of their simulation.
+    gap_median_mm : tuple of float
+        Median over the sightings of real - simulated (mm): what the simulation leaves out.
+    """
+
+    band: str
+    distance_min_m: float
+    distance_max_m: float
+    markers: int
+    real_median_mm: tuple[float, float, float]
+    simulated_median_mm: tuple[float, float, float]
+    gap_median_mm: tuple[float, float, float]
+
+
+def gap_by_distance(real: xr.Dataset, simulated: xr.Dataset) -> list[DistanceBandGap]:
+    """Real photos against their simulation (:func:`simgap.pipeline.photos.simulate_photos`).
+
+    Sightings seen in both, banded by the real distances' thirds.
+    """
+    dt_real = _sightings(real, "error_translation")
+    dt_sim = _sightings(simulated, "error_translation")
+    both = np.isfinite(dt_real).all(axis=1) & np.isfinite(dt_sim).all(axis=1)
+    dist = np.where(both, real["distance"].values.ravel(), np.nan)
+    out = []
+    for name, sel, lo, hi in _bands(dist):
+        out.append(
+            DistanceBandGap(
+                band=name,
+                distance_min_m=lo,
+                distance_max_m=hi,
+                markers=int(sel.sum()),
+                real_median_mm=tuple(1e3 * np.median(dt_real[sel], axis=0)),  # type: ignore[arg-type]
+                simulated_median_mm=tuple(1e3 * np.median(dt_sim[sel], axis=0)),  # type: ignore[arg-type]
+                gap_median_mm=tuple(1e3 * np.median(dt_real[sel] - dt_sim[sel], axis=0)),  # type: ignore[arg-type]
+            )
+        )
+    return out
+
+
+def gap_table(bands: list[DistanceBandGap]) -> str:
+    """The bands as a plain-text table: depth (z) real, simulated and their gap, x and y gap."""
+    lines = [
+        "band  distance (m)   n   depth real  simulated   gap (mm)   gap x, y (mm)",
+    ]
+    for b in bands:
+        lines.append(
+            f"{b.band:<5} {b.distance_min_m:.3f}-{b.distance_max_m:.3f}  {b.markers:>4} "
+            f"{b.real_median_mm[2]:>10.2f} {b.simulated_median_mm[2]:>10.2f} "
+            f"{b.gap_median_mm[2]:>10.2f}   {b.gap_median_mm[0]:6.2f} {b.gap_median_mm[1]:6.2f}"
+        )
+    return "\n".join(lines)
+
+
+__all__ = [
+    "DistanceBandErrors",
+    "DistanceBandGap",
+    "errors_by_distance",
+    "errors_table",
+    "gap_by_distance",
+    "gap_table",
+]

@@ -1,0 +1,228 @@
+"""The sim-to-real gap of a board's real photos: where it lies, which camera effects, how far.
+
+Each photo is rendered at its reference pose (:func:`simgap.pipeline.photos.render_photos`) and
+measured as the photo is; the gap is each marker sighting's real minus simulated single-marker
+error (:func:`simgap.results.photo_summary.gap_by_distance`: near / mid / far thirds of the
+photos' distances, mm).
+
+Which: the camera's own exposure and softness, fitted on the image statistics around the
+markers, never on the pose gap (:func:`fit_photo_camera`): the exposure from the paper's
+linear level (the median over sightings of real over simulated, papers clipped in either left
+out), the blur from the edge width (the catalogue's blur whose simulated median edge width is
+the real one, :func:`fit_photo_camera`). Both are the catalogue's image effects
+(``exposure``, ``blur``) run on the renders (:func:`simgap.effects.image.run_pipeline`).
+
+How far, held out: the frames are split in two folds (even and odd positions); each fold is
+simulated with the camera fitted on the other fold's statistics, so no frame's gap after is
+measured with effects fitted on that frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+from scipy.optimize import brentq
+
+from simgap.core.board import Board
+from simgap.core.limits import PHOTO_SPP
+from simgap.core.progress import ProgressCallback
+from simgap.core.rig import CameraModel
+from simgap.effects import make_effect
+from simgap.effects.state import ImageState, VariantState
+from simgap.pipeline.photos import render_photos, simulate_photos
+from simgap.results.photo_summary import DistanceBandGap, gap_by_distance
+from simgap.scene.spec import SceneSpec
+
+#: Paper levels at or above this linear level (of full scale) are clipped or nearly so (8-bit
+#: 250 of 255 through sRGB): a lower bound of the exposure only, left out of its fit.
+PAPER_CLIP_LEVEL = 0.955
+#: Blur searched (PSF sigma, px): from a sampled Gaussian that barely blurs to a soft lens.
+BLUR_BOUNDS_PX = (0.05, 3.0)
+#: First upper end of the blur's bracket (px), doubled until the simulated edges are wider.
+BLUR_BRACKET_START_PX = 0.5
+#: Tolerance of the blur's root (px).
+BLUR_XTOL_PX = 0.01
+#: Labels of the ``image`` dimension of a photo diagnosis's dataset.
+IMAGES = ("real", "simulated", "simulated_fitted")
+
+
+@dataclass(frozen=True)
+class PhotoCameraFit:
+    """The camera's own exposure and softness, fitted on a photo set's image statistics.
+
+    Attributes
+    ----------
+    exposure_ev : float
+        log2 of the median real over simulated paper level (stops).
+    blur_sigma_px : float
+        Gaussian PSF (px) added to the simulation; 0 where the real edges are not wider.
+    real_edge_width_px, simulated_edge_width_px : float
+        Median 10-90 % edge widths of the markers' borders (px) the blur was fitted on.
+    real_paper_level, simulated_paper_level : float
+        Median paper levels (linear, of full scale) the exposure was fitted on.
+    sightings : int
+        Marker sightings with statistics in both.
+    """
+
+    exposure_ev: float
+    blur_sigma_px: float
+    real_edge_width_px: float
+    simulated_edge_width_px: float
+    real_paper_level: float
+    simulated_paper_level: float
+    sightings: int
+
+    def image_state(self) -> ImageState:
+        """The camera pipeline of the fit: the catalogue's ``exposure`` and ``blur``."""
+        state = VariantState()
+        if np.isfinite(self.exposure_ev) and self.exposure_ev != 0.0:
+            state = make_effect("exposure", {"ev": self.exposure_ev}).apply(state)
+        if self.blur_sigma_px > 0.0:
+            state = make_effect("blur", {"sigma_px": self.blur_sigma_px}).apply(state)
+        return state.image
+
+
+def fit_photo_camera(
+    real: xr.Dataset,
+    nominal: xr.Dataset,
+    renders: list[np.ndarray | None],
+    board: Board,
+    camera: CameraModel,
+    frames: np.ndarray | None = None,
+) -> PhotoCameraFit:
+    """Exposure and blur of the camera from real and simulated marker statistics (module doc).
+
+    ``nominal`` is the renders' simulation without camera effects
+    (:func:`simgap.pipeline.photos.simulate_photos`); ``frames`` (bool per frame) restricts the
+    fit to some frames (default: all). The exposure is read off the paper levels; the blur is
+    the root in :data:`BLUR_BOUNDS_PX` (bracketed from :data:`BLUR_BRACKET_START_PX` up) of
+    the median edge width of the frames simulated through
+    the catalogue's ``blur`` after that exposure, against the real median (the sampled
+    Gaussian of a small sigma blurs less than its sigma says, so the width is matched through
+    the effect itself, not by adding variances).
+    """
+    keep = np.ones(real.sizes["frame"], bool) if frames is None else np.asarray(frames, bool)
+
+    def values(ds: xr.Dataset, name: str) -> np.ndarray:
+        return ds[name].transpose("frame", "marker").values[keep].ravel()
+
+    paper_r, paper_s = values(real, "paper_level"), values(nominal, "paper_level")
+    width_r = values(real, "edge_width")
+    seen = np.isfinite(paper_r) & np.isfinite(paper_s)
+    unclipped = seen & (paper_r < PAPER_CLIP_LEVEL) & (paper_s < PAPER_CLIP_LEVEL) & (paper_r > 0)
+    nan = float("nan")
+    ratio = np.log2(paper_r[unclipped] / paper_s[unclipped])
+    ev = float(np.median(ratio)) if unclipped.any() else 0.0
+    target = float(np.nanmedian(width_r)) if np.isfinite(width_r).any() else nan
+    subset = [r if k else None for r, k in zip(renders, keep, strict=True)]
+
+    def width(sigma: float) -> float:
+        fit = PhotoCameraFit(ev, sigma, target, nan, nan, nan, 0)
+        sim = simulate_photos(real, subset, board, camera, fit.image_state())
+        return float(np.nanmedian(sim["edge_width"].values))
+
+    w_sim = width(0.0)
+    sigma = 0.0
+    if np.isfinite(target) and target > w_sim:
+        lo, hi = BLUR_BOUNDS_PX[0], BLUR_BRACKET_START_PX
+        w_hi = width(hi)
+        while np.isfinite(w_hi) and w_hi <= target and hi < BLUR_BOUNDS_PX[1]:
+            lo, hi = hi, min(2 * hi, BLUR_BOUNDS_PX[1])
+            w_hi = width(hi)
+        if not np.isfinite(w_hi) or w_hi <= target:
+            sigma = lo if not np.isfinite(w_hi) else hi  # at the edge of what can be measured
+        else:
+            sigma = float(brentq(lambda s: width(s) - target, lo, hi, xtol=BLUR_XTOL_PX))
+    return PhotoCameraFit(
+        exposure_ev=ev,
+        blur_sigma_px=sigma,
+        real_edge_width_px=target,
+        simulated_edge_width_px=w_sim,
+        real_paper_level=float(np.median(paper_r[unclipped])) if unclipped.any() else nan,
+        simulated_paper_level=float(np.median(paper_s[unclipped])) if unclipped.any() else nan,
+        sightings=int(np.isfinite(width_r).sum()),
+    )
+
+
+@dataclass(frozen=True)
+class PhotoDiagnosis:
+    """A photo set's gap before and after the fitted camera effects.
+
+    Attributes
+    ----------
+    fit : PhotoCameraFit
+        The camera fitted on all frames (what is reported).
+    before, after : list of DistanceBandGap
+        Real - simulated by distance band: the nominal simulation, and each frame simulated
+        with the camera fitted on the other fold (held out).
+    edge_width_after_px : float
+        Median edge width of the held-out fitted simulation (px), against ``fit``'s real one.
+    dataset : xarray.Dataset
+        The photo datasets along ``image`` (:data:`IMAGES`), with the fit in its attributes.
+    """
+
+    fit: PhotoCameraFit
+    before: list[DistanceBandGap]
+    after: list[DistanceBandGap]
+    edge_width_after_px: float
+    dataset: xr.Dataset
+
+
+def diagnose_photos(
+    real: xr.Dataset,
+    board: Board,
+    camera: CameraModel,
+    spec: SceneSpec | None = None,
+    spp: int = PHOTO_SPP,
+    seed: int = 0,
+    progress: ProgressCallback | None = None,
+) -> PhotoDiagnosis:
+    """Simulate ``real`` (:func:`simgap.pipeline.photos.measure_photos`), fit, re-simulate.
+
+    See the module doc; ``spec``, ``spp`` and ``seed`` are the renders'
+    (:func:`simgap.pipeline.photos.render_photos`).
+    """
+    renders = render_photos(real, board, camera, spec, spp, seed, progress)
+    nominal = simulate_photos(real, renders, board, camera, progress=progress)
+    fit = fit_photo_camera(real, nominal, renders, board, camera)
+    fold = np.arange(real.sizes["frame"]) % 2 == 0
+    parts = []
+    for held in (fold, ~fold):
+        other = fit_photo_camera(real, nominal, renders, board, camera, frames=~held)
+        sim = simulate_photos(real, renders, board, camera, other.image_state(), progress=progress)
+        parts.append(sim.where(xr.DataArray(held, dims="frame")))
+    fitted = parts[0].fillna(parts[1])
+    fitted["detected"] = fitted["detected"].fillna(0).astype(np.int8)
+    fitted["reference_points"] = fitted["reference_points"].fillna(0).astype(np.int32)
+    for name in fitted.data_vars:
+        fitted[name].attrs = nominal[name].attrs
+    dataset = xr.concat([real, nominal, fitted], dim="image", combine_attrs="override")
+    dataset = dataset.assign_coords(image=list(IMAGES))
+    dataset.attrs.update(
+        fitted_exposure_ev=fit.exposure_ev,
+        fitted_blur_sigma_px=fit.blur_sigma_px,
+        render_spp=spp,
+        render_seed=seed,
+    )
+    return PhotoDiagnosis(
+        fit=fit,
+        before=gap_by_distance(real, nominal),
+        after=gap_by_distance(real, fitted),
+        edge_width_after_px=float(np.nanmedian(fitted["edge_width"].values)),
+        dataset=dataset,
+    )
+
+
+__all__ = [
+    "BLUR_BOUNDS_PX",
+    "BLUR_BRACKET_START_PX",
+    "BLUR_XTOL_PX",
+    "IMAGES",
+    "PAPER_CLIP_LEVEL",
+    "PhotoCameraFit",
+    "PhotoDiagnosis",
+    "diagnose_photos",
+    "fit_photo_camera",
+]
