@@ -32,7 +32,7 @@ from simgap.core.rig import CameraModel
 from simgap.effects.image import ImageContext, run_pipeline
 from simgap.effects.state import ImageState
 from simgap.pipeline.capture.folder import check_pixel_budget, frame_size, read_image
-from simgap.pose.board_calibration import PhotoCalibration, calibrate_from_photos
+from simgap.pose.board_calibration import PhotoCalibration, board_points, calibrate_from_photos
 from simgap.pose.board_pose import marker_error, view_board
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
@@ -94,29 +94,44 @@ def _gray(path: Path, width: int, height: int, max_pixels: int) -> np.ndarray | 
     return img if isinstance(img, str) else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
 
 
-def calibrate_photos(
-    folder: Path, board: Board, model: str = "plumb_bob", max_pixels: int = MAX_PIXELS
-) -> PhotoCalibration:
-    """Calibrate the camera of a folder of board photos (:func:`calibrate_from_photos`).
+def photo_points(
+    folder: Path, board: Board, max_pixels: int = MAX_PIXELS
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], tuple[int, int]]:
+    """Each photo's board points and image points, and the photos' size (w, h px).
 
-    Every photo must have the size of the first one (px); one that cannot be decoded is left
-    out.
+    :func:`simgap.pose.board_calibration.board_points` on every photo of ``folder`` that has
+    the size of the first one (px) and can be decoded; simgap's detector with the board's
+    dictionary.
 
     Raises
     ------
     simgap.core.config.ConfigError
-        For a folder without photos, a photo over the pixel budget, a first photo whose size
-        cannot be read, or too few photos that show the board.
+        For a folder without photos, a photo over the pixel budget or a first photo whose size
+        cannot be read.
     """
     files = photo_files(folder)
     size = frame_size(files[0])
     if size is None:
         raise ConfigError(f"{files[0]}: cannot be decoded (its size is not readable)")
     grays = [g for g in (_gray(p, *size, max_pixels) for p in files) if not isinstance(g, str)]
+    return board_points(grays, board, Detector(DetectorSettings(board.dictionary))), size
+
+
+def calibrate_photos(
+    folder: Path, board: Board, model: str = "plumb_bob", max_pixels: int = MAX_PIXELS
+) -> PhotoCalibration:
+    """Calibrate the camera of a folder of board photos.
+
+    :func:`photo_points`, then :func:`simgap.pose.board_calibration.calibrate_from_photos`.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        As :func:`photo_points`, and for too few photos that show the board.
+    """
+    points, size = photo_points(folder, board, max_pixels)
     try:
-        return calibrate_from_photos(
-            grays, board, Detector(DetectorSettings(board.dictionary)), model
-        )
+        return calibrate_from_photos(points, size, model)
     except ValueError as exc:
         raise ConfigError(f"{folder}: {exc}") from exc
 
@@ -391,6 +406,7 @@ __all__ = [
     "PHOTO_SUFFIXES",
     "calibrate_photos",
     "measure_photos",
+    "photo_points",
     "photo_files",
     "render_photos",
     "simulate_photos",

@@ -10,8 +10,8 @@ solution and the residuals' variance: it assumes independent corner errors) and 
 leave-one-photo-out jackknife's (Efron & Tibshirani 1993, ch. 11; what a different set of views
 would have given). On eight real RealSense photos OpenCV's were 1.4-5.3 times smaller than the
 jackknife's (docs/results/real_photos.md): the views, not the corners, limit a calibration. A
-given file is held against the fit parameter by parameter (:func:`compare_calibrations`): a
-parameter :data:`DISAGREE_SIGMAS` standard deviations away does not describe the photos.
+given file is held against the photos parameter by parameter by
+:mod:`simgap.pose.calibration_check`.
 """
 
 from __future__ import annotations
@@ -29,9 +29,6 @@ from simgap.pose.detect import Detector
 
 #: Distortion models a calibration from photos fits, with OpenCV's flags for each.
 CALIBRATION_FLAGS: Final = {"plumb_bob": 0, "rational_polynomial": cv2.CALIB_RATIONAL_MODEL}
-#: A parameter of a given file this many standard deviations from the photos' fit does not
-#: describe them: the two-sided 99.7 % level of a normal estimate (3 sigma).
-DISAGREE_SIGMAS: Final[float] = 3.0
 #: Fewest photos whose leave-one-out jackknife enters the standard deviations (module doc).
 JACKKNIFE_MIN_PHOTOS: Final[int] = 4
 #: Names of the intrinsics in OpenCV's order (``stdDeviationsIntrinsics``), coefficients after.
@@ -65,10 +62,29 @@ class PhotoCalibration:
     points: int
 
 
+def board_points(
+    grays: list[np.ndarray], board: Board, detector: Detector
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each photo's board points (n, 3) m and image points (n, 2) px, where it shows enough.
+
+    The reference points of :func:`simgap.pose.board_pose.reference_points`; photos with fewer
+    than :data:`~simgap.pose.board_pose.MIN_REFERENCE_POINTS` are left out.
+    """
+    out = []
+    for gray in grays:
+        markers = {i: c for i, c in detector.detect(gray).items() if i in board.marker_corners}
+        obj, img, _ = reference_points(gray, board, markers)
+        if len(obj) >= MIN_REFERENCE_POINTS:
+            out.append((obj, img))
+    return out
+
+
 def calibrate_from_photos(
-    grays: list[np.ndarray], board: Board, detector: Detector, model: str = "plumb_bob"
+    points: list[tuple[np.ndarray, np.ndarray]], size: tuple[int, int], model: str = "plumb_bob"
 ) -> PhotoCalibration:
-    """Calibrate a camera from 8-bit grey photos of ``board`` in the distortion ``model``.
+    """Calibrate a camera of image ``size`` (w, h px) in ``model`` from its photos' board points.
+
+    ``points``: each photo's board and image points (:func:`board_points`).
 
     Raises
     ------
@@ -79,18 +95,15 @@ def calibrate_from_photos(
     if model not in CALIBRATION_FLAGS:
         raise ValueError(f"model: calibration from photos fits {', '.join(CALIBRATION_FLAGS)}")
     obj_all, img_all = [], []
-    for gray in grays:
-        markers = {i: c for i, c in detector.detect(gray).items() if i in board.marker_corners}
-        obj, img, _ = reference_points(gray, board, markers)
-        if len(obj) >= MIN_REFERENCE_POINTS:
-            obj_all.append(obj.astype(np.float32))
-            img_all.append(img.astype(np.float32).reshape(-1, 1, 2))
+    for obj, img in points:
+        obj_all.append(obj.astype(np.float32))
+        img_all.append(img.astype(np.float32).reshape(-1, 1, 2))
     if len(obj_all) < 3:
         raise ValueError(
             f"photos: {len(obj_all)} show at least {MIN_REFERENCE_POINTS} board points; "
             "calibration needs at least 3"
         )
-    h, w = grays[0].shape[:2]
+    w, h = size
     camera, std, rms = _calibrate(obj_all, img_all, (w, h), model)
     if len(obj_all) >= JACKKNIFE_MIN_PHOTOS:
         values = np.array([_values(camera)] + [
@@ -128,58 +141,10 @@ def _calibrate(
     return camera, std, float(rms)
 
 
-@dataclass(frozen=True)
-class ParameterCheck:
-    """One parameter of a given calibration file held against the photos' fit.
-
-    Attributes
-    ----------
-    name : str
-        ``fx``, ``fy``, ``cx``, ``cy`` or a coefficient (``k1`` ...).
-    given, fitted, std : float
-        The file's value, the photos' and its standard deviation (px or 1).
-    sigmas : float
-        ``(given - fitted) / std``.
-    disagrees : bool
-        ``|sigmas| > DISAGREE_SIGMAS``.
-    """
-
-    name: str
-    given: float
-    fitted: float
-    std: float
-    sigmas: float
-    disagrees: bool
-
-
-def compare_calibrations(given: CameraModel, fit: PhotoCalibration) -> list[ParameterCheck]:
-    """Each parameter of ``given`` against the photos' fit, in its standard deviations.
-
-    The coefficients are compared where both are of the same distortion model.
-    """
-    values = {"fx": given.fx, "fy": given.fy, "cx": given.cx, "cy": given.cy}
-    fitted = {"fx": fit.camera.fx, "fy": fit.camera.fy, "cx": fit.camera.cx, "cy": fit.camera.cy}
-    if given.distortion_model == fit.camera.distortion_model:
-        for name, a, b in zip(
-            COEFFICIENT_NAMES, given.distortion, fit.camera.distortion, strict=False
-        ):
-            values[name], fitted[name] = a, b
-    out = []
-    for name, value in values.items():
-        std = fit.std.get(name, float("nan"))
-        sigmas = (value - fitted[name]) / std if std > 0 else float("nan")
-        out.append(
-            ParameterCheck(name, value, fitted[name], std, sigmas, abs(sigmas) > DISAGREE_SIGMAS)
-        )
-    return out
-
-
 __all__ = [
     "CALIBRATION_FLAGS",
-    "DISAGREE_SIGMAS",
     "JACKKNIFE_MIN_PHOTOS",
-    "ParameterCheck",
     "PhotoCalibration",
+    "board_points",
     "calibrate_from_photos",
-    "compare_calibrations",
 ]
