@@ -34,6 +34,7 @@ from simgap.pose.board_pose import BoardView, marker_error, view_board
 from simgap.pose.calibration_check import check_calibration
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.results.photo_summary import errors_by_distance, gap_by_distance
+from tests.cf_check import cf_check
 
 REAL = Path(__file__).resolve().parents[1] / "assets" / "real" / "opencv_charuco"
 PHOTOS, BOARD, CALIBRATION = REAL / "photos", REAL / "board.yaml", REAL / "calibration.yml"
@@ -230,5 +231,11 @@ def test_photos_simulated_at_their_reference_poses(tmp_path):
         moved = ds.board_translation.sel(image="simulated") - ds.board_translation.sel(image="real")
         assert float(np.abs(moved).max()) < 1e-4
         assert ds.attrs["fitted_blur_sigma_px"] == 0.0
+    # CF: no error; one warning per string label dimension (frame, the two axes, image), whose
+    # coordinate variable CF's data model wants numeric (pipeline.photos.write_photo_dataset)
+    report = cf_check(out)
+    warnings = [line for line in report.output.splitlines() if line.startswith("WARN:")]
+    assert (report.fatal, report.errors) == (0, 0), report.output
+    assert warnings == ["WARN: (5): Possible incorrect declaration of a coordinate variable."] * 4
     res = CliRunner().invoke(app, ["ingest", str(PHOTOS), "-o", str(out), "--simulate"])
     assert res.exit_code == 2 and "--simulate" in res.output

@@ -199,7 +199,7 @@ def diagnose_photos(
     for name in fitted.data_vars:
         fitted[name].attrs = nominal[name].attrs
     dataset = xr.concat([real, nominal, fitted], dim="image", combine_attrs="override")
-    dataset = dataset.assign_coords(image=list(IMAGES))
+    dataset = dataset.assign_coords(image=("image", list(IMAGES), {"long_name": "image source"}))
     dataset.attrs.update(
         fitted_exposure_ev=fit.exposure_ev,
         fitted_blur_sigma_px=fit.blur_sigma_px,

@@ -38,6 +38,7 @@ from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.image_stats import STAT_INDEX, MarkerLayout, tag_stats
 from simgap.render.imaging import to_gray
+from simgap.results.contract import PIXEL_UNITS
 from simgap.scene.spec import SceneSpec
 
 #: File endings read as photos (case-insensitive); PNG and JPEG only, whose size is read from
@@ -318,7 +319,14 @@ def _measure(
     )  # fmt: skip
 
 
-#: (units, long_name) of each variable and coordinate of a photo dataset.
+#: long_name of each coordinate of a photo dataset.
+COORD_LONG_NAMES = {
+    "frame": "photo file name",
+    "marker": "board marker id",
+    "camera_axis": "OpenCV camera axis (x right, y down, z forward)",
+    "board_axis": "board axis (x along a row, y down a column, z into the board)",
+}
+#: (units, long_name) of each variable of a photo dataset.
 _ATTRS = {
     "error_translation": (
         "m",
@@ -328,17 +336,17 @@ _ATTRS = {
     "error_board_translation": ("m", "single-marker position error in the board frame"),
     "distance": ("m", "distance from the camera centre to the marker centre (reference)"),
     "view_angle": ("degree", "angle between the marker normal and its line of sight"),
-    "centre_u": ("pixel", "marker centre's image column (reference projection)"),
-    "centre_v": ("pixel", "marker centre's image row (reference projection)"),
-    "marker_reproj": ("pixel", "RMS reprojection error of the single-marker pose"),
+    "centre_u": (PIXEL_UNITS, "marker centre's image column (px, reference projection)"),
+    "centre_v": (PIXEL_UNITS, "marker centre's image row (px, reference projection)"),
+    "marker_reproj": (PIXEL_UNITS, "RMS reprojection error of the single-marker pose (px)"),
     "reference_points": ("1", "number of board points the reference pose was solved from"),
-    "reference_reproj": ("pixel", "RMS reprojection error of the board's reference pose"),
+    "reference_reproj": (PIXEL_UNITS, "RMS reprojection error of the board's reference pose (px)"),
     "board_translation": ("m", "board origin in the camera frame (reference pose)"),
     "board_rotation": ("rad", "board rotation vector in the camera frame (reference pose)"),
     "detected": ("1", "marker detected in the photo"),
     "paper_level": ("1", "median linear level of the paper around the marker (of full scale)"),
     "ink_level": ("1", "median linear level of the marker's black border (of full scale)"),
-    "edge_width": ("pixel", "10-90 % edge width of the marker's black border"),
+    "edge_width": (PIXEL_UNITS, "10-90 % edge width of the marker's black border (px)"),
 }
 
 
@@ -370,6 +378,9 @@ def _dataset(
         "board_axis": list(BOARD_AXES),
     }
     ds = xr.Dataset(data, coords=coords)
+    for name, long_name in COORD_LONG_NAMES.items():
+        ds[name].attrs["long_name"] = long_name
+    ds["marker"].attrs["units"] = "1"
     for name, (units, long_name) in _ATTRS.items():
         ds[name].attrs.update(units=units, long_name=long_name)
     ds["detected"].attrs.update(flag_values=np.array([0, 1], np.int8), flag_meanings="no yes")
@@ -392,11 +403,19 @@ def _dataset(
 def write_photo_dataset(ds: xr.Dataset, path: str | Path) -> Path:
     """Write a photo dataset as netCDF4 atomically (temporary file + rename); return the path.
 
-    Plain ``xarray.open_dataset`` reads it back with every label dimension indexed.
+    String labels (``frame``, the axes, ``image``) are written as character arrays, the string
+    type CF has (a netCDF-4 variable-length string is not CF); plain ``xarray.open_dataset``
+    reads them back as indexed labels, so it selects by name. CF's data model wants a
+    coordinate variable numeric: ``cfchecks`` warns once per label dimension and finds no
+    error (tests/test_board_photos.py).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4"))
+    encoding = {name: {"dtype": "S1"} for name, c in ds.coords.items() if c.dtype.kind in "US"}
+    return atomic_write(
+        path,
+        lambda tmp: ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=encoding),
+    )
 
 
 __all__ = [
