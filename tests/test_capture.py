@@ -33,6 +33,7 @@ from simgap.pipeline.capture import (
 from simgap.pose.estimate import project_tag_corners
 from simgap.results.dataset import read_netcdf, write_netcdf
 from tests.cf_check import assert_cf_valid
+from tests.plain_xarray import assert_plain_selection
 
 TRUE_FOCAL_PX = 1413.72  # the sample's README: the camera's true fx = fy (2 % over camera.yaml)
 #: the sample's configurations (p, theta in deg): the synthetic bad-folder captures use them too
@@ -509,6 +510,7 @@ def test_ingested_capture_is_cf_valid(tmp_path, sample_ds):
     """A real capture's dataset (image statistics, calibration attrs) passes cfchecks (CF-1.10)."""
     nc = write_netcdf(sample_ds, tmp_path / "real.nc")
     assert_cf_valid(nc)
+    assert_plain_selection(nc, {"variant", "stat", "translation_axis", "rotation_axis"})
     assert read_netcdf(nc).identical(sample_ds)
 
 

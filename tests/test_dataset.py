@@ -195,12 +195,30 @@ def test_file_holds_the_cf_form(tmp_path):
         for part, axes, unit in (("translation", AXES[:3], "m"), ("rotation", AXES[3:], "rad")):
             var = raw[f"error_{part}"]
             assert var.dims == FULL + (f"{part}_axis",) and var.attrs["units"] == unit
-            assert raw[f"{part}_axis_label"].values.tolist() == list(axes)
+            assert raw[f"{part}_axis"].values.tolist() == list(axes)
             np.testing.assert_array_equal(var.values, ds.error.sel(axis=list(axes)).values)
-        assert raw["variant_label"].values.tolist() == list(VARIANTS)
+        assert raw["variant"].values.tolist() == list(VARIANTS)
+        # plain xarray indexes every label dimension: selection by name
+        ty = raw.error_translation.sel(translation_axis="ty", variant=VARIANTS[-1])
+        np.testing.assert_array_equal(
+            ty.values, ds.error.sel(axis="ty", variant=VARIANTS[-1]).values
+        )
     with netCDF4.Dataset(path) as nc:  # labels are char arrays, not variable-length strings
-        assert nc["variant_label"].dtype == np.dtype("S1")
-        assert "variant" not in nc.variables
+        assert nc["variant"].dtype == np.dtype("S1")
+        assert "variant_label" not in nc.variables
+
+
+def test_reads_files_with_auxiliary_labels(tmp_path):
+    """A file whose labels sit in ``D_label`` auxiliary variables (before they were indexed)."""
+    ds, *_ = build()
+    path = write_netcdf(ds, tmp_path / "new.nc")
+    with xr.open_dataset(path, engine="netcdf4") as raw:
+        old = raw.load()
+    for dim in [d for d in old.dims if d in old.coords and old[d].dtype.kind in "OSU"]:
+        label = (dim, old[dim].values.astype(str), old[dim].attrs)
+        old = old.drop_vars(dim).assign_coords({f"{dim}_label": label})
+    old.to_netcdf(tmp_path / "old.nc", engine="netcdf4")
+    xr.testing.assert_identical(read_netcdf(tmp_path / "old.nc"), read_netcdf(path))
 
 
 def test_reads_files_written_before_the_cf_form(tmp_path):

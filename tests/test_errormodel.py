@@ -28,6 +28,7 @@ from simgap.cli import app
 from simgap.pose.estimate import pose_error
 from simgap.results.dataset import build_dataset, empty_results, write_netcdf
 from tests.cf_check import assert_cf_valid
+from tests.plain_xarray import assert_plain_selection
 
 #: The known truth: error std (m, rad) grows with distance; bias has a distance trend and an
 #: obliquity-odd part (like the lateral and yaw errors of the renders); tx and rz correlated.
@@ -192,6 +193,7 @@ def test_model_file_is_cf_valid(model, tmp_path):
     """The error model's netCDF passes cfchecks (CF-1.10) and reads back as saved."""
     nc, js = model.save(tmp_path / "model.nc")
     assert_cf_valid(nc)
+    assert_plain_selection(nc, {"axis", "axis_b", "translation_axis", "rotation_axis"})
     back = ErrorModel.load(nc).ds
     assert back.identical(model.ds)
     assert back["bias"].attrs["units"] == "m (tx, ty, tz); rad (rx, ry, rz)"

@@ -196,12 +196,8 @@ def test_distorted_render_corners_match_projectpoints(rig, tag, p, theta_deg):
         imaging.paste(imaging.to_gray(crop), region.offset, (hi.width, hi.height))
     )
     lo_dist = cam.replace(distortion=dist)
-    truth = project_tag_corners(
-        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, lo_dist
-    )
-    undistorted = project_tag_corners(
-        rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cam
-    )
+    truth = project_tag_corners(rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, lo_dist)
+    undistorted = project_tag_corners(rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cam)
     assert np.linalg.norm(truth - undistorted, axis=1).max() > 1.5  # distortion matters here
     detected = (found[tag] + 0.5) / s - 0.5  # back to the original pixel grid
     err = np.linalg.norm(detected - truth, axis=1)
@@ -226,8 +222,11 @@ def test_smoke_variants_dataset(smoke_variants_nc):
 def test_sweep_dataset_is_cf_valid(smoke_variants_nc):
     """`simgap run`'s dataset (five variants, image statistics) passes cfchecks (CF-1.10)."""
     from tests.cf_check import assert_cf_valid
+    from tests.plain_xarray import assert_plain_selection
 
     assert_cf_valid(smoke_variants_nc)
+    labels = {"variant", "stat", "uv", "translation_axis", "rotation_axis"}
+    assert_plain_selection(smoke_variants_nc, labels)
 
 
 def test_experiment_round_trips_through_its_dataset_yaml():

@@ -8,14 +8,17 @@ so :func:`encode_cf` writes, and :func:`decode_cf` reads back (docs/conventions.
 
 - each such variable ``X`` as ``X_translation`` (dim ``translation_axis``: tx, ty, tz; units
   ``m``) and ``X_rotation`` (dim ``rotation_axis``: rx, ry, rz; units ``rad``);
-- each string dimension coordinate ``D`` as the label variable ``D_label`` (dim ``D``; a CF
-  auxiliary coordinate, a char array), every other string coordinate as a char array too;
+- each string coordinate as a char array (CF's string type); a string dimension coordinate
+  ``D`` stays the coordinate variable of ``D``, so plain ``xarray.open_dataset`` indexes its
+  labels and selects by name (``.sel(translation_axis="ty")``). CF's data model wants a
+  coordinate variable numeric: ``cfchecks`` warns once per label dimension
+  (:data:`LABEL_WARNING`) and finds no error;
 - each boolean variable (``visible``, ``detected``) as 0/1 bytes with CF's ``flag_values`` and
   ``flag_meanings`` (``not_visible visible``);
 - the global attr ``Conventions = "CF-1.10"``.
 
-Files written before this form (one ``X`` with mixed units, string dimension coordinates) read
-unchanged.
+Files written before this form (one ``X`` with mixed units, string dimension coordinates) and
+files that kept the labels in an auxiliary ``D_label`` variable read unchanged.
 """
 
 from __future__ import annotations
@@ -40,8 +43,12 @@ PARTS: tuple[tuple[str, tuple[str, ...], str, str], ...] = (
     ("translation", TRANSLATION_AXES, "m", "translation part (tx, ty, tz)"),
     ("rotation", ROTATION_AXES, "rad", "rotation-vector part (rx, ry, rz)"),
 )
-#: Suffix of the label variable that holds a string dimension coordinate on disk.
+#: Suffix of the auxiliary label variable that held a string dimension coordinate in files
+#: written before the labels were indexed (read back, never written).
 LABEL_SUFFIX = "_label"
+#: What ``cfchecks`` (cfchecker 4.1) says of a string label dimension's coordinate variable:
+#: CF's data model wants coordinate variables numeric, so it is a warning, not an error.
+LABEL_WARNING = "WARN: (5): Possible incorrect declaration of a coordinate variable."
 _TAIL = "; "
 
 
@@ -92,10 +99,7 @@ def encode_cf(ds: xr.Dataset) -> xr.Dataset:
             continue
         coord = out[name].variable.copy()
         coord.encoding = {"dtype": "S1"}  # a char array: CF has no other string type before 1.8
-        if name in out.dims:
-            out = out.drop_vars(name).assign_coords({name + LABEL_SUFFIX: coord})
-        else:
-            out = out.assign_coords({name: coord})
+        out = out.assign_coords({name: coord})
     for name in list(out.data_vars):  # 0/1 flags say what they mean (CF flag attributes)
         if out[name].dtype == bool:
             flag = out[name].variable.copy()
@@ -125,7 +129,7 @@ def decode_cf(ds: xr.Dataset) -> xr.Dataset:
             out = out.drop_vars(name).assign_coords({dim: (dim, values, out[name].attrs)})
     for name in list(out.coords):
         values = np.asarray(out[name].values)
-        if name not in out.dims and values.dtype.kind == "O" and _is_string(values):
+        if values.dtype.kind in "OS" and _is_string(values.astype(str)):
             out = out.assign_coords({name: (out[name].dims, values.astype(str), out[name].attrs)})
     stems = {
         n.removesuffix(f"_{s}")
