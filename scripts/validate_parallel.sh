@@ -22,7 +22,7 @@ mkdir -p "$logs"
 pids=()
 for ((k = 0; k < processes; k++)); do
   "$simgap" validate --trials "$trials" --seed "$seed" --shard "$k/$processes" -o "$out" \
-    --experiment "$experiment" > "$logs/shard$k.log" 2>&1 &
+    "$experiment" > "$logs/shard$k.log" 2>&1 &
   pids+=($!)
 done
 status=0

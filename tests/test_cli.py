@@ -125,7 +125,7 @@ def test_report_writes_table2(runner, tmp_path, monkeypatch):
     monkeypatch.setattr(report, "_save_figure", placeholder)
     nc = write_netcdf(small_dataset(), tmp_path / "result.nc")
     out = tmp_path / "report"
-    result = runner.invoke(app, ["report", str(nc), "-o", str(out)])
+    result = runner.invoke(app, ["report", str(nc), "-o", str(out), "--no-progress"])
     assert result.exit_code == 0, result.output
     table = out / "table2.md"
     assert table.is_file()
@@ -139,6 +139,18 @@ def test_report_writes_table2(runner, tmp_path, monkeypatch):
     assert str(table) in printed
     for line in printed:
         assert Path(line).is_file(), line
+
+
+def test_report_shows_its_progress_off_a_terminal(runner, tmp_path, monkeypatch):
+    """Not on a terminal (CliRunner's pipe), the figures step prints plain lines: start, end."""
+    import simgap.analysis.report as report
+
+    monkeypatch.setattr(report, "_save_figure", lambda fig, path: path)
+    nc = write_netcdf(small_dataset(), tmp_path / "result.nc")
+    result = runner.invoke(app, ["report", str(nc), "-o", str(tmp_path / "report")])
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.output.splitlines() if line.startswith("figures:")]
+    assert lines[0].startswith("figures: 0/") and re.match(r"figures: (\d+)/\1 after", lines[-1])
 
 
 # -- command-line conventions (issue 29): --version, -h, completion, plain help, shared options --
@@ -385,6 +397,20 @@ def test_effects_are_listed_in_plain_text_and_a_negative_seed_is_refused(runner)
     assert res.exit_code == 2 and "--seed" in res.output
 
 
+def test_effects_as_json_for_programs(runner):
+    """``simgap effects --json``: every catalogue effect with its stage and parameter defaults."""
+    import json
+
+    from simgap.effects import EFFECTS
+
+    res = runner.invoke(app, ["effects", "--json"])
+    assert res.exit_code == 0, res.output
+    entries = {e["name"]: e for e in json.loads(res.output)}
+    assert set(entries) == set(EFFECTS)
+    assert entries["blur"]["stage"] == "image" and entries["blur"]["params"] == {"sigma_px": 0.7}
+    assert entries["sun"]["params"]["irradiance_w_m2"] == pytest.approx(1361.0)
+
+
 def test_unexplained_evidence_is_named_for_a_reader():
     """The one-line summary names image statistics by their readable names and units, not their
     code names (issue 53)."""
@@ -416,3 +442,69 @@ def test_plain_progress_lines_come_every_interval_with_an_estimate(monkeypatch):
         "fitting candidates: 2/5 after 40 s, about 60 s left",
         "fitting candidates: 5/5 after 100 s",
     ]
+
+
+#: The option vocabulary (issue 53): one spelling per concept, on every command it applies to.
+#: Commands that write: -o/--output and --overwrite. Commands that render, fit or read many
+#: frames: --progress/--no-progress. Commands that simulate or ingest: --calibration. Commands
+#: that take an experiment: the positional EXPERIMENT (export-bag: SOURCE, which may also be a
+#: capture folder), older option spellings kept hidden.
+WRITES = {"run", "report", "compare", "study", "ingest", "calibrate", "export-bag", "errormodel",
+          "diagnose", "validate"}  # fmt: skip
+PROGRESS = {"run", "report", "study", "ingest", "export-bag", "diagnose", "validate"}
+CALIBRATION = {"run", "study", "ingest", "calibrate", "export-bag", "diagnose"}
+EXPERIMENT = {"run", "study", "ingest", "diagnose", "validate"}
+#: Spellings that would say the same as the vocabulary's (none may appear, visible or hidden).
+FORBIDDEN = {"--out", "--output-dir", "--outdir", "--force", "--clobber", "--calib", "--camera",
+             "--quiet", "--verbose-progress", "--no-overwrite"}  # fmt: skip
+
+
+def _options(command) -> dict[str, object]:
+    """Every option spelling of a click command -> its parameter (visible or hidden)."""
+    out = {}
+    for param in command.params:
+        for name in (*param.opts, *getattr(param, "secondary_opts", ())):
+            if name.startswith("-"):
+                out[name] = param
+    return out
+
+
+def test_option_vocabulary_holds_on_every_command():
+    import typer
+
+    commands = typer.main.get_command(app).commands
+    for name, command in commands.items():
+        opts = _options(command)
+        visible = {o for o, p in opts.items() if not getattr(p, "hidden", False)}
+        assert not FORBIDDEN & set(opts), (name, FORBIDDEN & set(opts))
+        if name in WRITES:
+            assert {"-o", "--output", "--overwrite"} <= visible, name
+        if name in PROGRESS:
+            assert {"--progress", "--no-progress"} <= visible, name
+        if name in CALIBRATION:
+            assert "--calibration" in visible, name
+        if name in EXPERIMENT:
+            args = [p.name for p in command.params if p.param_type_name == "argument"]
+            assert "experiment" in args, (name, args)
+            assert not {"--sim", "--experiment"} & visible, name  # the old spellings: hidden
+        if "--seed" in opts:
+            assert opts["--seed"].min == 0, name
+
+
+def test_old_experiment_spellings_still_work_and_agree(runner, tmp_path):
+    """``--sim`` and ``--experiment`` are aliases of EXPERIMENT; two different ones are refused."""
+    real = write_netcdf(small_dataset(), tmp_path / "real.nc")
+    both = ["diagnose", str(real), "experiments/smoke.yaml", "--sim", "experiments/baseline.yaml"]
+    res = runner.invoke(app, [*both, "-o", str(tmp_path / "d")])
+    assert res.exit_code == 2 and "name two experiments" in res.output, res.output
+    res = runner.invoke(app, ["diagnose", str(real), "-o", str(tmp_path / "d")])
+    assert res.exit_code == 2 and "EXPERIMENT" in res.output, res.output
+
+
+def test_diagnose_checks_its_seed_before_any_work(runner, tmp_path):
+    """``--seed -1`` is refused by the parser, naming --seed, before the dataset is read."""
+    cache = tmp_path / "cache"
+    args = ["diagnose", str(tmp_path / "missing.nc"), "experiments/smoke.yaml", "--seed", "-1"]
+    res = runner.invoke(app, [*args, "-o", str(tmp_path / "d"), "--cache", str(cache)])
+    assert res.exit_code == 2 and "--seed" in res.output, res.output
+    assert "missing.nc" not in res.output and not cache.exists()

@@ -271,7 +271,7 @@ def test_big_later_frame_is_a_recorded_failure_never_decoded(tmp_path, big, fmt)
 
 def test_bag_frames_are_sized_before_decoding(tmp_path, big, rig):
     frames = [BagFrame(0, 0.0, 0, GREY), BagFrame(7, math.radians(30), 0, (big, "png"))]
-    compressed = write_bag(tmp_path / "c.bag", "ros1", SMALL, frames, rig, compressed=True)
+    compressed = write_bag(tmp_path / "c.bag", "ros1", SMALL, frames, rig, images="png")
     # named by the bag's topic and message, not the deleted temporary folder (issue 51)
     where = rf"{compressed}: topic \S+: message 2"
     with pytest.warns(CaptureWarning, match=rf"^{where}: frame is 25000x25000, expected 64x48"):
@@ -290,7 +290,7 @@ def test_raw_export_refuses_a_frame_of_another_size(tmp_path, big):
     (folder / "images" / "p07_t030.png").write_bytes(big)
     with pytest.raises(ConfigError, match=r"p07_t030.png: frame is 25000x25000, expected 64x48"):
         capture_to_bag(folder, tmp_path / "x.bag", "ros1")
-    capture_to_bag(folder, tmp_path / "x.bag", "ros1", compressed=True)  # bytes kept as they are
+    capture_to_bag(folder, tmp_path / "x.bag", "ros1", images="png")  # bytes kept as they are
 
 
 #: A camera whose calibration vouches for the 25000 x 25000 px bomb (issue 51).
@@ -320,7 +320,7 @@ def test_a_bomb_the_calibration_vouches_for_is_refused_by_the_pixel_budget(tmp_p
 
 def test_a_bag_whose_camera_info_vouches_for_a_bomb_is_refused(tmp_path, big, rig):
     frames = [BagFrame(0, 0.0, 0, (big, "png"))]
-    bag = write_bag(tmp_path / "c.bag", "ros1", VOUCHING, frames, rig, compressed=True)
+    bag = write_bag(tmp_path / "c.bag", "ros1", VOUCHING, frames, rig, images="png")
 
     def refuse():
         with pytest.raises(

@@ -27,20 +27,30 @@ from simgap.cli.simulate import report, run
 
 
 @app.command()
-def effects() -> None:
+def effects(
+    as_json: bool = typer.Option(
+        False, "--json", help="Print the catalogue as JSON (name, stage, doc, parameter defaults)."
+    ),
+) -> None:
     """List the effects catalogue: name, stage, what it models, parameters and defaults."""
     import dataclasses
+    import json
 
     from simgap.effects import EFFECTS
 
+    entries = []
     for name in sorted(EFFECTS, key=lambda n: (EFFECTS[n].stage, n)):
         cls = EFFECTS[name]
         doc = plain_text(" ".join((cls.__doc__ or "").split("\n\n")[0].split()))
         defaults = cls.Params()
-        params = ", ".join(
-            f"{f.name}={getattr(defaults, f.name)!r}" for f in dataclasses.fields(cls.Params)
-        )
-        typer.echo(f"{name:20s} [{cls.stage}] {doc}\n{'':21s} {params}")
+        params = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(cls.Params)}
+        entries.append({"name": name, "stage": cls.stage, "doc": doc, "params": params})
+    if as_json:
+        typer.echo(json.dumps(entries, indent=1, default=repr))
+        return
+    for e in entries:
+        params = ", ".join(f"{k}={v!r}" for k, v in e["params"].items())
+        typer.echo(f"{e['name']:20s} [{e['stage']}] {e['doc']}\n{'':21s} {params}")
 
 
 #: A Sphinx cross-reference in a docstring (``:class:`~pkg.Name```): shown as its target's name.

@@ -8,13 +8,15 @@ from typing import Annotated
 
 import typer
 
-from simgap.cli.app import app, read_experiment, read_result_dataset, read_simulation
+from simgap.cli.app import app, fail, read_experiment, read_result_dataset, read_simulation
 from simgap.cli.options import (
     CacheOption,
+    CalibrationOption,
     OverwriteOption,
     ProgressOption,
     SchedulerOption,
     VariantOption,
+    one_experiment,
     output_option,
 )
 from simgap.cli.outputs import (
@@ -87,8 +89,13 @@ def errormodel(
 @app.command()
 def diagnose(
     real: Annotated[Path, typer.Argument(help="Real dataset (netCDF) from simgap ingest.")],
-    sim: Annotated[Path, typer.Option("--sim", help="Simulation: experiment YAML or result .nc.")],
     output: Annotated[Path, output_option("Report folder to write.")],
+    experiment: Annotated[
+        Path | None,
+        typer.Argument(help="The simulation: experiment YAML or result .nc (also --sim)."),
+    ] = None,
+    sim: Annotated[Path | None, typer.Option("--sim", hidden=True)] = None,
+    calibration: CalibrationOption = None,
     json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
     cache: CacheOption = None,
     seed: int = typer.Option(
@@ -114,10 +121,16 @@ def diagnose(
     from simgap.pipeline.simulator import Simulator
     from simgap.results.dataset import read_netcdf
 
+    sim = one_experiment(experiment, sim, "--sim")
+    if sim is None:
+        fail("EXPERIMENT: the simulation to compare with is needed (an experiment YAML or .nc)")
+    if calibration is not None and sim.suffix not in (".yaml", ".yml"):
+        fail(f"--calibration: only with an experiment YAML ({sim} is a result dataset)")
     outputs = [(OUTPUT, output, DIAGNOSIS_FOLDER), ("--json", json_path, DIAGNOSIS_JSON)]
-    check_outputs(outputs, [("REAL", real)] + simulation_inputs(sim, "--sim"), overwrite)
+    inputs = [("REAL", real), ("--calibration", calibration)]
+    check_outputs(outputs, inputs + simulation_inputs(sim, "EXPERIMENT"), overwrite)
     data = read_netcdf(real)
-    exp = read_simulation(sim)
+    exp = read_simulation(sim) if calibration is None else read_experiment(sim, calibration)
     settings = DiagnoseSettings(seed=seed, converged_simulation=converged_simulation)
     simulator = Simulator(cache or default_cache_dir(), scheduler, show_progress=progress)
     with StepBars(progress) as bars:
@@ -149,14 +162,20 @@ def evidence_name(name: str) -> str:
     return STAT_LABELS[name].text if name in STAT_LABELS else name
 
 
+#: The simulation ``validate`` diagnoses its pseudo-real captures against by default.
+DEFAULT_VALIDATION_EXPERIMENT = Path("experiments/baseline.yaml")
+
+
 @app.command()
 def validate(
     trials: int = typer.Option(30, "--trials", help="Number of blind trials."),
     seed: int = typer.Option(0, "--seed", help="Seed of the hidden draws (>= 0).", min=0),
     output: Path = typer.Option(Path("validation"), "-o", "--output", help="Report folder."),
-    experiment: Path = typer.Option(
-        Path("experiments/baseline.yaml"), "--experiment", help="Simulation experiment."
-    ),
+    experiment: Annotated[
+        Path | None,
+        typer.Argument(help="Simulation experiment (default experiments/baseline.yaml)."),
+    ] = None,
+    experiment_alias: Annotated[Path | None, typer.Option("--experiment", hidden=True)] = None,
     cache: CacheOption = None,
     progress: ProgressOption = True,
     scheduler: SchedulerOption = None,
@@ -195,7 +214,9 @@ def validate(
     from simgap.diagnosis.validate import ValidateSettings, run_validation
     from simgap.pipeline.simulator import Simulator
 
-    inputs = experiment_inputs(experiment, "--experiment")
+    experiment = one_experiment(experiment, experiment_alias, "--experiment")
+    experiment = experiment if experiment is not None else DEFAULT_VALIDATION_EXPERIMENT
+    inputs = experiment_inputs(experiment, "EXPERIMENT")
     check_outputs([(OUTPUT, output, VALIDATION_FOLDER)], inputs, overwrite)
     exp = read_experiment(experiment)
     k, _, n = shard.partition("/")

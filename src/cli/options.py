@@ -41,6 +41,29 @@ CALIBRATION_HELP = (
 )
 #: ``--calibration FILE`` (default ``None``: the experiment's camera).
 CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help=CALIBRATION_HELP)]
+#: Help of the positional ``EXPERIMENT`` of every command that simulates (its older option
+#: spelling is kept as a hidden alias: :func:`one_experiment`).
+EXPERIMENT_HELP = "Experiment YAML (or a result .nc it was run from, where a command takes one)."
+
+
+def one_experiment(positional: Path | None, alias: Path | None, alias_name: str) -> Path | None:
+    """The experiment named as the positional ``EXPERIMENT`` or by its older option spelling.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        Where both are given and differ.
+    """
+    from simgap.core.config import ConfigError
+
+    if positional is not None and alias is not None and Path(positional) != Path(alias):
+        raise ConfigError(
+            f"EXPERIMENT: {positional} and {alias_name} {alias} name two experiments; give one "
+            f"(EXPERIMENT; {alias_name} is its older spelling)"
+        )
+    return positional if positional is not None else alias
+
+
 #: ``--overwrite`` (default ``False``).
 OverwriteOption = Annotated[bool, typer.Option("--overwrite", help=OVERWRITE_HELP)]
 
@@ -68,6 +91,14 @@ class BagFormat(str, enum.Enum):
 
     ros1 = "ros1"
     ros2 = "ros2"
+
+
+class ImageEncoding(str, enum.Enum):
+    """``export-bag --images``: ``simgap.pipeline.bag.formats.IMAGE_ENCODINGS``."""
+
+    raw = "raw"
+    png = "png"
+    jpeg = "jpeg"
 
 
 class BagStorage(str, enum.Enum):

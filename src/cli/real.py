@@ -14,9 +14,12 @@ from simgap.cli.options import (
     BagFormat,
     BagStorage,
     CacheOption,
+    CalibrationOption,
+    ImageEncoding,
     OverwriteOption,
     ProgressOption,
     VariantOption,
+    one_experiment,
     output_option,
 )
 from simgap.cli.outputs import (
@@ -46,9 +49,14 @@ def ingest(
         ),
     ],
     output: Annotated[Path, output_option("Result dataset to write (netCDF).")],
-    experiment: Path | None = typer.Option(
-        None, "--experiment", help="Take rig, detector and PnP settings from this experiment YAML."
-    ),
+    experiment: Annotated[
+        Path | None,
+        typer.Argument(
+            help="Experiment YAML to take the rig, detector and PnP settings from (also "
+            "--experiment)."
+        ),
+    ] = None,
+    experiment_alias: Annotated[Path | None, typer.Option("--experiment", hidden=True)] = None,
     progress: ProgressOption = True,
     ranges: Path | None = typer.Option(
         None,
@@ -104,6 +112,7 @@ def ingest(
     With --board, a folder of photos of a board of markers: each marker's single-marker pose
     error against the board's pose from all its points, printed near / mid / far.
     """
+    experiment = one_experiment(experiment, experiment_alias, "--experiment")
     if board is not None:
         photo_options = _PhotoOptions(calibration, experiment, max_pixels, simulate, spp, seed)
         _ingest_photos(capture, output, board, photo_options, progress, overwrite)
@@ -117,7 +126,7 @@ def ingest(
 
     bag = is_bag(capture)
     inputs = [("CAPTURE", capture), ("--ranges", ranges), ("--calibration", calibration)]
-    inputs += experiment_inputs(experiment, "--experiment") if experiment is not None else []
+    inputs += experiment_inputs(experiment, "EXPERIMENT") if experiment is not None else []
     outputs = [(OUTPUT, output, INGESTED_DATASET)]
     outputs += [("--keep-capture", keep_capture, CAPTURE_FOLDER)] if bag else []
     check_outputs(outputs, inputs, overwrite)
@@ -173,7 +182,7 @@ def _ingest_photos(
         fail("--board: the photos' calibration is needed (--calibration FILE)")
     inputs = [("CAPTURE", photos), ("--board", board_file), ("--calibration", opts.calibration)]
     if opts.experiment is not None:
-        inputs += experiment_inputs(opts.experiment, "--experiment")
+        inputs += experiment_inputs(opts.experiment, "EXPERIMENT")
     check_outputs([(OUTPUT, output, PHOTO_DATASET)], inputs, overwrite)
     board = read_board(board_file)
     camera = read_calibration(opts.calibration)
@@ -318,10 +327,16 @@ def export_bag(
         "--storage",
         help="ROS 2 bag folder storage (default sqlite3; a file's extension decides).",
     ),
-    compressed: bool = typer.Option(
-        False, "--compressed/--raw", help="CompressedImage (PNG, or the file's bytes) or raw bgr8."
+    images: ImageEncoding = typer.Option(
+        ImageEncoding.raw,
+        "--images",
+        help="Frames as raw bgr8 Images, or CompressedImages in PNG (lossless) or JPEG "
+        "(quality 80, as ROS compressed_image_transport); a capture's files of that format keep "
+        "their bytes.",
     ),
+    compressed: bool | None = typer.Option(None, "--compressed/--raw", hidden=True),
     variant: VariantOption = None,
+    calibration: CalibrationOption = None,
     cache: CacheOption = None,
     progress: ProgressOption = True,
     overwrite: OverwriteOption = False,
@@ -335,6 +350,9 @@ def export_bag(
     fmt = fmt.value if fmt else None
     storage = storage.value if storage else None
     inputs = [("SOURCE", source)] if source.is_dir() else simulation_inputs(source, "SOURCE")
+    inputs += [("--calibration", calibration)]
+    if calibration is not None and source.suffix not in (".yaml", ".yml"):
+        fail(f"--calibration: only with an experiment YAML as SOURCE ({source} is not one)")
     # what the name would be written as: checked before its form, which the name must agree with
     suffix = output.suffix.lower()
     kind = ROS2_BAG_FILE if suffix in ROS2_FILE_SUFFIXES else ROS2_BAG
@@ -344,7 +362,13 @@ def export_bag(
         target = bag_target(output, fmt, storage)
     except ConfigError as exc:
         fail(str(exc))
-    opts = {"compressed": compressed, "storage": target.storage}
+    encoding = images.value
+    if compressed is not None:  # the older spelling: --compressed is PNG, --raw raw
+        older = "png" if compressed else "raw"
+        if images is not ImageEncoding.raw and images.value != older:
+            fail(f"--images {images.value} and --{'compressed' if compressed else 'raw'} disagree")
+        encoding = older
+    opts = {"images": encoding, "storage": target.storage}
     if source.is_dir():
         path = capture_to_bag(source, output, target.format, **opts)
     else:
@@ -353,7 +377,9 @@ def export_bag(
             dataset = read_result_dataset(source)
         from simgap.cli.progress import StepBars
 
-        exp = read_simulation(source)
+        exp = (
+            read_simulation(source) if calibration is None else read_experiment(source, calibration)
+        )
         cache_dir = cache or default_cache_dir()
         with StepBars(progress) as bars:
             path = experiment_to_bag(

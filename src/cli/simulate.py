@@ -63,17 +63,19 @@ def report(
     result: Annotated[Path, typer.Argument(help="Result dataset (netCDF) from simgap run.")],
     output: Annotated[Path, output_option("Report folder to write.")],
     model: Annotated[Path | None, typer.Option("--model", help=MODEL_HELP)] = None,
+    progress: ProgressOption = True,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
     from simgap.analysis.report import write_report
+    from simgap.cli.progress import StepBars
     from simgap.core.outputs import claimed_folder
 
     inputs = [("RESULT", result), ("--model", model)]
     check_outputs([(OUTPUT, output, REPORT_FOLDER)], inputs, overwrite)
     ds = read_result_dataset(result)
-    with claimed_folder(output):
-        paths = write_report(ds, output)
+    with claimed_folder(output), StepBars(progress) as bars:
+        paths = write_report(ds, output, progress=bars)
         if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
             from simgap.analysis.compare import write_comparison
 

@@ -49,6 +49,7 @@ from simgap.analysis.report.summaries import (
     check_report_dataset,
     summarize_variant,
 )
+from simgap.core.progress import ProgressCallback, Steps
 
 #: Writes one figure; module-level so that tests can replace PNG encoding with a placeholder.
 _save_figure = save_figure
@@ -59,6 +60,7 @@ def write_variant_report(
     out_dir: Path,
     variants: Sequence[str] = (),
     image_datasets: dict[str, xr.Dataset] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> list[Path]:
     """Write the figures, ``table2.md`` and ``summary.md`` of one variant.
 
@@ -72,6 +74,8 @@ def write_variant_report(
         All variants of the dataset, named in the summary when some are not reported.
     image_datasets : dict of str to xarray.Dataset, optional
         Datasets with ``image_stats`` to plot against distance and view angle.
+    progress : ProgressCallback, optional
+        Told of each figure written (step ``"figures"``).
 
     Returns
     -------
@@ -81,20 +85,30 @@ def write_variant_report(
         dataset has image statistics, then ``table2.md`` and ``summary.md``.
     """
     plotters = (("error_vs_distance", plot_error_vs_distance), ("heatmap", plot_error_heatmap))
+    against = ("distance", "view_angle") if image_datasets else ()
+    steps = Steps(progress)
+    steps.start("figures", len(plotters) * len(summary.tags) + len(against))
     figures = []
     for stem, plot in plotters:
         for tag in summary.tags:
             figures.append(_save_figure(plot(summary, tag), out_dir / f"{stem}_tag{tag}.png"))
-    if image_datasets:
-        for against in ("distance", "view_angle"):
-            fig = plot_image_stats(image_datasets, against)
-            figures.append(_save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
+            steps.advance()
+    for axis in against:
+        fig = plot_image_stats(image_datasets, axis)  # type: ignore[arg-type]
+        figures.append(_save_figure(fig, out_dir / f"image_stats_vs_{axis}.png"))
+        steps.advance()
     table = save_text(table2_markdown(summary), out_dir / "table2.md")
     text = save_text(summary_markdown(summary, figures, variants), out_dir / "summary.md")
     return [*figures, table, text]
 
 
-def write_report(ds: xr.Dataset, out_dir: Path, *, pin_pitch_m: float | None = None) -> list[Path]:
+def write_report(
+    ds: xr.Dataset,
+    out_dir: Path,
+    *,
+    pin_pitch_m: float | None = None,
+    progress: ProgressCallback | None = None,
+) -> list[Path]:
     """Write the paper-style report of a result dataset.
 
     Parameters
@@ -108,6 +122,8 @@ def write_report(ds: xr.Dataset, out_dir: Path, *, pin_pitch_m: float | None = N
         Carriage pin-hole pitch in metres (x axis of the error-vs-distance figures and the slope
         fit use carriage position ``pin_pitch_m * p``); default: the pitch of the dataset's rig
         (:func:`~simgap.analysis.report.summaries.dataset_rig`).
+    progress : ProgressCallback, optional
+        Told of each figure written (:func:`write_variant_report`).
 
     Returns
     -------
@@ -125,4 +141,4 @@ def write_report(ds: xr.Dataset, out_dir: Path, *, pin_pitch_m: float | None = N
     variants = [str(v) for v in ds["variant"].values]
     summary = summarize_variant(ds.isel(variant=0), pin_pitch_m=pin_pitch_m)
     images = {variants[0]: ds.isel(variant=[0])} if "image_stats" in ds else None
-    return write_variant_report(summary, out_dir, variants, images)
+    return write_variant_report(summary, out_dir, variants, images, progress)

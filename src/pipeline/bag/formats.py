@@ -26,6 +26,11 @@ CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
 POSE_TYPE = "geometry_msgs/msg/PoseStamped"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
+#: How an exported bag holds its frames: raw ``bgr8`` ``Image`` messages, or ``CompressedImage``
+#: messages in PNG (lossless) or JPEG.
+IMAGE_ENCODINGS = ("raw", "png", "jpeg")
+#: JPEG quality of exported frames: ROS compressed_image_transport's default ``jpeg_quality``.
+JPEG_QUALITY = 80
 #: Default topics of an exported bag (RealSense driver naming).
 IMAGE_TOPIC = "/camera/color/image_raw"
 COMPRESSED_TOPIC = "/camera/color/image_raw/compressed"

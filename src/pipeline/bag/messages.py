@@ -16,6 +16,7 @@ from simgap.pipeline.bag.formats import (
     COMPRESSED_TYPE,
     IMAGE_TYPE,
     JOINT_STATE_TYPE,
+    JPEG_QUALITY,
     OPTICAL_FRAME,
     POSE_TYPE,
     TF_TYPE,
@@ -54,13 +55,18 @@ class Messages:
             return bytes(self.ts.serialize_ros1(msg, msg.__msgtype__))
         return bytes(self.ts.serialize_cdr(msg, msg.__msgtype__))
 
-    def image(self, ns: int, image: np.ndarray | tuple[bytes, str], compressed: bool):
-        """A raw ``Image`` (bgr8) or a ``CompressedImage`` (PNG, or the file's bytes and format)."""
+    def image(self, ns: int, image: np.ndarray | tuple[bytes, str], images: str):
+        """A raw ``Image`` (bgr8 or mono8) or a ``CompressedImage`` (``images`` png or jpeg).
+
+        ``image`` is an 8-bit RGB or grey array, or a file's bytes and its format (kept as they
+        are in a ``CompressedImage``; decoded for a raw one). Arrays are encoded as PNG or as
+        JPEG at :data:`~simgap.pipeline.bag.formats.JPEG_QUALITY`.
+        """
         if isinstance(image, tuple):
             data, ext = image
-            if not compressed:
+            if images == "raw":
                 bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-                return self.image(ns, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), False)
+                return self.image(ns, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), "raw")
             fmt = "jpeg" if ext in ("jpg", "jpeg") else "png"
             return self.types[COMPRESSED_TYPE](
                 header=self.header(ns), format=fmt, data=np.frombuffer(data, np.uint8)
@@ -69,8 +75,13 @@ class Messages:
         if img.dtype != np.uint8 or img.ndim not in (2, 3):
             raise ValueError(f"image: expected 8-bit RGB or grey, got {img.dtype} {img.shape}")
         bgr = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
-        if compressed:
-            return self.image(ns, (imaging.encode_png(bgr), "png"), True)
+        if images == "png":
+            return self.image(ns, (imaging.encode_png(bgr), "png"), images)
+        if images == "jpeg":
+            ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+            if not ok:
+                raise RuntimeError("JPEG encoding failed")
+            return self.image(ns, (buf.tobytes(), "jpeg"), images)
         h, w = bgr.shape[:2]
         enc, step = ("mono8", w) if bgr.ndim == 2 else ("bgr8", 3 * w)
         return self.types[IMAGE_TYPE](

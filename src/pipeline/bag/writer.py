@@ -100,7 +100,7 @@ def write_bag(
     calibration: CameraModel,
     frames: Iterable[BagFrame],
     rig: Rig,
-    compressed: bool = False,
+    images: str = "raw",
     storage: BagStorage | None = None,
 ) -> Path:
     """Write frames, calibration, fixture joints, transforms and poses as a bag, atomically.
@@ -121,9 +121,10 @@ def write_bag(
     rig : Rig
         The carriage joint is the travel ``p * pin_pitch`` (m); its transform tree goes on
         ``/tf_static`` and ``/tf`` (module docstring).
-    compressed : bool
-        Frames as ``sensor_msgs/CompressedImage`` on :data:`COMPRESSED_TOPIC` (array frames
-        encoded as PNG, file bytes kept) instead of raw ``bgr8`` on :data:`IMAGE_TOPIC`.
+    images : {"raw", "png", "jpeg"}
+        Frames as raw ``bgr8`` on :data:`IMAGE_TOPIC`, or as ``sensor_msgs/CompressedImage`` on
+        :data:`COMPRESSED_TOPIC` (array frames encoded as PNG or JPEG, file bytes kept)
+        (:data:`~simgap.pipeline.bag.formats.IMAGE_ENCODINGS`).
     storage : {"sqlite3", "mcap"}, optional
         Storage of a ROS 2 bag folder (default SQLite 3); must agree with a file's extension.
 
@@ -169,8 +170,8 @@ def write_bag(
                     TF_TOPIC, build.transforms(ns, moving_transforms(rig, frame.p, frame.theta)), ns
                 )
                 put(CAMERA_INFO_TOPIC, build.camera_info(ns, calibration), ns)
-                topic = COMPRESSED_TOPIC if compressed else IMAGE_TOPIC
-                put(topic, build.image(ns, frame.image, compressed), ns)
+                topic = IMAGE_TOPIC if images == "raw" else COMPRESSED_TOPIC
+                put(topic, build.image(ns, frame.image, images), ns)
                 for kind, poses in (("expected", frame.expected), ("estimated", frame.estimated)):
                     for tag, pose in sorted(poses.items()):
                         if np.all(np.isfinite(pose)):
@@ -190,22 +191,22 @@ def capture_to_bag(
     bag: Path,
     fmt: BagFormat | None,
     rig: Rig | None = None,
-    compressed: bool = False,
+    images: str = "raw",
     storage: BagStorage | None = None,
 ) -> Path:
     """Export a capture folder as a bag (frames in manifest order, ground truth from the rig).
 
-    With ``compressed`` the image files' bytes are kept (PNG or JPEG); otherwise frames
-    are decoded to raw ``bgr8``, each after its header's size was checked against the
-    calibration's. Either way :func:`ingest_bag` of the bag gives the same data as
-    :func:`simgap.pipeline.capture.ingest` of the folder (repeats renumbered 0, 1, ... in
-    manifest order).
+    With ``images`` png or jpeg an image file of that format keeps its bytes, another is
+    decoded and encoded so; raw frames are decoded to ``bgr8``. Every decoded frame's header
+    size is checked against the calibration's first. Without JPEG re-encoding,
+    :func:`ingest_bag` of the bag gives the same data as :func:`simgap.pipeline.capture.ingest`
+    of the folder (repeats renumbered 0, 1, ... in manifest order).
 
     Raises
     ------
     simgap.core.config.ConfigError
-        As :func:`simgap.pipeline.capture.read_capture`; without ``compressed`` also for a frame
-        that cannot be decoded or whose size differs from the calibration's.
+        As :func:`simgap.pipeline.capture.read_capture`; also for a frame that must be decoded
+        and cannot be, or whose size differs from the calibration's.
     """
     rig = rig or load_rig()
     cap = read_capture(Path(folder), rig)
@@ -216,17 +217,18 @@ def capture_to_bag(
             yield BagFrame(f.p, f.theta, f.repeat, frame(f.image), _expected(rig, f.p, f.theta))
 
     def frame(path: Path) -> np.ndarray | tuple[bytes, str]:
-        if compressed:
-            return path.read_bytes(), path.suffix.lstrip(".").lower()
+        ext = path.suffix.lstrip(".").lower()
+        if images != "raw" and ("jpeg" if ext in ("jpg", "jpeg") else ext) == images:
+            return path.read_bytes(), ext
         bgr = read_image(path, cal.width, cal.height)
         if isinstance(bgr, str):
             raise ConfigError(
-                f"{path}: frame {bgr}; a raw bag holds decoded frames of the calibration's "
-                "size (--compressed keeps the file's bytes instead)"
+                f"{path}: frame {bgr}; a bag holds decoded frames of the calibration's size "
+                "(--images with the files' own format keeps their bytes instead)"
             )
         return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
-    return write_bag(bag, fmt, cal, frames(), rig, compressed, storage)
+    return write_bag(bag, fmt, cal, frames(), rig, images, storage)
 
 
 def experiment_to_bag(
@@ -236,7 +238,7 @@ def experiment_to_bag(
     fmt: BagFormat | None,
     dataset: xr.Dataset | None = None,
     variant: str | None = None,
-    compressed: bool = False,
+    images: str = "raw",
     storage: BagStorage | None = None,
     progress: ProgressCallback | None = None,
 ) -> Path:
@@ -256,7 +258,7 @@ def experiment_to_bag(
         A result dataset of ``exp``: its configurations and its estimated poses are written too.
     variant : str, optional
         Variant to export (default: the first).
-    compressed, storage
+    images, storage
         As :func:`write_bag`.
     progress : ProgressCallback, optional
         Told of each configuration exported (step ``exporting frames``; rendering them where
@@ -304,4 +306,4 @@ def experiment_to_bag(
                     )  # fmt: skip
 
     cal = pipe.state.estimation.calibration
-    return write_bag(bag, fmt, cal, frames(), rig, compressed, storage)
+    return write_bag(bag, fmt, cal, frames(), rig, images, storage)
