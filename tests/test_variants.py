@@ -238,3 +238,20 @@ def test_experiment_round_trips_through_its_dataset_yaml():
     assert [n for n, _ in again.variant_states()] == [n for n, _ in exp.variant_states()]
     assert again.variant_states()[1][1] == exp.variant_states()[1][1]
     assert again.configuration_axes()[0] == exp.configuration_axes()[0]
+
+
+def test_image_stats_figure_counts_view_angle_from_facing(smoke_variants_nc):
+    """The image-statistics figure's view angle is counted from facing, as the heatmaps' (issue
+    53), and a statistic with one value everywhere says so instead of drawing a made-up scale."""
+    from simgap.analysis.image_evidence import VIEW_ANGLE_LABEL, plot_image_stats
+    from simgap.results.dataset import read_netcdf
+
+    ds = read_netcdf(smoke_variants_nc)
+    fig = plot_image_stats({"baseline": ds}, "view_angle")
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    assert all(ax.get_xlabel() == VIEW_ANGLE_LABEL for ax in panels)
+    xs = np.concatenate([line.get_xdata() for ax in panels for line in ax.get_lines()])
+    assert 0.0 <= xs.min() and xs.max() < 90.0
+    clipped = next(ax for ax in panels if ax.get_title().startswith("clipped pixels"))
+    assert list(clipped.get_yticks()) == [0.0]
+    assert any(t.get_text() == "every tag: 0" for t in clipped.texts)

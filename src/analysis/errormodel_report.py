@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from simgap.analysis.errormodel.geometry import covariates
 from simgap.analysis.errormodel.model import Z90, ErrorModel, TagPoses
+from simgap.analysis.report.heatmaps import robust_colour_limit
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES, display_unit
 
@@ -36,6 +37,8 @@ def plot_error_model_bands(model: ErrorModel, ds: xr.Dataset, slices: int = 3) -
     FigureCanvasAgg(fig)
     axes = fig.subplots(len(tags), 6, squeeze=False)
     obl = np.linspace(model.ds.obliquity.values[0], model.ds.obliquity.values[-1], 121)
+    points: dict[tuple[int, int], list[np.ndarray]] = {}
+    bands: dict[tuple[int, int], list[np.ndarray]] = {}
     for r, tag in enumerate(tags):
         exp = sub.sel(tag=tag).expected.transpose("p", "theta", "axis").values
         det = sub.sel(tag=tag).detected.transpose("repeat", "p", "theta").values
@@ -62,6 +65,10 @@ def plot_error_model_bands(model: ErrorModel, ds: xr.Dataset, slices: int = 3) -
                     lw=0,
                 )
                 ax.plot(x, scale * mean[:, k], color=colours[s], lw=1.2)
+                points.setdefault((r, k), []).append(scale * e[in_slice, k])
+                bands.setdefault((r, k), []).append(
+                    scale * (np.abs(mean[:, k]) + Z90 * np.abs(sd[:, k]))
+                )
                 ax.plot(
                     np.degrees(o[in_slice]),
                     scale * e[in_slice, k],
@@ -75,11 +82,29 @@ def plot_error_model_bands(model: ErrorModel, ds: xr.Dataset, slices: int = 3) -
                 ax.set_ylabel(f"error ({unit})", fontsize=8)
                 ax.tick_params(labelsize=7)
         axes[r, 0].legend(fontsize=7, title="camera-to-tag distance", title_fontsize=7)
+    for (r, k), ys in points.items():
+        _robust_limits(axes[r, k], np.concatenate(ys), np.concatenate(bands[(r, k)]))
     fig.suptitle(
         f"error model ({variant}): bias and 90 % band per distance slice, over the detections"
     )
     fig.tight_layout()
     return fig
+
+
+def _robust_limits(ax, values: np.ndarray, band: np.ndarray) -> None:
+    """Symmetric y limits that the band and all but far-out points set; those counted.
+
+    The points' limit is :func:`simgap.analysis.report.heatmaps.robust_colour_limit` (Tukey's
+    far-out fence of the |errors|), the band's its largest |bias| + 90 % half-width; points
+    beyond the axis are counted in the panel's title.
+    """
+    finite_band = band[np.isfinite(band)]
+    limit = max(robust_colour_limit(values), float(finite_band.max()) if finite_band.size else 0.0)
+    limit *= 1.1
+    ax.set_ylim(-limit, limit)
+    beyond = np.abs(values) > limit
+    if beyond.any():
+        ax.set_title(f"{ax.get_title()} ({int(beyond.sum())} beyond the axis)", fontsize=9)
 
 
 def _poses_at(distance: float, obliquity: np.ndarray) -> np.ndarray:

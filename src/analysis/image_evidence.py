@@ -37,6 +37,11 @@ PLOTTED_STATS: tuple[str, ...] = (
 )
 
 
+#: Axis label of a view angle: between the line of sight and the tag's normal (0 deg facing the
+#: camera, 90 deg edge-on), the angle the report's heatmaps count from facing too.
+VIEW_ANGLE_LABEL = "view angle from facing [deg] (0: facing the camera)"
+
+
 def tag_distance_and_view_angle(ds: xr.Dataset) -> tuple[xr.DataArray, xr.DataArray]:
     """Camera-to-tag distance (m) and view angle (deg) of each tag, (tag, p, theta).
 
@@ -81,6 +86,10 @@ def plot_image_stats(
 ) -> Figure:
     """Each image statistic against camera-to-tag distance (m) or view angle (deg), one colour each.
 
+    The view angle is counted from facing (:data:`VIEW_ANGLE_LABEL`): ``90 -`` the elevation of
+    :func:`tag_distance_and_view_angle`. A panel whose values are all one number says so instead
+    of drawing an axis around it.
+
     Panels are named and scaled by :data:`simgap.pose.stat_labels.STAT_LABELS`.
 
     Parameters
@@ -102,9 +111,10 @@ def plot_image_stats(
     FigureCanvasAgg(fig)
     axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
     markers = "o^sDv<>"
+    shown: dict[str, list[np.ndarray]] = {stat: [] for stat in stats}
     for k, (label, ds) in enumerate(datasets.items()):
         distance, view = tag_distance_and_view_angle(ds)
-        x = distance if against == "distance" else view
+        x = distance if against == "distance" else 90.0 - view  # deg from facing, 0 facing
         visible = ds.visible if "variant" not in ds.visible.dims else ds.visible.isel(variant=0)
         values = repeat_median_stats(ds)
         for ax, stat in zip(axes, stats, strict=False):
@@ -112,6 +122,7 @@ def plot_image_stats(
             for tag in ds.tag.values:
                 xs, ys = x.sel(tag=tag).values.ravel(), y.sel(tag=tag).values.ravel()
                 ok = np.isfinite(ys)
+                shown[stat].append(ys[ok])
                 ax.plot(
                     xs[ok],
                     ys[ok],
@@ -125,12 +136,17 @@ def plot_image_stats(
         label = stat_label(stat)
         ax.set_title(label.name, fontsize=10)
         ax.set_ylabel(label.unit)
-        ax.set_xlabel(DISTANCE_LABEL if against == "distance" else "view angle [deg]")
+        ax.set_xlabel(DISTANCE_LABEL if against == "distance" else VIEW_ANGLE_LABEL)
         ax.grid(alpha=0.3)
+        values = np.concatenate(shown[stat]) if shown[stat] else np.array([])
+        if values.size and np.all(values == values[0]):  # one value: say so, no invented scale
+            ax.set_yticks([values[0]])
+            ax.text(0.5, 0.75, f"every tag: {values[0]:g}", transform=ax.transAxes,
+                    ha="center", fontsize=9, color="0.3")  # fmt: skip
     for ax in axes[len(stats) :]:
         ax.set_visible(False)
     if stats:
         axes[0].legend(fontsize=7)
-    x_name = "camera-to-tag distance" if against == "distance" else "view angle"
+    x_name = "camera-to-tag distance" if against == "distance" else "view angle from facing"
     fig.suptitle(title or f"Image evidence against {x_name}")
     return fig

@@ -294,7 +294,7 @@ def _draw_change_heatmap(
     distance = on_grid(cmp["distance_m"].sel(tag=tag)).sel(theta=signed["theta"])
     row_distance_labels(distance, paired).apply(ax, "y")
     ax.set_title(_with_note(f"tag {tag}, {axis}: signed change [{unit}]", beyond))
-    ax.set_xlabel("view angle from facing [deg]")
+    ax.set_xlabel("turntable angle from facing [deg] (0: the tag faces the camera)")
     ax.set_ylabel(ROW_DISTANCE_LABEL)
 
 
