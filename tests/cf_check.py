@@ -84,6 +84,26 @@ def label_dimensions(path: Path) -> int:
         )
 
 
+def missing_metadata(path: Path) -> list[str]:
+    """Variables of ``path`` without a ``long_name``, and numeric ones without ``units``.
+
+    Flags (``flag_values``) have no units, as CF's flags; char arrays (labels) hold no quantity.
+    ``cfchecks`` asks for neither a long_name nor units on every variable; simgap's files have both.
+    """
+    import netCDF4
+
+    out = []
+    with netCDF4.Dataset(path) as nc:
+        for name, var in nc.variables.items():
+            attrs = set(var.ncattrs())
+            if "long_name" not in attrs:
+                out.append(f"{name}: no long_name")
+            numeric = var.dtype != "S1" and var.dtype.kind in "iuf"
+            if numeric and "units" not in attrs and "flag_values" not in attrs:
+                out.append(f"{name}: no units")
+    return out
+
+
 def assert_cf_valid(path: Path) -> CFReport:
     """Assert that ``cfchecks`` finds no fatal error, no error and no warning in ``path``...
 
@@ -103,6 +123,7 @@ def assert_cf_valid(path: Path) -> CFReport:
     ]  # fmt: skip
     assert (report.fatal, report.errors) == (0, 0) and not problems, "\n".join(problems)
     assert lines.count(LABEL_WARNING) == report.warnings == label_dimensions(path)
+    assert not missing_metadata(path), missing_metadata(path)
     return report
 
 

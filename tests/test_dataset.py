@@ -243,3 +243,16 @@ def test_flags_say_what_they_mean_on_disk(tmp_path):
     back = read_netcdf(path)
     assert back.visible.dtype == bool and back.detected.dtype == bool
     assert bool((back.visible == ds.visible).all()) and bool((back.detected == ds.detected).all())
+
+
+def test_cf_check_fails_on_a_variable_without_units_or_long_name(tmp_path):
+    """The CF check of every dataset test names a new variable that lacks units or long_name."""
+    from tests.cf_check import missing_metadata
+
+    ds, *_ = build()
+    path = write_netcdf(ds, tmp_path / "ok.nc")
+    assert missing_metadata(path) == []
+    ds["new_thing"] = ds["reproj_px"] * 2.0
+    ds["new_thing"].attrs = {}
+    path = write_netcdf(ds, tmp_path / "bad.nc")
+    assert missing_metadata(path) == ["new_thing: no long_name", "new_thing: no units"]
