@@ -25,6 +25,7 @@ import argparse
 import copy
 import math
 import random
+import shutil
 import tempfile
 import time
 import warnings
@@ -501,10 +502,10 @@ def lying_cases(tmp: Path, rng: random.Random) -> list[Case]:
     build = Messages("ros1")
     img = np.full((SMALL.height, SMALL.width, 3), 200, np.uint8)
     joints = [(10**9 - 1, 0, 0.0), (2 * 10**9 - 1, 7, 0.0)]
-    stamped = [(ns, build.image(ns, img, False)) for ns in (10**9, 2 * 10**9)]
+    stamped = [(ns, build.image(ns, img, "raw")) for ns in (10**9, 2 * 10**9)]
     bags = {
         "image stamps reversed": (
-            [(ns, build.image(ns, img, False)) for ns in (2 * 10**9, 10**9)], joints, SMALL
+            [(ns, build.image(ns, img, "raw")) for ns in (2 * 10**9, 10**9)], joints, SMALL
         ),
         "two joint states at one stamp": (stamped, [joints[0], (joints[0][0], 7, 0.0)], SMALL),
         "mono8 label on bgr8 data": (
@@ -521,7 +522,7 @@ def lying_cases(tmp: Path, rng: random.Random) -> list[Case]:
              for ns, m in stamped], joints, SMALL,
         ),
         "CameraInfo vouching for a bomb": (
-            [(ns, build.image(ns, (big_png(tmp / "bomb.png").read_bytes(), "png"), True))
+            [(ns, build.image(ns, (big_png(tmp / "bomb.png").read_bytes(), "png"), "png"))
              for ns in (10**9, 2 * 10**9)], joints, vouching,
         ),
     }  # fmt: skip
@@ -529,6 +530,54 @@ def lying_cases(tmp: Path, rng: random.Random) -> list[Case]:
         bag = _lying_bag(tmp / f"lie{k}.bag", frames, joint_rows, info)
         out.append(Case("lying", label, lambda b=bag, k=k: bag_to_capture(b, tmp / f"lc{k}", rig),
                         str(bag)))  # fmt: skip
+    return out
+
+
+def damaged_bag_cases(tmp: Path, rng: random.Random) -> list[Case]:
+    """Bags damaged after they were written (issue 51's reader errors): cut short, zeroed,
+    bytes flipped, a ROS 2 folder's metadata removed, garbled or naming an unknown type."""
+    from simgap.pipeline.bag import bag_to_capture, capture_to_bag
+
+    rig = load_rig()
+    source = _capture(tmp / "damage_source")
+    out = []
+
+    def case(label: str, bag: Path) -> None:
+        k = len(out)
+        out.append(Case("damaged", label, lambda b=bag, k=k: bag_to_capture(b, tmp / f"dc{k}", rig),
+                        str(bag)))  # fmt: skip
+
+    for name, fmt, images in (("one.bag", "ros1", "raw"), ("one.db3", "ros2", "png"),
+                              ("one.mcap", "ros2", "raw")):  # fmt: skip
+        good = capture_to_bag(source, tmp / f"good_{name}", fmt, rig, images)
+        data = good.read_bytes()
+        n = len(data)
+        damages = {
+            "cut to 25 %": data[: n // 4],
+            "cut to 50 %": data[: n // 2],
+            "cut to 90 %": data[: 9 * n // 10],
+            "a tenth zeroed": data[: n // 2] + bytes(n // 10) + data[n // 2 + n // 10 :],
+        }
+        flipped = bytearray(data)
+        for i in rng.sample(range(n // 8, n), 16):
+            flipped[i] ^= 0xFF
+        damages["16 bytes flipped"] = bytes(flipped)
+        for label, damaged in damages.items():
+            bag = tmp / f"damaged_{label.replace(' ', '_').replace('%', 'pct')}_{name}"
+            bag.write_bytes(damaged)
+            case(f"{name}: {label}", bag)
+    folder = capture_to_bag(source, tmp / "good_folder", "ros2", rig, "png")
+    for label, change in {
+        "metadata.yaml removed": lambda m: m.unlink(),
+        "metadata.yaml garbled": lambda m: m.write_text("rosbag2_bagfile_information: [\n"),
+        "an unknown message type": lambda m: m.write_text(
+            m.read_text().replace("sensor_msgs/msg/CompressedImage", "acme_msgs/msg/Frame")
+        ),
+    }.items():
+        bag = tmp / f"damaged_folder_{len(out)}"
+        shutil.copytree(folder, bag)
+        change(bag / "metadata.yaml")
+        case(f"ROS 2 folder: {label}", bag)
     return out
 
 
@@ -782,6 +831,7 @@ def main() -> None:
             "images": image_cases(tmp, rng),
             "datasets": dataset_cases(tmp, rng),
             "lying": lying_cases(tmp, rng),
+            "damaged": damaged_bag_cases(tmp, rng),
         }
         families["cli"] = cli_cases(tmp, families)
         scenario = make_scenario(tmp / "outputs")

@@ -393,7 +393,7 @@ def big_frame_peaks(tmp: Path) -> list[BigFramePeak]:
             (folder / "images" / image).write_bytes(png.read_bytes())
         runs[label] = ["ingest", str(folder), "-o", str(tmp / f"{name}.nc"), "--no-progress"]
     frames = [BagFrame(0, 0.0, 0, img), BagFrame(7, math.radians(30), 0, (png.read_bytes(), "png"))]
-    bag = write_bag(tmp / "big.bag", "ros1", SMALL, frames, load_rig(), compressed=True)
+    bag = write_bag(tmp / "big.bag", "ros1", SMALL, frames, load_rig(), images="png")
     runs["compressed bag frame"] = ["ingest", str(bag), "-o", str(tmp / "bag.nc"), "--no-progress"]
     # the calibration vouches for the bomb: refused by the pixel budget (issue 51)
     vouching = CameraModel(BIG_SIDE_PX, BIG_SIDE_PX, 20000.0, 20000.0, 12499.5, 12499.5)
@@ -405,7 +405,7 @@ def big_frame_peaks(tmp: Path) -> list[BigFramePeak]:
         "ingest", str(folder), "-o", str(tmp / "vouched.nc"), "--no-progress",
     ]  # fmt: skip
     bomb = [BagFrame(0, 0.0, 0, (png.read_bytes(), "png"))]
-    bag = write_bag(tmp / "vouched.bag", "ros1", vouching, bomb, load_rig(), compressed=True)
+    bag = write_bag(tmp / "vouched.bag", "ros1", vouching, bomb, load_rig(), images="png")
     runs["bag whose CameraInfo states 25000x25000"] = [
         "ingest", str(bag), "-o", str(tmp / "vouched_bag.nc"), "--no-progress",
     ]  # fmt: skip

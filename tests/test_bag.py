@@ -230,9 +230,9 @@ def write_raw_bag(path: Path, rig, frames, stamps_ns, extra_image_topic: bool = 
             )
         for (_, _, _, rgb), ns in zip(frames, stamps_ns, strict=True):
             writer.write(info, ns, build.serialize(build.camera_info(ns, rig.camera)))
-            writer.write(img, ns, build.serialize(build.image(ns, rgb, False)))
+            writer.write(img, ns, build.serialize(build.image(ns, rgb, "raw")))
             if other is not None:
-                writer.write(other, ns, build.serialize(build.image(ns, rgb, False)))
+                writer.write(other, ns, build.serialize(build.image(ns, rgb, "raw")))
     return path
 
 
@@ -306,7 +306,7 @@ def test_named_errors(tmp_path, frames, rig):
         c = w.add_connection(CAMERA_INFO_TOPIC, "sensor_msgs/msg/CameraInfo", typestore=build.ts)
         i = w.add_connection(IMAGE_TOPIC, "sensor_msgs/msg/Image", typestore=build.ts)
         w.write(c, 10**9, build.serialize(msg))
-        w.write(i, 10**9, build.serialize(build.image(10**9, frames[0][3], False)))
+        w.write(i, 10**9, build.serialize(build.image(10**9, frames[0][3], "raw")))
     with pytest.raises(ConfigError, match=f"topic {CAMERA_INFO_TOPIC}: message 1: camera_matrix"):
         bag_to_capture(path, tmp_path / "c6", rig, good)
 
@@ -343,7 +343,7 @@ def _lying_bag(path: Path, rig, frames, image_stamps, joint_rows) -> Path:
             msg = build.joints(ns, p * rig.links.pin_pitch, theta)
             w.write(joints, 10 + k, build.serialize(msg))
         for k, ((_, _, _, rgb), ns) in enumerate(zip(frames, image_stamps, strict=True)):
-            w.write(img, (k + 1) * 10**9, build.serialize(build.image(ns, rgb, False)))
+            w.write(img, (k + 1) * 10**9, build.serialize(build.image(ns, rgb, "raw")))
     return path
 
 
@@ -393,7 +393,7 @@ def test_encodings_that_lie_about_their_data_are_named(tmp_path, frames, rig):
 
     build = Messages("ros1")
     rgb = frames[0][3]
-    bgr8 = build.image(10**9, rgb, False)
+    bgr8 = build.image(10**9, rgb, "raw")
     good = write_ranges(tmp_path / "g.csv", [(0, 2 * 10**9, 0, "0.0")])
     where = rf"topic {IMAGE_TOPIC}: message 1"
     cases = {
@@ -422,7 +422,7 @@ def test_encodings_that_lie_about_their_data_are_named(tmp_path, frames, rig):
     assert names[0][0].read_bytes() == names[1][0].read_bytes()
     # a 16-bit PNG in a CompressedImage, named with its topic and message
     ok, png16 = cv2.imencode(".png", (rgb.astype(np.uint16) * 257))
-    deep = build.image(10**9, (png16.tobytes(), "png"), True)
+    deep = build.image(10**9, (png16.tobytes(), "png"), "png")
     bag = _one_frame_bag(tmp_path / "d.bag", rig, deep, compressed=True)
     with pytest.raises(ConfigError, match=rf"{where}: data: a 16-bit PNG"):
         bag_to_capture(bag, tmp_path / "cd", rig, good)
@@ -468,3 +468,17 @@ def test_exported_frames_raw_png_and_jpeg(tmp_path, smoke_variants_nc, session_c
     for name in ("corners", "error", "image_stats"):
         np.testing.assert_array_equal(data["png"][name].values, data["raw"][name].values)
     assert bool(data["jpeg"].detected.sum() == data["raw"].detected.sum())
+
+
+def test_exported_mcap_carries_chunk_checksums(tmp_path, png_capture):
+    """An MCAP simgap writes has each chunk's CRC-32 (rosbags' writer leaves 0), so a bag whose
+    message bytes were damaged later is refused, naming the bag and topic, not read as data."""
+    bag = capture_to_bag(png_capture, tmp_path / "one.mcap", "ros2", images="raw")
+    data = bytearray(bag.read_bytes())
+    middle = len(data) // 2
+    data[middle : middle + 8] = bytes(8)  # inside the raw frames' chunk
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    assert ingest_bag(bag).attrs["frames"] > 0
+    with pytest.raises(ConfigError, match=r"damaged.mcap: topic .*Chunk checksum mismatch"):
+        ingest_bag(damaged)

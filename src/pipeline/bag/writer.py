@@ -9,6 +9,7 @@ and on ``/tf`` at every frame's stamp for the two that move with the fixture con
 
 from __future__ import annotations
 
+import zlib
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -176,10 +177,47 @@ def write_bag(
                     for tag, pose in sorted(poses.items()):
                         if np.all(np.isfinite(pose)):
                             put(f"/simgap/tag{tag}/{kind}", build.pose(ns, np.asarray(pose)), ns)
+        for mcap in folder.glob("*.mcap"):
+            add_chunk_checksums(mcap)
         if target.single_file:
             suffix = ".mcap" if target.storage == "mcap" else ".db3"
             (folder / f"{folder.name}{suffix}").replace(tmp)
     return Path(path)
+
+
+#: MCAP's magic bytes and the opcodes of a Chunk and of the Footer (mcap.dev specification).
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+MCAP_CHUNK, MCAP_FOOTER = 0x06, 0x02
+
+
+def add_chunk_checksums(path: Path) -> int:
+    """Write each uncompressed chunk's CRC-32 into an MCAP file's chunk records; return how many.
+
+    The MCAP writer of rosbags leaves ``uncompressed_crc`` 0 (no checksum), so a reader cannot
+    tell damaged message data; rosbag2's own MCAP plugin writes it. With it, rosbags' reader
+    refuses a chunk whose bytes changed ("Chunk checksum mismatch"). Compressed chunks keep 0.
+    """
+    data = bytearray(Path(path).read_bytes())
+    if not data.startswith(MCAP_MAGIC):
+        raise ValueError(f"{path}: not an MCAP file")
+    pos, count = len(MCAP_MAGIC), 0
+    while pos + 9 <= len(data):
+        opcode, length = data[pos], int.from_bytes(data[pos + 1 : pos + 9], "little")
+        body = pos + 9
+        if opcode == MCAP_FOOTER:
+            break
+        if opcode == MCAP_CHUNK:
+            name_len = int.from_bytes(data[body + 28 : body + 32], "little")
+            compression = bytes(data[body + 32 : body + 32 + name_len])
+            at = body + 32 + name_len
+            size = int.from_bytes(data[at : at + 8], "little")
+            if compression == b"":
+                crc = zlib.crc32(data[at + 8 : at + 8 + size])
+                data[body + 24 : body + 28] = crc.to_bytes(4, "little")
+                count += 1
+        pos = body + length
+    Path(path).write_bytes(bytes(data))
+    return count
 
 
 def _expected(rig: Rig, p: int, theta: float) -> dict[int, np.ndarray]:
