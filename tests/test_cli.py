@@ -451,7 +451,17 @@ def test_plain_progress_lines_come_every_interval_with_an_estimate(monkeypatch):
 #: capture folder), older option spellings kept hidden.
 WRITES = {"run", "report", "compare", "study", "ingest", "calibrate", "export-bag", "errormodel",
           "diagnose", "validate"}  # fmt: skip
-PROGRESS = {"run", "report", "study", "ingest", "export-bag", "diagnose", "validate"}
+PROGRESS = {
+    "run",
+    "report",
+    "compare",
+    "study",
+    "ingest",
+    "calibrate",
+    "export-bag",
+    "diagnose",
+    "validate",
+}
 CALIBRATION = {"run", "study", "ingest", "calibrate", "export-bag", "diagnose"}
 EXPERIMENT = {"run", "study", "ingest", "diagnose", "validate"}
 #: Spellings that would say the same as the vocabulary's (none may appear, visible or hidden).

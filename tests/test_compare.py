@@ -232,7 +232,7 @@ def test_cli_compare_and_report_call_the_comparison(data, tmp_path, monkeypatch)
 
     calls = []
 
-    def fake_comparison(ds, out_dir, baseline=None):
+    def fake_comparison(ds, out_dir, baseline=None, progress=None):
         calls.append(("compare", list(ds["variant"].values), Path(out_dir), baseline))
         return [Path(out_dir) / "comparison.md"]
 

@@ -66,6 +66,7 @@ from simgap.analysis.report.tables import (
     moves_most,
     variant_summary_table,
 )
+from simgap.core.progress import ProgressCallback, Steps
 
 __all__ = [
     "ANGLE_BINS_DEG",
@@ -93,7 +94,12 @@ def heatmap_filename(variant: str) -> str:
     return f"change_heatmap_{re.sub(r'[^A-Za-z0-9_.-]', '_', variant)}.png"
 
 
-def write_comparison(ds: xr.Dataset, out_dir: Path, baseline: str | None = None) -> list[Path]:
+def write_comparison(
+    ds: xr.Dataset,
+    out_dir: Path,
+    baseline: str | None = None,
+    progress: ProgressCallback | None = None,
+) -> list[Path]:
     """Write the comparison of a multi-variant result dataset with its reference variant.
 
     Parameters
@@ -104,6 +110,8 @@ def write_comparison(ds: xr.Dataset, out_dir: Path, baseline: str | None = None)
         Output folder, created if needed; files in it are replaced atomically.
     baseline : str, optional
         Reference variant; default ``"baseline"`` if present, else the first variant.
+    progress : ProgressCallback, optional
+        Told of each figure written (step ``"comparison figures"``).
 
     Returns
     -------
@@ -121,10 +129,15 @@ def write_comparison(ds: xr.Dataset, out_dir: Path, baseline: str | None = None)
     cmp = compare_variants(ds, baseline)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    variants = [str(v) for v in cmp["variant"].values]
+    steps = Steps(progress)
+    steps.start("comparison figures", 1 + len(variants))
     figures = [save_figure(plot_change_by_distance(cmp), out_dir / "change_by_distance.png")]
-    for variant in (str(v) for v in cmp["variant"].values):
+    steps.advance()
+    for variant in variants:
         figures.append(
             save_figure(plot_change_heatmap(cmp, variant), out_dir / heatmap_filename(variant))
         )
+        steps.advance()
     text = save_text(comparison_markdown(cmp, figures), out_dir / "comparison.md")
     return [*figures, text]

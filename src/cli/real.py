@@ -236,6 +236,7 @@ def calibrate(
     max_pixels: int = typer.Option(
         MAX_PIXELS, "--max-pixels", help="Pixel budget per photo (px).", min=1
     ),
+    progress: ProgressOption = True,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Calibrate the camera from photos of a board; hold a calibration file against them.
@@ -275,7 +276,10 @@ def calibrate(
             f"{calibration} against the photos, each parameter corrected alone (the correction "
             "+- its jackknife sd; the board points' RMS reprojection before -> after):"
         )
-        checks = check_calibration(points, given)
+        from simgap.cli.progress import StepBars
+
+        with StepBars(progress) as bars:
+            checks = check_calibration(points, given, bars)
         for c in checks:
             flag = "  DOES NOT DESCRIBE THE PHOTOS" if c.disagrees else ""
             typer.echo(

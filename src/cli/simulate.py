@@ -79,7 +79,7 @@ def report(
         if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
             from simgap.analysis.compare import write_comparison
 
-            paths += write_comparison(ds, output)
+            paths += write_comparison(ds, output, progress=bars)
         if model is not None:
             from simgap.analysis.errormodel_report import write_error_model_bands
 
@@ -95,15 +95,17 @@ def compare(
     baseline: str | None = typer.Option(
         None, "--baseline", help="Reference variant (default: 'baseline', else the first)."
     ),
+    progress: ProgressOption = True,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Compare each variant of a result dataset with the reference variant."""
     from simgap.analysis.compare import write_comparison
+    from simgap.cli.progress import StepBars
     from simgap.core.outputs import claimed_folder
 
     check_outputs([(OUTPUT, output, COMPARISON_FOLDER)], [("RESULT", result)], overwrite)
     ds = read_result_dataset(result)
-    with claimed_folder(output):
-        paths = write_comparison(ds, output, baseline)
+    with claimed_folder(output), StepBars(progress) as bars:
+        paths = write_comparison(ds, output, baseline, progress=bars)
     for p in paths:
         typer.echo(str(p))

@@ -28,6 +28,7 @@ from typing import Final
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from simgap.core.progress import ProgressCallback, Steps
 from simgap.core.rig import CameraModel
 from simgap.pose.board_pose import solve_board_pose
 
@@ -124,18 +125,24 @@ def _correct(points: list[tuple[np.ndarray, np.ndarray]], camera: CameraModel, c
 
 
 def check_calibration(
-    points: list[tuple[np.ndarray, np.ndarray]], camera: CameraModel
+    points: list[tuple[np.ndarray, np.ndarray]],
+    camera: CameraModel,
+    progress: ProgressCallback | None = None,
 ) -> list[ParameterCheck]:
     """Each parameter of :data:`CHECKS` of ``camera`` corrected alone on the photos' ``points``.
 
     ``points``: each photo's board and image points
-    (:func:`simgap.pose.board_calibration.board_points`).
+    (:func:`simgap.pose.board_calibration.board_points`); ``progress`` is told of each parameter
+    checked (step ``"checking the file"``).
     """
     before = _rms(points, camera)
     n = len(points)
     out = []
+    steps = Steps(progress)
+    steps.start("checking the file", len(CHECKS))
     for check in CHECKS:
         if check.name.startswith("k") and len(camera.distortion) < int(check.name[1:]):
+            steps.advance()
             continue
         correction, after = _correct(points, camera, check)
         std = float("nan")
@@ -157,6 +164,7 @@ def check_calibration(
                 clear and useful,
             )  # fmt: skip
         )
+        steps.advance()
     return out
 
 
