@@ -33,7 +33,7 @@ from simgap.pipeline.photos import (
 from simgap.pose.board_pose import BoardView, marker_error, view_board
 from simgap.pose.calibration_check import check_calibration
 from simgap.pose.detect import Detector, DetectorSettings
-from simgap.results.photo_summary import errors_by_distance, gap_by_distance
+from simgap.results.photo_summary import errors_by_distance, gap_by
 from tests.cf_check import cf_check
 
 REAL = Path(__file__).resolve().parents[1] / "assets" / "real" / "opencv_charuco"
@@ -209,8 +209,8 @@ def test_the_camera_fit_recovers_a_known_camera(board, photos):
     assert fit.exposure_ev == pytest.approx(-1.0, abs=0.05)
     assert fit.blur_sigma_px == pytest.approx(0.6, abs=0.03)
     after = simulate_photos(photos, renders, board, camera, fit.image_state())
-    before_mm = [b.gap_median_mm[2] for b in gap_by_distance(pseudo, nominal)]
-    after_mm = [b.gap_median_mm[2] for b in gap_by_distance(pseudo, after)]
+    before_mm = [b.gap_median_mm[2] for b in gap_by(pseudo, nominal)]
+    after_mm = [b.gap_median_mm[2] for b in gap_by(pseudo, after)]
     assert min(before_mm) > 2.0
     assert max(abs(a) for a in after_mm) < 1.0
 
@@ -226,6 +226,8 @@ def test_photos_simulated_at_their_reference_poses(tmp_path):
     res = CliRunner().invoke(app, [*args, "-o", str(out), "--simulate", "--spp", "16"])
     assert res.exit_code == 0, res.output
     assert "with the camera fitted on the other half of the photos" in res.output
+    for where in ("distance (m)", "view_angle (deg)", "image_radius (px)"):
+        assert where in res.output  # where the gap lies: three ways
     with xr.open_dataset(out) as ds:
         assert ds.image.values.tolist() == ["real", "simulated", "simulated_fitted"]
         moved = ds.board_translation.sel(image="simulated") - ds.board_translation.sel(image="real")

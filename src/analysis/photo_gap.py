@@ -2,8 +2,8 @@
 
 Each photo is rendered at its reference pose (:func:`simgap.pipeline.photos.render_photos`) and
 measured as the photo is; the gap is each marker sighting's real minus simulated single-marker
-error (:func:`simgap.results.photo_summary.gap_by_distance`: near / mid / far thirds of the
-photos' distances, mm).
+error (:func:`simgap.results.photo_summary.gap_by`, mm), read in thirds of the photos' distances,
+view angles and image radii (where it lies).
 
 Which: the camera's own exposure and softness, fitted on the image statistics around the
 markers, never on the pose gap (:func:`fit_photo_camera`): the exposure from the paper's
@@ -32,7 +32,7 @@ from simgap.core.rig import CameraModel
 from simgap.effects import make_effect
 from simgap.effects.state import ImageState, VariantState
 from simgap.pipeline.photos import render_photos, simulate_photos
-from simgap.results.photo_summary import DistanceBandGap, gap_by_distance
+from simgap.results.photo_summary import COVARIATES, BandGap, gap_by
 from simgap.scene.spec import SceneSpec
 
 #: Paper levels at or above this linear level (of full scale) are clipped or nearly so (8-bit
@@ -154,9 +154,10 @@ class PhotoDiagnosis:
     ----------
     fit : PhotoCameraFit
         The camera fitted on all frames (what is reported).
-    before, after : list of DistanceBandGap
-        Real - simulated by distance band: the nominal simulation, and each frame simulated
-        with the camera fitted on the other fold (held out).
+    before, after : dict of str to list of BandGap
+        Real - simulated in thirds of each covariate (distance, view angle, image radius:
+        :data:`simgap.results.photo_summary.COVARIATES`): the nominal simulation, and each
+        frame simulated with the camera fitted on the other fold (held out).
     edge_width_after_px : float
         Median edge width of the held-out fitted simulation (px), against ``fit``'s real one.
     dataset : xarray.Dataset
@@ -164,8 +165,8 @@ class PhotoDiagnosis:
     """
 
     fit: PhotoCameraFit
-    before: list[DistanceBandGap]
-    after: list[DistanceBandGap]
+    before: dict[str, list[BandGap]]
+    after: dict[str, list[BandGap]]
     edge_width_after_px: float
     dataset: xr.Dataset
 
@@ -208,8 +209,8 @@ def diagnose_photos(
     )
     return PhotoDiagnosis(
         fit=fit,
-        before=gap_by_distance(real, nominal),
-        after=gap_by_distance(real, fitted),
+        before={c: gap_by(real, nominal, c) for c in COVARIATES},
+        after={c: gap_by(real, fitted, c) for c in COVARIATES},
         edge_width_after_px=float(np.nanmedian(fitted["edge_width"].values)),
         dataset=dataset,
     )

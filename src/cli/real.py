@@ -213,9 +213,10 @@ def _ingest_photos(
             f"{fit.simulated_edge_width_px:.3f}; {diagnosis.edge_width_after_px:.3f} with it)"
         )
         typer.echo("real - simulated, the simulation as it is:")
-        typer.echo(gap_table(diagnosis.before))
+        typer.echo(gap_table(diagnosis.before["distance"]))
         typer.echo("real - simulated, with the camera fitted on the other half of the photos:")
-        typer.echo(gap_table(diagnosis.after))
+        for bands in diagnosis.after.values():
+            typer.echo(gap_table(bands))
 
 
 @app.command()

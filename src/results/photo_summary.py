@@ -6,6 +6,7 @@ against the board's reference in the OpenCV camera frame (x right, y down, z dep
 
 from __future__ import annotations
 
+import ast
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,45 +91,75 @@ def errors_table(bands: list[DistanceBandErrors]) -> str:
     return "\n".join(lines)
 
 
+#: Where a gap is read: covariate -> (unit, names of its thirds, low to high). The distance
+#: from the camera (m), the view angle from facing (deg) and the marker centre's distance from
+#: the principal point in the image (px).
+COVARIATES = {
+    "distance": ("m", ("near", "mid", "far")),
+    "view_angle": ("deg", ("facing", "mid", "oblique")),
+    "image_radius": ("px", ("centre", "mid", "edge")),
+}
+
+
 @dataclass(frozen=True)
-class DistanceBandGap:
-    """Real against simulated single-marker errors in one distance band (the real distances).
+class BandGap:
+    """Real against simulated single-marker errors in one third of a covariate (real values).
 
     Attributes
     ----------
-    band, distance_min_m, distance_max_m, markers
-        As :class:`DistanceBandErrors`; ``markers`` counts sightings seen in both.
+    covariate : str
+        A key of :data:`COVARIATES`.
+    band : str
+        The third's name (``near`` ... ``far``, ``facing`` ... ``oblique``, ``centre`` ...
+        ``edge``).
+    low, high : float
+        The third's range of the covariate (its unit).
+    markers : int
+        Sightings (marker x photo) seen in both.
     real_median_mm, simulated_median_mm : tuple of float
         Median signed position error along x, y, z (mm) of the photos and of their simulation.
     gap_median_mm : tuple of float
         Median over the sightings of real - simulated (mm): what the simulation leaves out.
     """
 
+    covariate: str
     band: str
-    distance_min_m: float
-    distance_max_m: float
+    low: float
+    high: float
     markers: int
     real_median_mm: tuple[float, float, float]
     simulated_median_mm: tuple[float, float, float]
     gap_median_mm: tuple[float, float, float]
 
 
-def gap_by_distance(real: xr.Dataset, simulated: xr.Dataset) -> list[DistanceBandGap]:
+def _covariate(ds: xr.Dataset, name: str) -> np.ndarray:
+    """Per sighting (frame x marker), the covariate ``name`` of :data:`COVARIATES`."""
+    if name != "image_radius":
+        return ds[name].transpose("frame", "marker").values.ravel()
+    camera = ast.literal_eval(ds.attrs["calibration"])
+    du = ds["centre_u"].transpose("frame", "marker").values.ravel() - camera["cx"]
+    dv = ds["centre_v"].transpose("frame", "marker").values.ravel() - camera["cy"]
+    return np.hypot(du, dv)
+
+
+def gap_by(real: xr.Dataset, simulated: xr.Dataset, covariate: str = "distance") -> list[BandGap]:
     """Real photos against their simulation (:func:`simgap.pipeline.photos.simulate_photos`).
 
-    Sightings seen in both, banded by the real distances' thirds.
+    Sightings seen in both, in thirds of the real ``covariate`` (:data:`COVARIATES`).
     """
     dt_real = _sightings(real, "error_translation")
     dt_sim = _sightings(simulated, "error_translation")
     both = np.isfinite(dt_real).all(axis=1) & np.isfinite(dt_sim).all(axis=1)
-    dist = np.where(both, real["distance"].values.ravel(), np.nan)
+    values = np.where(both, _covariate(real, covariate), np.nan)
+    names = COVARIATES[covariate][1]
     out = []
-    for name, sel, lo, hi in _bands(dist):
+    for name, sel, lo, hi in _bands(values):
         out.append(
-            DistanceBandGap(
-                band=name,
-                distance_min_m=lo,
-                distance_max_m=hi,
+            BandGap(
+                covariate=covariate,
+                band=names[BAND_NAMES.index(name)],
+                low=lo,
+                high=hi,
                 markers=int(sel.sum()),
                 real_median_mm=tuple(1e3 * np.median(dt_real[sel], axis=0)),  # type: ignore[arg-type]
                 simulated_median_mm=tuple(1e3 * np.median(dt_sim[sel], axis=0)),  # type: ignore[arg-type]
@@ -138,14 +169,18 @@ def gap_by_distance(real: xr.Dataset, simulated: xr.Dataset) -> list[DistanceBan
     return out
 
 
-def gap_table(bands: list[DistanceBandGap]) -> str:
+def gap_table(bands: list[BandGap]) -> str:
     """The bands as a plain-text table: depth (z) real, simulated and their gap, x and y gap."""
-    lines = [
-        "band  distance (m)   n   depth real  simulated   gap (mm)   gap x, y (mm)",
-    ]
+    if not bands:
+        return "(no sighting seen in both)"
+    covariate = bands[0].covariate
+    unit = COVARIATES[covariate][0]
+    head = f"{covariate} ({unit})"
+    lines = [f"band     {head:<18} n   depth real  simulated   gap (mm)   gap x, y (mm)"]
     for b in bands:
+        span = f"{b.low:.3g}-{b.high:.3g}"
         lines.append(
-            f"{b.band:<5} {b.distance_min_m:.3f}-{b.distance_max_m:.3f}  {b.markers:>4} "
+            f"{b.band:<8} {span:<18} {b.markers:>3} "
             f"{b.real_median_mm[2]:>10.2f} {b.simulated_median_mm[2]:>10.2f} "
             f"{b.gap_median_mm[2]:>10.2f}   {b.gap_median_mm[0]:6.2f} {b.gap_median_mm[1]:6.2f}"
         )
@@ -153,10 +188,11 @@ def gap_table(bands: list[DistanceBandGap]) -> str:
 
 
 __all__ = [
+    "COVARIATES",
+    "BandGap",
     "DistanceBandErrors",
-    "DistanceBandGap",
     "errors_by_distance",
     "errors_table",
-    "gap_by_distance",
+    "gap_by",
     "gap_table",
 ]
