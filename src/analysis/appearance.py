@@ -256,8 +256,8 @@ class JpegCandidate(AppearanceCandidate):
     block-boundary steps over the others, the others mostly the camera's noise (a noisy camera's
     JPEG reads less blocky than a clean render's at the same quality). With ``noise`` (the
     sensor-noise candidate) the blockiness is matched on the simulation with the capture's own
-    sensor noise, fitted first from the noise statistics where that fit is supported (issue 25:
-    qualities 29 and 46 read 55 and 56, 56 % median off, fitted on clean renders).
+    sensor noise, fitted first from the noise statistics where that fit is supported (fitted on
+    clean renders, qualities 29 and 46 had read 55 and 56).
     """
 
     def __init__(self, *args: Any, noise: AppearanceCandidate | None = None, **kwargs: Any) -> None:

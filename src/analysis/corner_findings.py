@@ -3,7 +3,7 @@
 An effect with a corner signature of its own (a lens distortion: a radial pattern no pose,
 exposure or softness change makes) is a finding wherever the held-out corners single it out
 (:func:`~simgap.analysis.admission.seen_in_corners`), even when it moves no pose beyond the floor
-(it is then minor; issue 25 item 2: "never silently dropped"). The greedy search of
+(it is then minor, never silently dropped). The greedy search of
 :meth:`simgap.analysis.selection.ModelSearch.select` adds the effect that lowers the combined
 misfit most, so a distortion that lowers only the corners was crowded out by appearance effects
 that lowered the image statistics more and were then pruned (blind seed 37 trials 40 and 69: a

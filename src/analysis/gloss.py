@@ -4,9 +4,9 @@ The appearance candidate ``tag_gloss`` (:class:`GlossCandidate`): the tag print 
 dielectric coating (:class:`simgap.effects.scene.TagGloss`, Beckmann roughness ``alpha``, the
 distribution of Mitsuba's ``roughplastic``) lit by a small light on the camera
 (:class:`simgap.effects.scene.CameraLight`: intensity in W sr^-1, offset from the lens in m).
-The pair is the issue-25 case: a laminated sticker mirrors a lens-side LED straight back into
-the lens at frontal views, so near frontal tags glint, lose contrast or clip and are lost to the
-detector, while oblique ones look as simulated. A laminate seldom sends a lab light into the
+The pair: a laminated sticker mirrors a lens-side LED straight back into the lens at frontal
+views, so near frontal tags glint, lose contrast or clip and are lost to the detector, while
+oblique ones look as simulated. A laminate seldom sends a lab light into the
 lens; a light on the camera over matte prints only brightens near tags (no glint).
 
 How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.defocus`):

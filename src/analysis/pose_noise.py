@@ -1,4 +1,4 @@
-"""Each configuration's pose noise from its corners' noise, propagated through PnP (issue 28).
+"""Each configuration's pose noise from its corners' noise, propagated through PnP.
 
 How far a tag's pose moves with a tenth of a pixel of corner noise differs much between
 configurations: a far, oblique tag's depth and rotation move millimetres, a near, frontal one's

@@ -34,7 +34,7 @@ def distinguishably_lower(a: np.ndarray, b: np.ndarray) -> bool:
 
     Lower by more than :data:`~simgap.analysis.thresholds.EQUIVALENT_UNITS` channel units and
     :data:`~simgap.analysis.thresholds.EQUIVALENT_REL` of the
-    smaller misfit (for the corner channel: 0.05 px and 10 %, the rule of issue 4).
+    smaller misfit (for the corner channel: 0.05 px and 10 %).
     """
     return bool(np.any(b - a > np.maximum(EQUIVALENT_UNITS, EQUIVALENT_REL * np.minimum(a, b))))
 

@@ -93,14 +93,14 @@ IMAGE_FLOORS: Final = MappingProxyType(
 # -- which: channel units and telling models apart ---------------------------------------------
 
 #: Unit of the corner channel (px): the ArUco detector's own corner bias on ideal renders
-#: (~0.2 px, measured in issue 2); a capture whose corner noise is larger uses that instead
+#: (~0.2 px, measured on them); a capture whose corner noise is larger uses that instead
 #: (:func:`simgap.analysis.channels.corner_unit`).
 CORNER_UNIT_PX: Final[float] = 0.2
 #: Smallest difference of detection rates that matters (share of tags): the unit of the
 #: detection channel and the practical floor of the detection tests.
 DETECTION_UNIT: Final[float] = 0.05
 #: Held-out corner residuals closer than this are indistinguishable (px): a quarter of the
-#: detector's own corner bias (:data:`CORNER_UNIT_PX`), the rule of issue 4, ...
+#: detector's own corner bias (:data:`CORNER_UNIT_PX`), ...
 EQUIVALENT_PX: Final[float] = 0.05
 #: ... or closer than this share of the smaller residual (any channel).
 EQUIVALENT_REL: Final[float] = 0.1
@@ -141,7 +141,7 @@ MINOR_CONTRIBUTION: Final[float] = 1.0
 
 #: A fitted parameter within this share of the end of its searched range (from the range's
 #: largest magnitude) lies *on its bound*: the fit wanted to go further, so the model is a proxy
-#: for something it cannot express, not a finding (issue 25: a defocus whose focus distance sat
+#: for something it cannot express, not a finding (measured: a defocus whose focus distance sat
 #: at the search's 5 m or 0.1 m end, with a 0.07-0.2 mm aperture, rode along with right answers
 #: in 6 of 28 captures of another generator; every true effect of the hidden tables lies inside
 #: its range by a margin). 2 %: far below the ranges' margins over the hidden magnitudes.

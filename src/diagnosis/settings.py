@@ -9,8 +9,8 @@ from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.experiment_settings import DEFAULT_SPP
 
 #: Samples per pixel of a diagnosis' path-traced simulation of an experiment that renders
-#: converged: path tracing's own default (the study's setting until issue 28, on which every
-#: blind seed up to 48 ran).
+#: converged: path tracing's own default (the study's setting before converged rendering;
+#: docs/validation.md lists the validation seeds run with it).
 PATH_SIMULATION_SPP = DEFAULT_SPP["path"]
 
 

@@ -23,7 +23,7 @@ class Configurations:
 
 #: Samples per pixel where an experiment names none, per render mode: converged, 4 (two render
 #: seeds of the baseline differ by 0.09 mm in ty, docs/results/converged_render_step4.md); path
-#: traced, 16 (the study's setting before issue 28).
+#: traced, 16 (the study's setting before converged rendering).
 DEFAULT_SPP: Final[dict[str, int]] = {"converged": 4, "path": 16}
 
 
@@ -54,10 +54,10 @@ class RenderSettings:
     #: Render each repeat with its own seed (Monte Carlo over render noise too; costs a render
     #: per repeat). Otherwise repeats differ only in image-stage noise.
     reseed_repeats: bool = False
-    #: ``converged`` (the default since issue 28): each diffuse sticker demodulated by its
+    #: ``converged`` (the default): each diffuse sticker demodulated by its
     #: print albedo, with more samples where a shadow or highlight edge crosses it
     #: (:mod:`simgap.render.converged`; needs spp >= 2); ``path``: every pixel the mean of its
-    #: path-traced samples (the study's before issue 28, for comparison studies).
+    #: path-traced samples (the study's earlier mode, for comparison studies).
     mode: Literal["path", "converged"] = "converged"
 
     def __post_init__(self) -> None:

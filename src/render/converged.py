@@ -1,9 +1,10 @@
 """Converged sticker renders: albedo demodulation per sticker, more samples where it fails.
 
-``render.mode: converged`` (issue 28). Every pixel of a region is traced at the scene's samples
-per pixel with its primary hit's sticker and print albedo (:func:`simgap.render.pixel_samples.
-sample_pixels`). On the pixels on a print edge or the sticker's border, the print's albedo and
-coverage over the pixel's footprint are clipped exactly from the print's cells
+``render.mode: converged`` (measured in docs/results/converged_render_step8.md). Every pixel of a
+region is traced at the scene's samples per pixel with its primary hit's sticker and print
+albedo (:func:`simgap.render.pixel_samples.sample_pixels`). On the pixels on a print edge or the
+sticker's border, the print's albedo and coverage over the pixel's footprint are clipped exactly
+from the print's cells
 (:mod:`simgap.render.print_footprint`: box filter, nearest texture lookup, no occluder; a thin
 lens's averaged over its aperture) or else integrated with :data:`FOOTPRINT_POINTS` primary
 rays of one fixed pattern (:func:`simgap.render.pixel_samples.footprint_samples`); either is the

@@ -1,4 +1,4 @@
-"""Albedo demodulation of one flat printed sticker: a converged render from few samples (issue 28).
+"""Albedo demodulation of one flat printed sticker: a converged render from few samples.
 
 On a flat diffuse print the rendered radiance of a pixel is (the print's albedo averaged over the
 pixel's footprint) x (the irradiance at the pixel), and the irradiance varies smoothly across a

@@ -1,4 +1,4 @@
-"""Per-pixel sample statistics with the primary hit's sticker and print albedo (issue 28).
+"""Per-pixel sample statistics with the primary hit's sticker and print albedo.
 
 The input that :func:`simgap.render.demodulate.demodulate` needs per sticker, from one pass:
 every camera sample is traced by the integrator (its radiance) and its primary ray is

@@ -1,4 +1,4 @@
-"""Exact pixel footprints of a print: the pixel square clipped against its cells (issue 28).
+"""Exact pixel footprints of a print: the pixel square clipped against its cells.
 
 The converged render multiplies a smooth irradiance by the print's albedo averaged over each
 pixel's footprint (:mod:`simgap.render.demodulate`). Under a ``box`` pixel filter, a pinhole and

@@ -1,4 +1,4 @@
-"""A synthetic path-traced sticker with a known expectation, to check the demodulation (issue 28).
+"""A synthetic path-traced sticker with a known expectation, to check the demodulation.
 
 A square sticker carries an ArUco-like print of 10 x 10 cells (a paper quiet zone, an ink border
 and 6 x 6 random bits), axis-aligned at a sub-pixel offset so that cell edges and the sticker's
