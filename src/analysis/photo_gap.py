@@ -75,13 +75,18 @@ class PhotoCameraFit:
     sightings: int
 
     def image_state(self) -> ImageState:
-        """The camera pipeline of the fit: the catalogue's ``exposure`` and ``blur``."""
-        state = VariantState()
-        if np.isfinite(self.exposure_ev) and self.exposure_ev != 0.0:
-            state = make_effect("exposure", {"ev": self.exposure_ev}).apply(state)
-        if self.blur_sigma_px > 0.0:
-            state = make_effect("blur", {"sigma_px": self.blur_sigma_px}).apply(state)
-        return state.image
+        """The camera pipeline of the fit (:func:`camera_pipeline`)."""
+        return camera_pipeline(self.exposure_ev, self.blur_sigma_px)
+
+
+def camera_pipeline(exposure_ev: float, blur_sigma_px: float) -> ImageState:
+    """The catalogue's ``exposure`` (EV) and ``blur`` (px), each where it is not zero."""
+    state = VariantState()
+    if np.isfinite(exposure_ev) and exposure_ev != 0.0:
+        state = make_effect("exposure", {"ev": exposure_ev}).apply(state)
+    if blur_sigma_px > 0.0:
+        state = make_effect("blur", {"sigma_px": blur_sigma_px}).apply(state)
+    return state.image
 
 
 def fit_photo_camera(
@@ -119,8 +124,7 @@ def fit_photo_camera(
     subset = [r if k else None for r, k in zip(renders, keep, strict=True)]
 
     def width(sigma: float) -> float:
-        fit = PhotoCameraFit(ev, sigma, target, nan, nan, nan, 0)
-        sim = simulate_photos(real, subset, board, camera, fit.image_state())
+        sim = simulate_photos(real, subset, board, camera, camera_pipeline(ev, sigma))
         return float(np.nanmedian(sim["edge_width"].values))
 
     w_sim = width(0.0)
@@ -224,6 +228,7 @@ __all__ = [
     "PAPER_CLIP_LEVEL",
     "PhotoCameraFit",
     "PhotoDiagnosis",
+    "camera_pipeline",
     "diagnose_photos",
     "fit_photo_camera",
 ]

@@ -251,13 +251,13 @@ def calibrate(
     from simgap.core.board import read_board
     from simgap.pipeline.capture.calibration import calibration_to_yaml, read_calibration
     from simgap.pipeline.photos import photo_points
-    from simgap.pose.board_calibration import calibrate_from_photos
+    from simgap.pose.board_calibration import CALIBRATION_FLAGS, calibrate_from_photos
     from simgap.pose.calibration_check import DISAGREE_SIGMAS, MIN_RMS_FALL, check_calibration
 
     inputs = [("PHOTOS", photos), ("--board", board), ("--calibration", calibration)]
     check_outputs([(OUTPUT, output, CALIBRATION_OUTPUT)], inputs, overwrite)
-    if model not in ("plumb_bob", "rational_polynomial"):
-        fail(f"--model: expected plumb_bob or rational_polynomial, got {model!r}")
+    if model not in CALIBRATION_FLAGS:
+        fail(f"--model: expected one of {', '.join(CALIBRATION_FLAGS)}, got {model!r}")
     spec = read_board(board)
     given = read_calibration(calibration) if calibration is not None else None
     points, size = photo_points(photos, spec, max_pixels)

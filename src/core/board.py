@@ -19,6 +19,7 @@ from typing import Literal
 import cv2
 import numpy as np
 
+from simgap.core import transforms as tf
 from simgap.core.aruco import check_dictionary, predefined_dictionary
 from simgap.core.config import from_mapping, read_yaml, require
 
@@ -114,10 +115,7 @@ class Board:
 
     def board_from_marker(self, marker: int) -> np.ndarray:
         """The 4 x 4 transform from marker ``marker``'s own frame to the board frame."""
-        out = np.eye(4)
-        out[:3, :3] = BOARD_FROM_MARKER_ROTATION
-        out[:3, 3] = self.marker_corners[marker].mean(axis=0)
-        return out
+        return tf.make(BOARD_FROM_MARKER_ROTATION, self.marker_corners[marker].mean(axis=0))
 
     @property
     def chessboard_corners(self) -> np.ndarray:

@@ -42,6 +42,17 @@ def mad_sigma(values: np.ndarray) -> float:
     return float(stats.median_abs_deviation(v, scale="normal"))
 
 
+def jackknife_std(leave_one_out: np.ndarray) -> np.ndarray:
+    """The jackknife standard deviation of an estimate from its leave-one-out values.
+
+    ``sqrt((n - 1) / n * sum((x_i - mean)^2))`` over the ``n`` estimates each made without one
+    observation (first axis; Efron & Tibshirani 1993, ch. 11), in the estimate's unit.
+    """
+    x = np.asarray(leave_one_out, dtype=float)
+    n = x.shape[0]
+    return np.sqrt((n - 1) / n * np.sum((x - x.mean(axis=0)) ** 2, axis=0))
+
+
 def median_standard_error(scale: float, n: int) -> float:
     """Standard error of the median of ``n`` Gaussian values of sigma ``scale``.
 

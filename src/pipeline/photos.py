@@ -7,7 +7,7 @@ each detected marker is then posed from its own four corners, as a robot that se
 would, and compared with it (:func:`simgap.pose.board_pose.marker_error`).
 
 The dataset (:func:`measure_photos`) has a ``frame`` dimension (the photo's file name) and a
-``marker`` dimension (board marker id); the board's reference pose per frame is a coordinate.
+``marker`` dimension (board marker id); the board's reference pose per frame is a variable.
 Every label dimension is indexed, so plain ``xarray.open_dataset`` selects by name
 (``.sel(camera_axis="z")``).
 """
@@ -217,9 +217,7 @@ def render_photos(
         if not (np.isfinite(r).all() and np.isfinite(t).all()):
             out.append(None)
         else:
-            camera_from_board = np.eye(4)
-            camera_from_board[:3, :3], camera_from_board[:3, 3] = tf.rotvec_to_matrix(r), t
-            out.append(scene.render(camera_from_board, seed + f))
+            out.append(scene.render(tf.make(tf.rotvec_to_matrix(r), t), seed + f))
         steps.advance()
     return out
 
@@ -286,11 +284,10 @@ def _measure(
     reference_kind = ""
     steps.start(step, n_f)
     for f, name in enumerate(names):
-        if f:
-            steps.advance()
         gray = load(f)
         if isinstance(gray, str):
             unreadable.append(f"{name}: {gray}")
+            steps.advance()
             continue
         view = view_board(gray, board, camera, det)
         reference_kind = view.reference
@@ -312,7 +309,7 @@ def _measure(
             stats = tag_stats(gray, view.markers[marker], layout, edge_widths=("edge_width_px",))
             for name, stat in IMAGE_STATS.items():
                 per_marker[name][f, m] = stats[STAT_INDEX[stat]]
-    steps.advance()
+        steps.advance()
     return _dataset(
         names, ids, out, per_marker, detected, ref_points, ref_reproj, board_t, board_r,
         board, camera, settings, pnp, unreadable, reference_kind,

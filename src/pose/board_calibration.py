@@ -24,6 +24,7 @@ import numpy as np
 
 from simgap.core.board import Board
 from simgap.core.rig import CameraModel
+from simgap.core.robust import jackknife_std
 from simgap.pose.board_pose import MIN_REFERENCE_POINTS, reference_points
 from simgap.pose.detect import Detector
 
@@ -106,14 +107,12 @@ def calibrate_from_photos(
     w, h = size
     camera, std, rms = _calibrate(obj_all, img_all, (w, h), model)
     if len(obj_all) >= JACKKNIFE_MIN_PHOTOS:
-        values = np.array([_values(camera)] + [
+        loo = [
             _values(_calibrate(obj_all[:i] + obj_all[i + 1:], img_all[:i] + img_all[i + 1:],
                                (w, h), model)[0])
             for i in range(len(obj_all))
-        ])  # fmt: skip
-        n = len(obj_all)
-        loo = values[1:]
-        jack = np.sqrt((n - 1) / n * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+        ]  # fmt: skip
+        jack = jackknife_std(np.array(loo))
         std = {k: max(v, float(j)) for (k, v), j in zip(std.items(), jack, strict=True)}
     return PhotoCalibration(camera, std, rms, len(obj_all), sum(len(o) for o in obj_all))
 

@@ -66,10 +66,7 @@ class BoardView:
         """The board pose as a 4 x 4 transform (board frame -> OpenCV camera frame), or None."""
         if self.rvec_cv is None or self.tvec_cv is None:
             return None
-        out = np.eye(4)
-        out[:3, :3] = tf.rotvec_to_matrix(self.rvec_cv)
-        out[:3, 3] = self.tvec_cv
-        return out
+        return tf.make(tf.rotvec_to_matrix(self.rvec_cv), self.tvec_cv)
 
 
 def reference_points(
@@ -180,8 +177,7 @@ def marker_error(
     r_est = tf.rotvec_to_matrix(est.rvec_cv)
     normal = r_ref[:, 2]  # the marker's z: out of the print, towards the camera
     cos_view = float(np.clip(-normal @ t_ref / np.linalg.norm(t_ref), -1.0, 1.0))
-    board_from_camera = np.linalg.inv(camera_from_board)
-    centre_board = board_from_camera[:3, :3] @ est.tvec_cv + board_from_camera[:3, 3]
+    centre_board = tf.apply(tf.invert(camera_from_board), est.tvec_cv)
     return MarkerError(
         translation_m=est.tvec_cv - t_ref,
         rotation_rad=tf.matrix_to_rotvec(r_est @ r_ref.T),

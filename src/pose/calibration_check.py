@@ -30,6 +30,7 @@ from scipy.optimize import minimize_scalar
 
 from simgap.core.progress import ProgressCallback, Steps
 from simgap.core.rig import CameraModel
+from simgap.core.robust import jackknife_std
 from simgap.pose.board_pose import solve_board_pose
 
 #: A correction this many jackknife standard deviations from zero is clear: the two-sided
@@ -147,10 +148,8 @@ def check_calibration(
         correction, after = _correct(points, camera, check)
         std = float("nan")
         if n >= MIN_PHOTOS:
-            loo = np.array(
-                [_correct(points[:i] + points[i + 1 :], camera, check)[0] for i in range(n)]
-            )
-            std = float(np.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2)))
+            loo = [_correct(points[:i] + points[i + 1 :], camera, check)[0] for i in range(n)]
+            std = float(jackknife_std(np.array(loo)))
         clear = bool(std > 0 and abs(correction) >= DISAGREE_SIGMAS * std)
         useful = after <= (1.0 - MIN_RMS_FALL) * before
         out.append(

@@ -18,6 +18,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from simgap.core import transforms as tf
 from simgap.core.board import Board
 from simgap.core.limits import PHOTO_SPP
 from simgap.core.rig import CameraModel
@@ -132,7 +133,7 @@ class BoardScene(PixelTracer):
         ``camera_from_board`` takes board-frame points (m) to the OpenCV camera frame (a
         photo's reference pose, :meth:`simgap.pose.board_pose.BoardView.camera_from_board`).
         """
-        self.camera.set_pose(np.linalg.inv(camera_from_board))
+        self.camera.set_pose(tf.invert(camera_from_board))
         self.pose = np.asarray(camera_from_board, float)
         w, h = self.camera_model.width, self.camera_model.height
         rows, cols = np.mgrid[0:h, 0:w]
