@@ -6,6 +6,8 @@ Every real photo passes through them, and each leaves a signature in the image s
 =====================  =====  ======================================  ==============================
 effect                 order  what the camera does                    signature
 =====================  =====  ======================================  ==============================
+``auto_exposure``      29     meters the scene, sets exposure / gain  paper and ink levels; the
+                                                                      chosen EV per frame
 ``gain_change``        31     exposure / gain that changes per frame  ``repeat_gain_ev``
 ``black_level``        42     subtracts a black level, crushing       ``black_clipped_fraction``,
                               the shadows to 0                        lower ``ink_linear``
@@ -36,14 +38,76 @@ import cv2
 import numpy as np
 
 from simgap.effects.base import EffectParams, param
-from simgap.effects.image import ImageContext, ImageEffect
+from simgap.effects.image import METER_STRIDE_PX, ImageContext, ImageEffect
 from simgap.pose import cfa
+from simgap.scene.lights import BT709_LUMINANCE
 
 #: Raw code of linear 0 in the 16-bit frame handed to OpenCV's demosaicing, as a fraction of
 #: full scale: a sensor's own pedestal, so that read noise below black survives demosaicing.
 RAW_PEDESTAL = 1.0 / 16.0
 #: 16-bit full scale of that frame.
 RAW_FULL_SCALE = 65535.0
+
+
+#: Weight of the centre-weighted meter: a Gaussian over the frame of this standard deviation,
+#: relative to the half-diagonal (0.5: the centre counts about 7x the corners, as a camera's
+#: centre-weighted average meter that gives the middle most of the weight).
+CENTRE_WEIGHT_SIGMA = 0.5
+
+
+class AutoExposure(ImageEffect, name="auto_exposure", order=29):
+    """The camera meters the scene and sets its exposure so that the metered level is a target.
+
+    The metered value is the mean linear luminance (BT.709, relative to full scale at the
+    pipeline's base exposure ``image.exposure``) over: ``tags``, the crop around the stickers
+    (a camera's region-of-interest metering, the RealSense AE ROI, set to where the tags are
+    expected); ``frame``, the whole frame (every :data:`METER_STRIDE_PX` px of it); ``centre``,
+    the whole frame weighted by a Gaussian about the principal point
+    (:data:`CENTRE_WEIGHT_SIGMA`). The camera then multiplies the signal by
+    ``2 ** ev`` with ``ev = log2(target / metered)`` limited to ``[ev_min, ev_max]`` (its
+    shortest and longest exposure times and its gain, in stops from the base exposure), so
+    that clipped paper or drowned ink follow from the light whenever the limits bind. The
+    chosen ``ev`` is recorded per frame (``auto_exposure_ev`` in the dataset). A black frame
+    meters 0 and takes ``ev_max``. A manual ``exposure`` after it is exposure compensation;
+    noise follows the signal as before (the gain's amplified read noise is not modelled).
+    """
+
+    class Params(EffectParams):
+        """Metering mode, target level and exposure limits."""
+
+        metering: Literal["tags", "frame", "centre"] = "tags"
+        target: float = param(0.18, "0 < target < 1 (linear, of full scale)", lambda v: 0 < v < 1)
+        ev_min: float = param(-20.0, "-30..0 EV", lambda v: -30 <= v <= 0)
+        ev_max: float = param(4.0, "0..20 EV", lambda v: 0 <= v <= 20)
+
+    def meters_frame(self) -> bool:
+        """Whether it meters the whole frame (``frame``, ``centre``)."""
+        return self.params.metering != "tags"
+
+    def metered(self, img: np.ndarray, ctx: ImageContext) -> float:
+        """The metered mean luminance (linear, relative to full scale)."""
+        lum = np.asarray(BT709_LUMINANCE, np.float32)
+        mode = self.params.metering
+        if mode == "tags" or ctx.meter is None:
+            return float(np.mean(img[..., :3] @ lum))
+        grid = np.asarray(ctx.meter, np.float32) @ lum
+        if mode == "frame":
+            return float(np.mean(grid))
+        rows, cols = np.indices(grid.shape) * METER_STRIDE_PX + METER_STRIDE_PX // 2
+        cam = ctx.camera
+        half_diagonal2 = 0.25 * (cam.width**2 + cam.height**2)
+        r2 = ((cols - cam.cx) ** 2 + (rows - cam.cy) ** 2) / half_diagonal2
+        weight = np.exp(-0.5 * r2 / CENTRE_WEIGHT_SIGMA**2)
+        return float(np.sum(weight * grid) / np.sum(weight))
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Scale the frame to the target, within the limits; record the EV chosen."""
+        p = self.params
+        level = self.metered(img, ctx)
+        ev = p.ev_max if level <= 0 else float(np.log2(p.target / level))
+        ev = float(np.clip(ev, p.ev_min, p.ev_max))
+        ctx.record["auto_exposure_ev"] = ev
+        return img * np.float32(2.0**ev)
 
 
 class GainChange(ImageEffect, name="gain_change", order=31):

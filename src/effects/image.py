@@ -24,6 +24,9 @@ from simgap.render import imaging
 #: Crop offsets are multiples of this (px) so that JPEG's 8x8 blocks and 2x2 chroma subsampling of
 #: a crop align with those of the full frame.
 BLOCK_ALIGN_PX = 16
+#: Spacing of the whole-frame metering grid (px, :attr:`ImageContext.meter`): 16 px keeps a
+#: 1280 x 720 frame's meter to 80 x 45 = 3600 rendered pixels.
+METER_STRIDE_PX = 16
 #: Order at which the linear frame is encoded to 8 bits: operations before it see linear float
 #: RGB, operations at or after it the 8-bit frame (none is dropped).
 ENCODE_ORDER = 50
@@ -31,11 +34,29 @@ ENCODE_ORDER = 50
 
 @dataclass(frozen=True)
 class ImageContext:
-    """Where a crop sits and the random generator for this frame."""
+    """Where a crop sits, the random generator for this frame, and what a camera meters on.
+
+    Attributes
+    ----------
+    offset : tuple of int
+        Full-image pixel ``(x0, y0)`` of the crop's top-left corner (px).
+    camera : CameraModel
+        The camera taking the frame (its image size and principal point).
+    rng : numpy.random.Generator
+        This frame's random numbers (noise, gain changes).
+    meter : ndarray (h, w, 3), optional
+        A sparse grid over the whole frame of the linear render, every
+        :data:`METER_STRIDE_PX` px, at the pipeline's base exposure: what a camera metering the
+        whole frame reads (None: only the crop is known, as where the crop is the frame).
+    record : dict
+        Per-frame values the operations chose (``auto_exposure_ev``), for the caller to keep.
+    """
 
     offset: tuple[int, int]
     camera: CameraModel
     rng: np.random.Generator
+    meter: np.ndarray | None = None
+    record: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 class ImageEffect(Effect, stage="image"):
@@ -64,6 +85,10 @@ class ImageEffect(Effect, stage="image"):
     def reach_px(self) -> float:
         """How far the operation moves a pixel's value (px; 0 for a pixel-wise operation)."""
         return 0.0
+
+    def meters_frame(self) -> bool:
+        """Whether the operation reads the whole frame's meter (:attr:`ImageContext.meter`)."""
+        return False
 
 
 class Blur(ImageEffect, name="blur", order=10):
@@ -277,6 +302,11 @@ def pipeline_reach_px(state: ImageState) -> float:
     The render region must reach this far beyond the stickers (:mod:`simgap.pipeline.region`).
     """
     return float(sum(op.reach_px() for op in _operations(state)))
+
+
+def needs_meter(state: ImageState) -> bool:
+    """Whether an operation of ``state`` meters the whole frame (:attr:`ImageContext.meter`)."""
+    return any(op.meters_frame() for op in _operations(state))
 
 
 def run_pipeline(hdr: np.ndarray, state: ImageState, ctx: ImageContext) -> np.ndarray:

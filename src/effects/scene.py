@@ -13,7 +13,7 @@ from simgap.effects.base import Check, Effect, EffectParams, RelativeScale, para
 from simgap.effects.state import RenderQuality, VariantState
 from simgap.scene.lights import BT709_LUMINANCE, LightSpec, default_target
 from simgap.scene.materials import Coating, Conductor, Diffuse, Plastic
-from simgap.scene.spec import SceneSpec
+from simgap.scene.spec import TABLE_TOP_Z_M, Ground, SceneSpec
 
 Vec3 = tuple[float, float, float]
 #: Conductor name of bare aluminium (Mitsuba's table of measured metals).
@@ -115,6 +115,18 @@ class CameraLight(Effect, name="camera_light", stage="scene"):
 #: The solar constant: the sun's irradiance above the atmosphere at 1 AU (W m^-2; Kopp & Lean,
 #: "A new, lower value of total solar irradiance", Geophys. Res. Lett. 38, L01706, 2011).
 SOLAR_CONSTANT_W_M2 = 1361.0
+#: The sun's mean angular diameter from 1 AU (deg): 1.3927e6 km at 1.496e8 km (NASA Sun Fact
+#: Sheet, nssdc.gsfc.nasa.gov/planetary/factsheet/sunfact.html).
+SUN_ANGULAR_DIAMETER_DEG = 0.533
+#: The Earth's mean radius (km; NASA Earth Fact Sheet, volumetric mean radius 6371.0 km).
+EARTH_RADIUS_KM = 6371.0
+#: The Earth's Bond albedo (dimensionless; 0.29-0.30 from CERES, Stephens et al., "The albedo
+#: of Earth", Rev. Geophys. 53, 141, 2015).
+EARTH_ALBEDO = 0.30
+#: Lunar regolith's albedo (dimensionless; the Moon's geometric albedo 0.12, Bond 0.11, NASA
+#: Moon Fact Sheet; maria about 0.07, highlands up to 0.2, Heiken et al., *Lunar Sourcebook*,
+#: 1991, ch. 9).
+REGOLITH_ALBEDO = 0.12
 
 
 class Sun(Effect, name="sun", stage="scene"):
@@ -126,16 +138,21 @@ class Sun(Effect, name="sun", stage="scene"):
     orbit the solar constant, 1361). The rays are parallel (Mitsuba's ``directional`` emitter):
     the sun's 0.53 deg disc is left out, so shadow edges are sharp; the fixture's own geometry
     casts them. A surface at angle ``t`` to the rays receives ``E cos(t)``
-    (:func:`simgap.scene.lights.irradiance`). Black sky and a camera exposed for the sunlit
-    paper are other effects (``ambient`` at 0, ``exposure``).
+    (:func:`simgap.scene.lights.irradiance`). The sun's disc is ``angular_diameter_deg``
+    wide (0.533 from 1 AU; 0 for parallel rays and perfectly sharp shadows): its shadows have
+    penumbrae of that width, about 0.9 mm behind an edge 0.1 m away. Black sky and a camera
+    that meters the sunlit scene are other effects (``black_sky``, ``auto_exposure``).
     """
 
     class Params(EffectParams):
-        """Direction (deg, rail frame), irradiance (W m^-2) and colour temperature."""
+        """Direction (deg, rail frame), irradiance (W m^-2), disc size (deg) and colour."""
 
         azimuth_deg: float = param(0.0, "-360..360 deg", lambda v: -360 <= v <= 360)
         elevation_deg: float = param(30.0, "-90..90 deg", lambda v: -90 <= v <= 90)
         irradiance_w_m2: float = param(SOLAR_CONSTANT_W_M2, ">= 0 W/m^2", lambda v: v >= 0)
+        angular_diameter_deg: float = param(
+            SUN_ANGULAR_DIAMETER_DEG, "0..10 deg", lambda v: 0 <= v <= 10
+        )
         cct_k: float | None = param(
             5772.0, "1000..25000 K", lambda v: v is None or 1e3 <= v <= 25e3
         )
@@ -143,14 +160,117 @@ class Sun(Effect, name="sun", stage="scene"):
     def apply(self, state: VariantState) -> VariantState:
         """Add (or replace) the scene's ``sun`` light."""
         p = self.params
-        light = LightSpec(
-            type="directional",
-            position=tuple(float(v) for v in sun_direction(p.azimuth_deg, p.elevation_deg)),
-            target=(0.0, 0.0, 0.0),
-            irradiance=p.irradiance_w_m2,
-            rgb=cct_to_rgb(p.cct_k),
+        light = distant_light(
+            p.azimuth_deg, p.elevation_deg, p.irradiance_w_m2, p.angular_diameter_deg, p.cct_k
         )
         return _spec(state, state.scene.spec.with_light("sun", light))
+
+
+def distant_light(
+    azimuth_deg: float,
+    elevation_deg: float,
+    irradiance_w_m2: float,
+    angular_diameter_deg: float,
+    cct_k: float | None,
+) -> LightSpec:
+    """A distant disc (or parallel rays, diameter 0) towards a direction of the rail frame.
+
+    Direction as in :class:`Sun`; ``irradiance_w_m2`` on a surface facing its centre.
+    """
+    return LightSpec(
+        type="directional",
+        position=tuple(float(v) for v in sun_direction(azimuth_deg, elevation_deg)),
+        target=(0.0, 0.0, 0.0),
+        irradiance=irradiance_w_m2,
+        angular_diameter_deg=angular_diameter_deg,
+        rgb=cct_to_rgb(cct_k),
+    )
+
+
+class Earthshine(Effect, name="earthshine", stage="scene"):
+    """The sunlit Earth seen from orbit: a large Lambertian disc of reflected sunlight.
+
+    From ``altitude_km`` the Earth fills a cone of half-angle ``asin(R / (R + h))`` (R =
+    6371 km: 70.2 deg at 400 km) towards ``azimuth_deg`` / ``elevation_deg`` (rail frame, as
+    :class:`Sun`; -90 is straight down). Its radiance is that of a Lambertian reflector of
+    ``albedo`` under the sun, ``albedo E / pi``, times the ``lit_fraction`` of the visible disc
+    in daylight (a crescent averaged over the disc). A surface facing the Earth receives
+    ``pi L sin(a)^2`` (:func:`simgap.scene.lights.disc_radiance`): 361 W m^-2 at 400 km,
+    fully lit. The path tracer samples the disc like any area light; the table, if still
+    there, shades it from below (``black_sky`` removes it).
+    """
+
+    class Params(EffectParams):
+        """Direction (deg, rail frame), altitude (km), albedo, lit share and sunlight."""
+
+        azimuth_deg: float = param(0.0, "-360..360 deg", lambda v: -360 <= v <= 360)
+        elevation_deg: float = param(-90.0, "-90..90 deg", lambda v: -90 <= v <= 90)
+        altitude_km: float = param(400.0, "100..400000 km", lambda v: 100 <= v <= 4e5)
+        albedo: float = param(EARTH_ALBEDO, "0..1", lambda v: 0 <= v <= 1)
+        lit_fraction: float = param(1.0, "0..1", lambda v: 0 <= v <= 1)
+        solar_irradiance_w_m2: float = param(SOLAR_CONSTANT_W_M2, ">= 0 W/m^2", lambda v: v >= 0)
+        cct_k: float | None = param(None, "1000..25000 K", lambda v: v is None or 1e3 <= v <= 25e3)
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Add (or replace) the scene's ``earth`` light."""
+        p = self.params
+        sin_half = EARTH_RADIUS_KM / (EARTH_RADIUS_KM + p.altitude_km)
+        diameter = 2 * float(np.degrees(np.arcsin(sin_half)))
+        facing = p.lit_fraction * p.albedo * p.solar_irradiance_w_m2 * sin_half**2
+        light = distant_light(p.azimuth_deg, p.elevation_deg, facing, diameter, p.cct_k)
+        return _spec(state, state.scene.spec.with_light("earth", light))
+
+
+#: The lab's own lights of the scene template (the key light and the room's ambient
+#: environment) and its room (the table with its backdrop wall).
+LAB_LIGHTS = ("key", "ambient")
+LAB_OBJECTS = ("table",)
+
+
+class BlackSky(Effect, name="black_sky", stage="scene"):
+    """Space around the fixture: no room light and no room.
+
+    Removes the lab's key light and ambient environment (:data:`LAB_LIGHTS`), so that only
+    the lights other effects add remain (``sun``, ``earthshine``, ``camera_light``), and the
+    table with its backdrop (:data:`LAB_OBJECTS`) unless ``keep_table``: the camera sees black
+    behind the fixture, and the fixture shades only itself.
+    """
+
+    class Params(EffectParams):
+        """Whether the table and its backdrop stay."""
+
+        keep_table: bool = False
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Remove the lab's lights (and its table)."""
+        spec = state.scene.spec.without_lights(*LAB_LIGHTS)
+        if not self.params.keep_table:
+            spec = spec.without_objects(*LAB_OBJECTS)
+        return _spec(state, spec)
+
+
+class Regolith(Effect, name="regolith", stage="scene"):
+    """A planetary surface under the fixture: a Lambertian ground of regolith's albedo.
+
+    Replaces the table and its backdrop (:data:`LAB_OBJECTS`) by a square ground ``size_m``
+    across at the table top's height (:data:`simgap.scene.spec.TABLE_TOP_Z_M`: the rail
+    stands on it), of diffuse ``albedo`` (0.12, the Moon's; maria 0.07, highlands 0.2). Under
+    a low sun its bounce lights the tags' lower edges and fills the fixture's shadows; the
+    path tracer needs ``max_depth`` 3 or more for it (the template's 3).
+    """
+
+    class Params(EffectParams):
+        """Albedo and extent of the ground."""
+
+        albedo: float = param(REGOLITH_ALBEDO, "0..1", lambda v: 0 <= v <= 1)
+        size_m: float = param(200.0, "1..10000 m", lambda v: 1 <= v <= 1e4)
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Replace the table by the ground."""
+        ground = Ground(height_m=TABLE_TOP_Z_M, size_m=self.params.size_m,
+                        reflectance=self.params.albedo)  # fmt: skip
+        spec = state.scene.spec.without_objects(*LAB_OBJECTS).with_ground(ground)
+        return _spec(state, spec)
 
 
 def sun_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:

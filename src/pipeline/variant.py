@@ -12,7 +12,7 @@ import time
 from collections import Counter, OrderedDict
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
@@ -20,7 +20,13 @@ import numpy as np
 
 from simgap.core.paths import assets_dir
 from simgap.core.rig import Rig
-from simgap.effects.image import ImageContext, pipeline_reach_px, run_pipeline
+from simgap.effects.image import (
+    METER_STRIDE_PX,
+    ImageContext,
+    needs_meter,
+    pipeline_reach_px,
+    run_pipeline,
+)
 from simgap.effects.state import VariantState
 from simgap.pipeline.cache import Cache, content_hash, file_hash, write_text
 from simgap.pipeline.region import OUTLINE_POINTS_PER_SIDE, Region, sticker_region
@@ -51,11 +57,15 @@ STAGES = (
 
 @dataclass(frozen=True)
 class Frame:
-    """The camera's 8-bit RGB crop around the tags, and where it sits in the full image (px)."""
+    """The camera's 8-bit RGB crop around the tags, and where it sits in the full image (px).
+
+    ``record`` holds what the camera chose for this frame (``auto_exposure_ev``, EV).
+    """
 
     crop: np.ndarray
     offset: tuple[int, int]
     size: tuple[int, int]
+    record: dict[str, float] = field(default_factory=dict)
 
     @cached_property
     def gray_crop(self) -> np.ndarray:
@@ -79,12 +89,15 @@ class Frame:
         return imaging.paste(self.gray_crop, (ox - x0, oy - y0), (x1 - x0, y1 - y0)), (x0, y0)
 
 
-def _read_offset(path: Path) -> tuple[int, int]:
-    """The crop offset (x0, y0 px) stored beside a cached frame."""
-    offset = json.loads(path.read_text())["offset"]
+def _read_meta(path: Path) -> tuple[tuple[int, int], dict[str, float]]:
+    """The crop offset (x0, y0 px) and the camera's choices stored beside a cached frame."""
+    meta = json.loads(path.read_text())
+    offset, record = meta["offset"], meta.get("record", {})
     if not (isinstance(offset, list) and len(offset) == 2 and all(type(v) is int for v in offset)):
         raise ValueError(f"{path}: offset: expected two integers (px), got {offset!r}")
-    return offset[0], offset[1]
+    if not (isinstance(record, dict) and all(isinstance(v, float) for v in record.values())):
+        raise ValueError(f"{path}: record: expected a mapping of names to numbers, got {record!r}")
+    return (offset[0], offset[1]), record
 
 
 def config_seed(base: int, p: int, theta: float, *extra) -> int:
@@ -260,22 +273,57 @@ class VariantPipeline:
         meta = png.with_suffix(".json")
         if png.is_file() and meta.is_file():
             with self._timed("io"):
-                offset = self.cache.read(meta, _read_offset)
+                stored = self.cache.read(meta, _read_meta)
                 crop8 = self.cache.read(png, imaging.read_png)
-            if offset is not None and crop8 is not None:
-                return Frame(crop8, offset, self.image_size)
+            if stored is not None and crop8 is not None:
+                return Frame(crop8, stored[0], self.image_size, stored[1])
         rendered = self.hdr(p, theta, render_repeat)
         if rendered is None:
             return None
         hdr, offset = rendered
         seed = config_seed(self.state.scene.render_seed, p, theta, "image", repeat)
-        ctx = ImageContext(offset, self.state.scene.camera, np.random.default_rng(seed))
+        image = self.state.image
+        meter = self.meter(p, theta, render_repeat) if needs_meter(image) else None
+        ctx = ImageContext(
+            offset,
+            self.state.scene.camera,
+            np.random.default_rng(seed),
+            meter=None if meter is None else meter * np.float32(image.exposure),
+        )
         with self._timed("image pipeline"):
-            crop8 = run_pipeline(hdr, self.state.image, ctx)
+            crop8 = run_pipeline(hdr, image, ctx)
         with self._timed("io"):
-            write_text(meta, json.dumps({"offset": list(offset), "size": list(self.image_size)}))
+            stored_meta = {"offset": list(offset), "size": list(self.image_size)}
+            write_text(meta, json.dumps({**stored_meta, "record": ctx.record} if ctx.record
+                                        else stored_meta))  # fmt: skip
             imaging.write_png(png, crop8)
-        return Frame(crop8, offset, self.image_size)
+        return Frame(crop8, offset, self.image_size, dict(ctx.record))
+
+    def meter(self, p: int, theta: float, render_repeat: int) -> np.ndarray:
+        """The whole frame's metering grid: one pixel every :data:`METER_STRIDE_PX` px (linear).
+
+        Path traced at the scene's samples per pixel (a meter averages thousands of them), and
+        cached beside the renders.
+        """
+        (w, h), s = self.image_size, METER_STRIDE_PX
+        cols, rows = np.arange(s // 2, w, s), np.arange(s // 2, h, s)
+        key = content_hash(self.render_key(p, theta, render_repeat), "meter", s)
+        path = self.cache.path("renders", key, ".exr")
+        with self._timed("io"):
+            cached = self.cache.read(path, lambda f: imaging.read_exr(f, (len(cols), len(rows))))
+        if cached is not None:
+            return cached
+        scene = self.scene()
+        with self._timed("pose update"):
+            scene.set_pose(p, theta)
+        uu, vv = np.meshgrid(cols, rows)
+        seed = config_seed(self.state.scene.render_seed, p, theta, render_repeat, "meter")
+        with self._timed("sampling"):
+            values = scene.render_pixels(np.stack([uu.ravel(), vv.ravel()], axis=1), seed)
+        grid = imaging.quantise_half(values.reshape(len(rows), len(cols), 3))
+        with self._timed("io"):
+            imaging.write_exr(path, grid)
+        return grid
 
     def result_key(self, p: int, theta: float, repeat: int, render_repeat: int) -> str:
         """Cache key of the detection, pose and image-evidence result of one frame."""
@@ -297,18 +345,22 @@ class VariantPipeline:
         if frame is None:
             result = estimate_tags(self.rig, self.state.estimation, self.tags, {}, p, theta)
         else:
-            with self._timed("detection"):
-                found, rejected = self._detect(frame)
-            args = (self.rig, self.state.estimation, self.tags)
-            with self._timed("pnp"):
-                result = estimate_tags(*args, found, p, theta)
-            with self._timed("image statistics"):
-                gray, offset = frame.gray_crop, frame.offset
-                add_image_stats(
-                    result, *args, gray, offset, found, rejected, p, theta, rgb=frame.crop
-                )
+            result = self._measure(frame, p, theta)
         with self._timed("io"):
             self.cache.save_arrays("results", key, result.arrays())
+        return result
+
+    def _measure(self, frame: Frame, p: int, theta: float) -> ConfigResult:
+        """Detection, pose and image evidence of one frame (and the camera's choices)."""
+        with self._timed("detection"):
+            found, rejected = self._detect(frame)
+        args = (self.rig, self.state.estimation, self.tags)
+        with self._timed("pnp"):
+            result = estimate_tags(*args, found, p, theta)
+        with self._timed("image statistics"):
+            gray, offset = frame.gray_crop, frame.offset
+            add_image_stats(result, *args, gray, offset, found, rejected, p, theta, rgb=frame.crop)
+        result.auto_exposure_ev[:] = frame.record.get("auto_exposure_ev", np.nan)
         return result
 
     def _detect(self, frame: Frame) -> tuple[dict[int, np.ndarray], list[np.ndarray]]:

@@ -19,7 +19,15 @@ from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings, estimate_pose, pose_error
 from simgap.pose.image_stats import EDGE_WIDTH_STATS, STATS, MarkerLayout, tag_stats
 
-RESULT_FIELDS = ("detected", "estimated", "error", "reproj_px", "corners", "image_stats")
+RESULT_FIELDS = (
+    "detected",
+    "estimated",
+    "error",
+    "reproj_px",
+    "corners",
+    "image_stats",
+    "auto_exposure_ev",
+)
 #: Corners per marker (TL, TR, BR, BL) and pixel coordinates per corner (u, v).
 CORNERS, UV = 4, 2
 
@@ -61,7 +69,8 @@ def empty_tag_arrays(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
     -------
     dict
         :data:`RESULT_FIELDS` -> array: ``detected`` bool; ``estimated`` and ``error`` (..., 6)
-        (m, rad); ``reproj_px`` (px); ``corners`` (..., 4, 2) (px); ``image_stats`` (..., S).
+        (m, rad); ``reproj_px`` (px); ``corners`` (..., 4, 2) (px); ``image_stats`` (..., S);
+        ``auto_exposure_ev`` (EV, the frame's, per tag).
     """
     return {
         "detected": np.zeros(shape, bool),
@@ -70,6 +79,7 @@ def empty_tag_arrays(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
         "reproj_px": np.full(shape, np.nan),
         "corners": np.full(shape + (CORNERS, UV), np.nan),
         "image_stats": np.full(shape + (len(STATS),), np.nan),
+        "auto_exposure_ev": np.full(shape, np.nan),
     }
 
 
@@ -83,6 +93,13 @@ class ConfigResult:
     reproj_px: np.ndarray  # (T,)
     corners: np.ndarray  # (T, 4, 2) px
     image_stats: np.ndarray  # (T, S) image evidence, see simgap.pose.image_stats.STATS
+    #: (T,) EV the camera's auto exposure chose for the frame (every tag the same; NaN without
+    #: one); None in a result cached before it was kept, read as NaN
+    auto_exposure_ev: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.auto_exposure_ev is None:
+            object.__setattr__(self, "auto_exposure_ev", np.full(self.detected.shape, np.nan))
 
     def arrays(self) -> dict[str, np.ndarray]:
         """As a mapping for storage."""

@@ -29,6 +29,7 @@ from simgap.core.aruco import BORDER_CELLS, marker_cells, predefined_dictionary
 from simgap.core.atomic import atomic_write
 from simgap.core.paths import assets_dir
 from simgap.core.rig import Rig, load_rig
+from simgap.scene.spec import TABLE_TOP_Z_M
 
 #: Gap between a tag sticker and the node face behind it (m): the sticker's thickness.
 STICKER_STANDOFF = 0.0003
@@ -55,8 +56,8 @@ def fixture_meshes(rig: Rig) -> dict[str, trimesh.Trimesh]:
     return {
         "table": trimesh.util.concatenate(
             [
-                _box((-0.8, -0.8, -0.03), (0.8, y_far, -0.02)),
-                _box((-0.8, y_far, -0.03), (0.8, y_far + 0.02, 0.6)),
+                _box((-0.8, -0.8, TABLE_TOP_Z_M - 0.01), (0.8, y_far, TABLE_TOP_Z_M)),
+                _box((-0.8, y_far, TABLE_TOP_Z_M - 0.01), (0.8, y_far + 0.02, 0.6)),
             ]
         ),
         "rail": _box((-0.015, -0.45, -0.02), (0.015, 0.08, 0.0)),

@@ -76,8 +76,9 @@ class ConvergedRender:
     values : ndarray (N, 3)
         Linear RGB radiance of the pixels, in the order asked for.
     treatments : dict of int to str
-        Per tag id: ``"smooth"`` (demodulated), :data:`COATED` (a laminated print demodulated)
-        or ``"fallback (<why>): <spp> spp"`` (path traced with more samples).
+        Per tag id: ``"smooth"`` (demodulated), :data:`COATED` (a laminated print demodulated),
+        ``"dark"`` (no sample received light: black) or ``"fallback (<why>): <spp> spp"`` (path
+        traced with more samples).
     """
 
     values: np.ndarray
@@ -137,6 +138,9 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
                 coated=coated,
             )
         )
+        if result.treatment is Treatment.DARK:
+            treatments[tag] = Treatment.DARK.value
+            continue
         if result.treatment is Treatment.SMOOTH:
             values[on] = result.radiance
             treatments[tag] = COATED if coated else Treatment.SMOOTH.value

@@ -62,6 +62,8 @@ class Treatment(str, enum.Enum):
     SMOOTH = "smooth"
     #: the smooth model failed; the path-traced pixels are kept (render more samples there)
     FALLBACK = "fallback"
+    #: no sample received light (a sticker in the shadow under a black sky): exactly black
+    DARK = "dark"
 
 
 @dataclass(frozen=True)
@@ -191,6 +193,8 @@ def demodulate(samples: StickerSamples, alpha: float = ALPHA) -> DemodulationRes
     spread_all = (
         None if samples.albedo_variance is None else np.asarray(samples.albedo_variance, float)
     )
+    if not np.any(raw):
+        return DemodulationResult(raw.copy(), Treatment.DARK, ())
     n_channels = raw.shape[1]
     full = coverage >= FULL_COVERAGE
     per_test = alpha / (2 * n_channels)
@@ -212,6 +216,9 @@ def demodulate(samples: StickerSamples, alpha: float = ALPHA) -> DemodulationRes
         else:
             target, rel_var = raw[used, c] / a, s2[used, c] / (samples.spp * a * a)
             spread = None if spread_all is None else spread_all[used, c] / (a * a)
+        if not np.any(target):  # no light of this colour reaches it (a light without blue)
+            irradiance[:, c] = 0.0
+            continue
         fit = fit_channel(
             uv[used], target, rel_var, a, spread, uv, int(samples.spp), per_test, coated
         )

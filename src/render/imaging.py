@@ -17,10 +17,14 @@ import OpenEXR
 
 from simgap.core.atomic import atomic_write
 
+#: Largest finite half-precision value: radiance beyond it (the sun's disc seen directly, its
+#: glint on bare metal) saturates there instead of becoming infinite.
+HALF_MAX = float(np.finfo(np.float16).max)
+
 
 def quantise_half(hdr: np.ndarray) -> np.ndarray:
-    """Round linear RGB to half precision (as stored in EXR) and return float32."""
-    return np.asarray(hdr, dtype=np.float16).astype(np.float32)
+    """Round linear RGB to half precision (as stored in EXR; saturated at :data:`HALF_MAX`)."""
+    return np.minimum(np.asarray(hdr, np.float32), HALF_MAX).astype(np.float16).astype(np.float32)
 
 
 def write_exr(path: Path, hdr: np.ndarray, exclusive: bool = False) -> None:
@@ -32,7 +36,8 @@ def write_exr(path: Path, hdr: np.ndarray, exclusive: bool = False) -> None:
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
 
     def write(tmp: Path) -> None:
-        with OpenEXR.File(header, {"RGB": np.ascontiguousarray(hdr, dtype=np.float16)}) as f:
+        rgb = np.ascontiguousarray(np.minimum(hdr, HALF_MAX), dtype=np.float16)
+        with OpenEXR.File(header, {"RGB": rgb}) as f:
             f.write(str(tmp))
 
     atomic_write(Path(path), write, exclusive=exclusive)

@@ -12,13 +12,18 @@ from typing import Any
 
 import numpy as np
 
-from simgap.scene.lights import LightSpec
+from simgap.scene.lights import LightSpec, disc_radiance
 from simgap.scene.materials import Coating, Conductor, Diffuse, Material, Plastic, TagPrint
 
 #: Upsampling of the one-texel-per-cell marker texture before bilinear filtering.
 BILINEAR_UPSAMPLE = 16
 #: 8-bit texture values above this are paper (white), the others ink.
 PAPER_THRESHOLD = 127
+#: Distance from the aim point of the emitting disk that renders a directional light with an
+#: angular diameter (m): the fixture (under 2 m across) then sees its centre within 1e-4 rad
+#: of the stated direction everywhere (the sun's disc is 4.7e-3 rad wide), and the disk's
+#: vertices (float32, 1e-3 m steps at this distance) keep its angular size to 1e-7.
+DISTANT_DISC_M = 1.0e4
 
 
 def _rough(name: str, alpha: float | None) -> dict[str, Any]:
@@ -113,6 +118,60 @@ def light_transform(light: LightSpec, mi: ModuleType):
     return look
 
 
+#: Angular diameter (deg) from which a distant disc is rendered as a sphere rather than a flat
+#: disk. Mitsuba samples a disk uniformly by area, which over a wide cone is far from uniform
+#: by solid angle (the density at the rim is ``cos(a)^3`` of the centre's: 0.04 for the Earth
+#: from low orbit, whose rendered irradiance was then 5 % low at 16 spp); a sphere it samples
+#: uniformly in its cone. But the cone's ``1 - cos(a)`` in single precision loses the sun's
+#: 0.53 deg disc (0.3 % too bright as a sphere, 0.005 % as a disk; measured on a tag's paper,
+#: tests/test_sun.py).
+SPHERE_MIN_DIAMETER_DEG = 20.0
+
+
+def distant_disc(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
+    """A directional light with an angular diameter, as an emitting disk or sphere far away.
+
+    Centred :data:`DISTANT_DISC_M` from the light's target along its direction, it fills
+    exactly the light's cone as seen from the target, with the uniform radiance
+    :func:`~simgap.scene.lights.disc_radiance` that gives ``irradiance`` to a surface facing
+    it. The path tracer samples it like any area light, so its shadows have penumbrae of the
+    disc's angular width (0.53 deg for the sun: 0.9 mm behind an edge 0.1 m away). A narrow
+    one is a one-sided ``disk`` facing the target (radius ``D tan(a)`` for the half-angle
+    ``a``), a wide one (:data:`SPHERE_MIN_DIAMETER_DEG`) a ``sphere`` (radius ``D sin(a)``):
+    see there why.
+    """
+    target = np.asarray(light.target, float)
+    towards = np.asarray(light.position, float) - target
+    towards /= np.linalg.norm(towards)
+    half = np.radians(light.angular_diameter_deg) / 2
+    centre = target + DISTANT_DISC_M * towards
+    emitting = {
+        "emitter": {
+            "type": "area",
+            "radiance": {
+                "type": "rgb",
+                "value": np.asarray(light.rgb, float)
+                * disc_radiance(light.irradiance, light.angular_diameter_deg),
+            },
+            "sampling_weight": sampling_weight(light),
+        },
+    }
+    if light.angular_diameter_deg >= SPHERE_MIN_DIAMETER_DEG:
+        radius = DISTANT_DISC_M * float(np.sin(half))
+        return {"type": "sphere", "center": list(centre), "radius": radius, **emitting}
+    up = [0.0, 0.0, 1.0] if abs(towards[2]) < 0.9 else [0.0, 1.0, 0.0]
+    radius = DISTANT_DISC_M * float(np.tan(half))
+    to_world = mi.ScalarTransform4f().look_at(
+        origin=list(centre), target=list(target), up=up
+    ) @ mi.ScalarTransform4f().scale([radius, radius, 1.0])
+    return {
+        "type": "disk",
+        "to_world": to_world,
+        **emitting,
+        "bsdf": {"type": "diffuse", "reflectance": 0.0},
+    }
+
+
 def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
     """The Mitsuba dictionary of a light (an emitter, or an emitting rectangle for ``area``).
 
@@ -138,6 +197,8 @@ def emitter(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
             },
             "bsdf": {"type": "diffuse", "reflectance": 0.0},
         }
+    if light.type == "directional" and light.angular_diameter_deg > 0:
+        return distant_disc(light, mi)
     if light.type == "directional":  # Mitsuba's: the direction the light travels
         return {
             "type": "directional",

@@ -21,6 +21,7 @@ from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors, Rig
 from simgap.render.backend import mitsuba
 from simgap.render.camera import PLUGIN_NAME as SENSOR_PLUGIN
 from simgap.render.mitsuba_scene import bsdf, emitter, light_transform, print_albedo, tag_bsdf
+from simgap.scene.materials import Diffuse
 from simgap.scene.spec import SceneSpec, load_scene_spec
 
 #: Most samples traced in one kernel launch of :meth:`FixtureScene.render_pixels` (bounds memory).
@@ -209,6 +210,14 @@ class FixtureScene(PixelTracer):
                 "filename": str(mesh_path),
                 "face_normals": True,
                 "bsdf": bsdf(spec.materials[obj.material]),
+            }
+        if spec.ground is not None:
+            g = spec.ground
+            scene_dict["ground"] = {
+                "type": "rectangle",
+                "to_world": mi.ScalarTransform4f().translate([0.0, 0.0, g.height_m])
+                @ mi.ScalarTransform4f().scale([g.size_m / 2, g.size_m / 2, 1.0]),
+                "bsdf": bsdf(Diffuse(reflectance=g.reflectance)),
             }
         #: per tag id, the print's albedo texture the tag BSDF looks up (rows x columns; one
         #: texel per cell with nearest lookup, each cell repeated with bilinear)

@@ -188,6 +188,17 @@ def build_dataset(
         coords={name: (name, values, COORD_ATTRS[name]) for name, values in coords.items()},
         attrs=dict(attrs or {}),
     )
+    chosen = np.asarray(results.get("auto_exposure_ev", np.nan), float)
+    if np.isfinite(chosen).any():  # the same for every tag of a frame: kept once per frame
+        ds["auto_exposure_ev"] = (
+            ("variant", "repeat", "p", "theta"),
+            _frame_values(chosen),
+            {
+                "units": "1",
+                "long_name": "exposure the camera's auto exposure chose for the frame, in stops "
+                "(EV) from the experiment's base exposure; NaN where nothing was imaged",
+            },
+        )
     if "image_stats" in results:
         ds["image_stats"] = (
             full + ("stat",),
@@ -204,6 +215,16 @@ def build_dataset(
         }
         ds = ds.assign_coords(stats)
     return ds
+
+
+def _frame_values(per_tag: np.ndarray) -> np.ndarray:
+    """A per-frame value kept per tag (V, R, T, P, Θ) as one per frame (V, R, P, Θ).
+
+    NaN where no tag of the frame holds one.
+    """
+    finite = np.isfinite(per_tag)
+    first = np.argmax(finite, axis=2)[:, :, None]
+    return np.take_along_axis(per_tag, first, axis=2)[:, :, 0]
 
 
 def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:

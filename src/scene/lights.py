@@ -54,6 +54,11 @@ class LightSpec:
     irradiance : float
         Irradiance of a ``directional`` light on a surface facing it (W m^-2; the sun above the
         atmosphere: 1361).
+    angular_diameter_deg : float
+        Angular diameter of a ``directional`` light's disc as seen from the fixture (deg): 0 is
+        a point-like source of parallel rays (sharp shadows); the sun is 0.53, the Earth from
+        low orbit about 140. A disc of uniform radiance :func:`disc_radiance`, so that a
+        surface facing it receives ``irradiance``; it casts penumbrae of its own width.
     """
 
     type: Literal["area", "point", "spot", "constant", "directional"]
@@ -66,10 +71,19 @@ class LightSpec:
     cutoff_deg: float = 30.0
     rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
     irradiance: float = field(default=0.0, metadata=OMIT_DEFAULT)
+    angular_diameter_deg: float = field(default=0.0, metadata=OMIT_DEFAULT)
 
     def __post_init__(self) -> None:
         require(self.radiance >= 0 and self.intensity >= 0, "radiance/intensity: expected >= 0")
         require(self.irradiance >= 0, "irradiance: expected >= 0 (W m^-2)")
+        require(
+            0 <= self.angular_diameter_deg < MAX_DISC_DIAMETER_DEG,
+            f"angular_diameter_deg: expected 0 <= x < {MAX_DISC_DIAMETER_DEG:g} (deg)",
+        )
+        require(
+            self.angular_diameter_deg == 0 or self.type == "directional",
+            "angular_diameter_deg: only a directional light has a disc",
+        )
         require(0 < self.cutoff_deg < 90, "cutoff_deg: expected 0 < x < 90 (deg)")
         require(
             self.type != "directional" or self.frame == "rail",
@@ -95,6 +109,61 @@ class LightSpec:
         )
 
 
+#: Largest angular diameter of a distant disc (deg): beyond it the disc would be a hemisphere.
+MAX_DISC_DIAMETER_DEG = 179.0
+
+
+def disc_radiance(irradiance_w_m2: float, angular_diameter_deg: float) -> float:
+    """Radiance of a uniform disc that gives ``irradiance_w_m2`` to a surface facing it.
+
+    A uniform source of radiance ``L`` filling a cone of half-angle ``a`` about a surface's
+    normal gives it ``pi L sin(a)^2`` (W m^-2; the irradiance of a spherical or disc source,
+    e.g. Modest, *Radiative Heat Transfer*, 3rd ed., 2013, view factor of a disc), so
+    ``L = E / (pi sin(a)^2)`` (W m^-2 sr^-1).
+    """
+    half = np.radians(angular_diameter_deg) / 2
+    return float(irradiance_w_m2 / (np.pi * np.sin(half) ** 2))
+
+
+#: Rings and azimuths of the quadrature over a disc's directions in :func:`irradiance`, used
+#: where part of the disc lies below a surface's horizon (elsewhere the cosine law is exact).
+DISC_QUADRATURE = (48, 96)
+
+
+def _disc_cosine(light: LightSpec, towards: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """The mean of ``max(cos, 0)`` over a directional light's disc, per normal (N,).
+
+    While the whole disc is above a surface's horizon its irradiance is ``E cos(t)``
+    (``t``: the angle between the normal and the disc's centre), exactly: the integral of a
+    cosine over a symmetric cone is the cosine of its axis times the cone's projected solid
+    angle. Where the horizon cuts the disc the mean of the clipped cosine is integrated over
+    the disc's solid angle (midpoint rule in the cosine of the angle from the centre and in
+    azimuth, :data:`DISC_QUADRATURE`).
+    """
+    cos_t = normals @ towards
+    half = np.radians(light.angular_diameter_deg) / 2
+    if half == 0:
+        return np.clip(cos_t, 0.0, None)
+    rings, azimuths = DISC_QUADRATURE
+    u = 1 - (1 - np.cos(half)) * (np.arange(rings) + 0.5) / rings  # cos of the angle from centre
+    phi = 2 * np.pi * (np.arange(azimuths) + 0.5) / azimuths
+    helper = (0.0, 0.0, 1.0) if abs(towards[2]) < 0.9 else (1.0, 0.0, 0.0)
+    e1 = np.cross(towards, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(towards, e1)
+    sin_u = np.sqrt(1 - u**2)
+    dirs = (
+        u[:, None, None] * towards
+        + (sin_u[:, None] * np.cos(phi))[..., None] * e1
+        + (sin_u[:, None] * np.sin(phi))[..., None] * e2
+    ).reshape(-1, 3)  # equal solid angles
+    clipped = np.clip(normals @ dirs.T, 0.0, None).mean(axis=1)
+    # the cone's projected solid angle over its solid angle: E cos(t) is pi L sin^2 * cos(t)
+    projected = np.pi * np.sin(half) ** 2 / (2 * np.pi * (1 - np.cos(half)))
+    whole = cos_t >= np.sin(half)  # the disc's rim stays above the horizon
+    return np.where(whole, cos_t, clipped / projected)
+
+
 #: Quadrature points per side of an area light in :func:`irradiance` (midpoint rule; the
 #: error is below 0.1 % for lights farther than their size, as every template light is).
 AREA_QUADRATURE = 8
@@ -110,7 +179,9 @@ def irradiance(light: LightSpec, points: np.ndarray, normals: np.ndarray) -> np.
     ``I cos(t) / d^2``; ``spot`` the same inside its cone (Mitsuba's spot falls off between
     three quarters of the cut-off and the cut-off; linearly here); ``area`` the rectangle's
     ``integral L cos(t_s) cos(t_r) / d^2 dA`` (midpoint rule, :data:`AREA_QUADRATURE` points a
-    side; one-sided, emitting towards its target). Shadows and inter-reflections are left out.
+    side; one-sided, emitting towards its target); ``directional`` ``E cos(t)``, a disc's part
+    below the horizon left out (:func:`_disc_cosine`). Shadows and inter-reflections are left
+    out.
 
     Parameters
     ----------
@@ -131,7 +202,7 @@ def irradiance(light: LightSpec, points: np.ndarray, normals: np.ndarray) -> np.
     position, target = np.asarray(light.position, float), np.asarray(light.target, float)
     if light.type == "directional":  # E cos(t) towards the source, whatever the distance
         towards = (position - target) / np.linalg.norm(position - target)
-        return light.irradiance * tint * np.clip(normals @ towards, 0.0, None)
+        return light.irradiance * tint * _disc_cosine(light, towards, normals)
     if light.type == "area":
         forward = target - position
         forward /= np.linalg.norm(forward)

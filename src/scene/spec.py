@@ -18,7 +18,14 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
-from simgap.core.config import ConfigError, check_finite, deep_merge, from_mapping, read_yaml
+from simgap.core.config import (
+    OMIT_DEFAULT,
+    ConfigError,
+    check_finite,
+    deep_merge,
+    from_mapping,
+    read_yaml,
+)
 from simgap.core.paths import scenes_dir
 from simgap.scene.lights import LightSpec
 from simgap.scene.materials import (
@@ -67,6 +74,37 @@ class ObjectSpec:
     material: str
 
 
+#: Height of the template table's top (m, rail frame z): the rail stands on it
+#: (:func:`simgap.render.assets.fixture_meshes`), and a ground replacing the table lies there.
+TABLE_TOP_Z_M = -0.02
+
+
+@dataclass(frozen=True)
+class Ground:
+    """A flat ground under the fixture: a square of diffuse albedo in the rail frame's XY plane.
+
+    Attributes
+    ----------
+    height_m : float
+        Height of the ground plane (m, rail frame z).
+    size_m : float
+        Side of the square, centred on the rail frame's origin (m).
+    reflectance : float
+        Diffuse (Lambertian) albedo (dimensionless, linear).
+    """
+
+    height_m: float
+    size_m: float
+    reflectance: float
+
+    def __post_init__(self) -> None:
+        if not (self.size_m > 0 and 0 <= self.reflectance <= 1):
+            raise ConfigError(
+                f"ground: expected size_m > 0 and 0 <= reflectance <= 1, got {self.size_m!r}, "
+                f"{self.reflectance!r}"
+            )
+
+
 @dataclass(frozen=True)
 class SceneSpec:
     """Resolved scene: integrator, pixel reconstruction filter, objects, materials, tag, lights.
@@ -87,6 +125,8 @@ class SceneSpec:
         The printed stickers (the template's ``materials.tag``).
     lights : dict of str to LightSpec
         Lights by name (``key``, ``ambient`` in the default template).
+    ground : Ground, optional
+        A ground plane under the fixture (a planetary surface; none in the lab template).
     """
 
     integrator: dict[str, Any] = field(default_factory=lambda: {"type": "path", "max_depth": 3})
@@ -95,6 +135,7 @@ class SceneSpec:
     materials: dict[str, Material] = field(default_factory=dict)
     tag: TagPrint = field(default_factory=TagPrint)
     lights: dict[str, LightSpec] = field(default_factory=dict)
+    ground: Ground | None = field(default=None, metadata=OMIT_DEFAULT)
 
     def __post_init__(self) -> None:
         for name, obj in self.objects.items():
@@ -112,6 +153,18 @@ class SceneSpec:
     def with_tag(self, tag: TagPrint) -> SceneSpec:
         """The scene with another tag print."""
         return _replace(self, tag=tag)
+
+    def without_lights(self, *names: str) -> SceneSpec:
+        """The scene without the lights ``names`` (those it has)."""
+        return _replace(self, lights={k: v for k, v in self.lights.items() if k not in names})
+
+    def without_objects(self, *names: str) -> SceneSpec:
+        """The scene without the objects ``names`` (those it has)."""
+        return _replace(self, objects={k: v for k, v in self.objects.items() if k not in names})
+
+    def with_ground(self, ground: Ground | None) -> SceneSpec:
+        """The scene with a ground plane (None: without)."""
+        return _replace(self, ground=ground)
 
 
 def _replace(spec: SceneSpec, **changes: Any) -> SceneSpec:
