@@ -70,6 +70,20 @@ def test_variant_errors_name_file_and_key_path(tmp_path, data, message):
     assert str(path) in str(exc.value) and message in str(exc.value)
 
 
+def test_an_inheriting_experiment_removes_an_effect_with_null(tmp_path):
+    _write(tmp_path / "orbit.yaml", {"name": "orbit", "effects": {"black_sky": {},
+                                                                  "earthshine": {}}})  # fmt: skip
+    child = _write(
+        tmp_path / "surface.yaml",
+        {"name": "surface", "inherit": "orbit.yaml",
+         "effects": {"earthshine": None, "regolith": {}}},
+    )  # fmt: skip
+    exp = load_experiment(child)
+    assert list(exp.effects) == ["black_sky", "regolith"]
+    spec = exp.variant_states()[0][1].scene.spec
+    assert "earth" not in spec.lights and spec.ground is not None
+
+
 def test_circular_inheritance_is_an_error(tmp_path):
     _write(tmp_path / "a.yaml", {"name": "a", "inherit": "b.yaml"})
     _write(tmp_path / "b.yaml", {"name": "b", "inherit": "a.yaml"})

@@ -36,6 +36,12 @@ def errormodel(
     result: Annotated[Path, typer.Argument(help="Result dataset (netCDF): simulated or ingested.")],
     output: Annotated[Path, output_option("Model to write (.nc; and .json).")],
     variant: VariantOption = None,
+    pool: bool = typer.Option(
+        False,
+        "--pool-variants",
+        help="Model every variant's repeats as draws of one: a Monte Carlo over what the "
+        "variants vary (the sun's direction of experiments/orbital_lighting.yaml).",
+    ),
     check: bool = typer.Option(
         True, "--check/--no-check", help="Also fit on half the configurations, test on the rest."
     ),
@@ -51,6 +57,12 @@ def errormodel(
     outputs.append((f"{OUTPUT} (its {other.suffix})", other, ERROR_MODEL))
     check_outputs(outputs, [("RESULT", result)], overwrite)
     ds = read_result_dataset(result)
+    if pool and variant is not None:
+        fail("--pool-variants models every variant at once: expected no --variant with it")
+    if pool:
+        from simgap.results.dataset import pooled_variants
+
+        ds = pooled_variants(ds)
     from simgap.analysis.errormodel import FitSettings
     from simgap.analysis.errormodel.io import FIT_METHODS
 
@@ -76,7 +88,12 @@ def errormodel(
         typer.echo(f"tag {tag}: {int(n)} detections, {described[FIT_METHODS[int(how)]]}")
     if skipped:
         typer.echo(f"held-out check skipped: on half the configurations {skipped}")
-    if summary is not None:
+    if summary is not None and summary["n_errors"] == 0:
+        typer.echo(
+            f"held-out check: none of the other half's errors lies inside the range the fitted "
+            f"half spans ({summary['n_outside']} outside it): nothing to check"
+        )
+    elif summary is not None:
         cover = ", ".join(f"{a} {v:.0%}" for a, v in summary["coverage"].items())
         det = summary["detection"]
         typer.echo(

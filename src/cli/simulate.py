@@ -63,11 +63,17 @@ def report(
     result: Annotated[Path, typer.Argument(help="Result dataset (netCDF) from simgap run.")],
     output: Annotated[Path, output_option("Report folder to write.")],
     model: Annotated[Path | None, typer.Option("--model", help=MODEL_HELP)] = None,
+    cache: CacheOption = None,
     progress: ProgressOption = True,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Write figures and the paper-style Table 2 (and, for several variants, the comparison)."""
-    from simgap.analysis.report import write_report
+    """Write figures and the paper-style Table 2 (and, for several variants, the comparison).
+
+    A sweep over the sun's direction (experiments/orbital_lighting.yaml) gets the sun's section
+    instead of the comparison: polar maps of detection and error, the configurations outside
+    the envelope and the worst directions' frames (read from the cache, or rendered).
+    """
+    from simgap.analysis.report import write_report, write_sun_report
     from simgap.cli.progress import StepBars
     from simgap.core.outputs import claimed_folder
 
@@ -76,7 +82,9 @@ def report(
     ds = read_result_dataset(result)
     with claimed_folder(output), StepBars(progress) as bars:
         paths = write_report(ds, output, progress=bars)
-        if ds.sizes.get("variant", 1) > 1:  # several variants: compare them with the reference
+        sun = write_sun_report(ds, output, cache)
+        paths += sun
+        if ds.sizes.get("variant", 1) > 1 and not sun:  # compare the variants with the reference
             from simgap.analysis.compare import write_comparison
 
             paths += write_comparison(ds, output, progress=bars)

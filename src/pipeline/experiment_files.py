@@ -1,8 +1,9 @@
 """Experiment files on disk: the ``inherit:`` chain, its merge, and errors blamed on the right file.
 
 An experiment file may inherit another (``inherit: smoke.yaml``, relative to it); the chain is read
-root first, merged with the child winning (names and descriptions are not inherited), and a
-validation error about a key that an inherited file set is reported against that file. A file's
+root first, merged with the child winning (names and descriptions are not inherited; an effect
+set to ``null`` by a child is removed: ``effects: {earthshine: null}``), and a validation error
+about a key that an inherited file set is reported against that file. A file's
 ``rig.camera.calibration: FILE`` (relative to it) is read as the camera: a calibration file in any
 format of :mod:`simgap.pipeline.capture.calibration` and any of OpenCV's models; keys beside it
 override the file's.
@@ -89,7 +90,11 @@ def merge_chain(chain: list[tuple[Path, dict[str, Any]]]) -> dict[str, Any]:
         merged = deep_merge(merged, data)
     merged.pop("name", None)
     merged.pop("description", None)
-    return deep_merge(merged, resolved[-1])
+    out = deep_merge(merged, resolved[-1])
+    if len(chain) > 1 and isinstance(out.get("effects"), dict):
+        removed = {k for k, v in (resolved[-1].get("effects") or {}).items() if v is None}
+        out["effects"] = {k: v for k, v in out["effects"].items() if k not in removed}
+    return out
 
 
 def calibration_files(chain: list[tuple[Path, dict[str, Any]]]) -> list[Path]:

@@ -26,7 +26,7 @@ from simgap.effects.state import VariantState
 from simgap.pipeline.cache import Cache, content_hash
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.sweep import run_experiment
-from simgap.pipeline.variant import VariantPipeline, assets_hash
+from simgap.pipeline.variant import Frame, VariantPipeline, assets_hash
 from simgap.pose.tags import ConfigResult
 
 
@@ -114,6 +114,17 @@ class Simulator:
             Repeat index: the noise seed of a stochastic image pipeline (the render is repeat 0).
         """
         return self._pipeline(exp, state).run(int(p), float(theta), int(repeat), 0)
+
+    def frame(
+        self, exp: Experiment, state: VariantState, p: int, theta: float, repeat: int = 0
+    ) -> Frame | None:
+        """The 8-bit frame of one configuration under ``state`` (cached).
+
+        None if no sticker faces the camera. Its ``crop`` holds the stickers, ``record`` the
+        camera's choices (``auto_exposure_ev``).
+        """
+        render_repeat = exp.render.render_repeat(int(repeat))
+        return self._pipeline(exp, state).frame(int(p), float(theta), int(repeat), render_repeat)
 
     def frames(self, exp: Experiment) -> Iterator[tuple[int, float, int, np.ndarray]]:
         """``(p, theta (rad), repeat, RGB uint8 H x W x 3)`` of ``exp``'s first variant.

@@ -9,6 +9,7 @@ elsewhere before working on it) are in :mod:`simgap.results.contract`.
 
 from __future__ import annotations
 
+import json
 import platform
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -225,6 +226,33 @@ def _frame_values(per_tag: np.ndarray) -> np.ndarray:
     finite = np.isfinite(per_tag)
     first = np.argmax(finite, axis=2)[:, :, None]
     return np.take_along_axis(per_tag, first, axis=2)[:, :, 0]
+
+
+#: Name of the one variant of :func:`pooled_variants`.
+POOLED = "pooled"
+
+
+def pooled_variants(ds: xr.Dataset, name: str = POOLED) -> xr.Dataset:
+    """Every variant's repeats as the repeats of one variant ``name``.
+
+    The draws of a Monte Carlo over what the variants vary (the sun's direction of an orbital
+    sweep): each variable along both ``variant`` and ``repeat`` gets ``V x R`` repeats (variant
+    by variant); one along ``variant`` only (``visible`` where effects moved the tags) is true
+    where any variant's is. The attribute ``pooled_variants`` lists the variants pooled.
+    """
+    names = [str(v) for v in ds.variant.values]
+    both = [k for k, v in ds.data_vars.items() if {"variant", "repeat"} <= set(v.dims)]
+    draws = xr.concat([ds[both].isel(variant=i, drop=True) for i in range(len(names))], "repeat")
+    draws = draws.assign_coords(repeat=np.arange(draws.sizes["repeat"]))
+    out = ds.drop_vars(both).drop_dims("repeat", errors="ignore")
+    for key in [k for k, v in out.data_vars.items() if "variant" in v.dims]:
+        out[key] = out[key].any("variant") if out[key].dtype == bool else out[key].max("variant")
+    out = out.drop_dims("variant", errors="ignore").drop_vars("variant", errors="ignore")
+    out = xr.merge([out, draws.expand_dims(variant=np.array([name]))], combine_attrs="override")
+    for key in both:
+        out[key] = out[key].transpose(*ds[key].dims)
+    out.attrs = {**ds.attrs, "pooled_variants": json.dumps(names)}
+    return out
 
 
 def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:

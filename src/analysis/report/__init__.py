@@ -142,3 +142,30 @@ def write_report(
     summary = summarize_variant(ds.isel(variant=0), pin_pitch_m=pin_pitch_m)
     images = {variants[0]: ds.isel(variant=[0])} if "image_stats" in ds else None
     return write_variant_report(summary, out_dir, variants, images, progress)
+
+
+def write_sun_report(
+    ds: xr.Dataset, out_dir: Path, cache_dir: Path | None = None
+) -> list[Path]:
+    """Write the sun-direction section of a sweep over the sun (nothing for other datasets).
+
+    ``sun_polar.png`` (:func:`~simgap.analysis.report.sun.plot_sun_polar`),
+    ``sun_worst_frames.png`` (the worst directions' frames, from the pipeline's cache in
+    ``cache_dir``, default the user's; none without ``experiment_yaml``) and ``sun.md``.
+    """
+    from simgap.analysis.report import sun
+
+    sweep = sun.summarize_sun(ds)
+    if sweep is None:
+        return []
+    out_dir = Path(out_dir)
+    title = str(ds.attrs.get("experiment", "result"))
+    paths = [_save_figure(sun.plot_sun_polar(sweep, title), out_dir / "sun_polar.png")]
+    if ds.attrs.get("experiment_yaml"):
+        from simgap.core.paths import default_cache_dir
+
+        frames = sun.worst_frames(ds, sweep, cache_dir or default_cache_dir())
+        fig = sun.plot_frames(frames, f"{title}: the worst sun directions")
+        paths.append(_save_figure(fig, out_dir / "sun_worst_frames.png"))
+    text = sun.sun_markdown(ds, sweep, [p.name for p in paths], sun.envelope_rows(ds, sweep))
+    return [*paths, save_text(text, out_dir / "sun.md")]
