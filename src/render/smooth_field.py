@@ -76,6 +76,13 @@ BLOCK_SIZES_PX = (4, 8, 16)
 #: An edge or lobe moves many pixels' residuals at once and is still found (tests); a glint
 #: of a few pixels is left to the global test, whose chi-square it raises by their squares.
 BLOCK_Z_CLIP = 4.0
+#: Pixels whose fitted irradiance is below this share of the sticker's brightest carry no
+#: measure of the relative noise and are left out of its pool: in a black shadow (a black sky)
+#: the few samples of its penumbra over a fit near zero gave relative variances 1e4-1e9 times
+#: the lit paper's, and the smooth model was accepted across the shadow in 6 of 24 renders
+#: (docs/results/shadow_edge.md). Under any light with an ambient part the fit never drops so
+#: low, and nothing is left out.
+POOL_MIN_LEVEL = 0.01
 #: Floor of the ratio's standard deviation relative to the irradiance: 10x the float32 machine
 #: epsilon (1.19e-7) of a rendered radiance, so a noise-free render is not given infinite weight.
 RELATIVE_NOISE_FLOOR = 1e-6
@@ -174,21 +181,26 @@ def _ratio_variance(
     """
     level = np.maximum(np.abs(irradiance), RELATIVE_NOISE_FLOOR * np.max(np.abs(irradiance)))
     q = rel_var / level**2
+    # a relative noise is read only where the light is (a black shadow's few penumbral samples
+    # over a near-zero fit would swamp the pool, and every test would then pass)
+    lit = level >= POOL_MIN_LEVEL * np.max(level)
+    if lit.sum() < MIN_BIN_PIXELS:
+        lit = np.ones_like(lit)
     if spread is not None:
         # one sample is a(x) E X with X of mean 1, variance rho^2: the ratio's sample variance is
         # E^2 (rho^2 (1 + g) + g); rho^2 is pooled over the sticker
         # (from the pixels on one albedo when there are enough: a stratified sampler spreads
         # the samples of an edge pixel over ink and paper evenly, below this model's g)
-        pure = spread <= RELATIVE_NOISE_FLOOR
-        pool = pure if pure.sum() >= MIN_BIN_PIXELS else np.ones_like(pure)
+        pure = (spread <= RELATIVE_NOISE_FLOOR) & lit
+        pool = pure if pure.sum() >= MIN_BIN_PIXELS else lit
         rho2 = max(float(np.mean(spp * q[pool] - spread[pool]) / np.mean(1 + spread[pool])), 0.0)
         phi = (rho2 * (1.0 + spread) + spread) / spp
     else:
         edges = np.linspace(albedo.min(), albedo.max(), ALBEDO_BINS + 1)
         bins = np.clip(np.searchsorted(edges, albedo, side="right") - 1, 0, ALBEDO_BINS - 1)
-        counts = np.bincount(bins, minlength=ALBEDO_BINS)
-        sums = np.bincount(bins, weights=q, minlength=ALBEDO_BINS)
-        pooled = np.where(counts >= MIN_BIN_PIXELS, sums / np.maximum(counts, 1), np.mean(q))
+        counts = np.bincount(bins[lit], minlength=ALBEDO_BINS)
+        sums = np.bincount(bins[lit], weights=q[lit], minlength=ALBEDO_BINS)
+        pooled = np.where(counts >= MIN_BIN_PIXELS, sums / np.maximum(counts, 1), np.mean(q[lit]))
         phi = pooled[bins]
     return np.maximum(phi, RELATIVE_NOISE_FLOOR**2) * level**2
 

@@ -40,6 +40,8 @@ __all__ = [
 
 #: Display scale of an error per SI unit: translations in mm, rotations in mrad.
 DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
+#: Chords per azimuth cell of the polar maps (a cell 30 deg wide is drawn in 2 deg steps).
+ARC_STEPS = 16
 #: Envelope per SI unit of the error (the paper's high-precision thresholds).
 ENVELOPE = {"m": TRANSLATION_THRESHOLD_M, "rad": ROTATION_THRESHOLD_RAD}
 
@@ -160,8 +162,17 @@ def _on_sky(sweep: SunSweep, values: np.ndarray) -> tuple[np.ndarray, np.ndarray
     grid = np.full((len(el), len(az)), np.nan)
     for a, e, v in zip(sweep.azimuth_deg, sweep.elevation_deg, values, strict=True):
         grid[np.searchsorted(el, e), np.searchsorted(az, a)] = v
-    zenith_edges = np.clip(90.0 - _grid(el), 0.0, 180.0)
-    return np.radians(_grid(az, 360.0)), zenith_edges, grid
+    zenith_edges = np.clip(90.0 - _grid(el), 0.0, 180.0)[::-1]  # increasing: the zenith first
+    # each azimuth cell split in ARC_STEPS: a polar mesh joins its corners by straight chords
+    edges = _grid(az, 360.0)
+    fine = np.concatenate(
+        [
+            np.linspace(a, b, ARC_STEPS, endpoint=False)
+            for a, b in zip(edges[:-1], edges[1:], strict=True)
+        ]
+        + [edges[-1:]]
+    )
+    return np.radians(fine), zenith_edges, np.repeat(grid[::-1], ARC_STEPS, axis=1)
 
 
 def plot_sun_polar(sweep: SunSweep, title: str) -> Figure:
@@ -326,6 +337,39 @@ def worst_frames(
     return out
 
 
+def _by_carriage(ds: xr.Dataset, sweep: SunSweep) -> list[str]:
+    """Markdown table per carriage position over every sun direction: detection, envelope."""
+    from simgap.analysis.report.summaries import dataset_distance_m
+
+    sub = ds.sel(variant=list(sweep.variants))
+    visible = as_bool(sub.visible).broadcast_like(sub.detected)
+    detected = as_bool(sub.detected) & visible
+    error = sub.error.where(detected)
+    outside = _outside(error) & detected
+    seen = as_bool(ds.visible.isel(variant=0, missing_dims="ignore"))
+    distance = dataset_distance_m(ds).where(seen)
+    lines = [
+        "## By carriage position (every sun direction)",
+        "",
+        "| p | camera-to-tag distance (m) | detection rate | outside the envelope "
+        "| median abs ty (mm) | largest abs ty (mm) | median abs rotation, worst axis (mrad) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for p in sub.p.values:
+        at = {"p": p}
+        n_vis, n_det = int(visible.sel(at).sum()), int(detected.sel(at).sum())
+        ty = abs(error.sel(at).sel(axis="ty")) * 1e3
+        rotation = abs(error.sel(at).sel(axis=["rx", "ry", "rz"])) * 1e3
+        rot = rotation.median([d for d in rotation.dims if d != "axis"])
+        d = distance.sel(p=p)
+        lines.append(
+            f"| {int(p)} | {float(d.min()):.2f}-{float(d.max()):.2f} "
+            f"| {n_det / max(n_vis, 1):.0%} | {int(outside.sel(at).sum()) / max(n_det, 1):.0%} "
+            f"| {float(ty.median()):.1f} | {float(ty.max()):.1f} | {float(rot.max()):.1f} |"
+        )
+    return lines
+
+
 def sun_markdown(
     ds: xr.Dataset, sweep: SunSweep, figures: list[str], rows: list[EnvelopeRow]
 ) -> str:
@@ -380,6 +424,7 @@ def sun_markdown(
             f"| {float(err.sel(axis=['tx', 'ty', 'tz']).max()):.1f} "
             f"| {float(err.sel(axis=['rx', 'ry', 'rz']).max()):.1f} |"
         )
+    lines += ["", *_by_carriage(ds, sweep)]
     shown = rows[:20]
     lines += [
         "",
