@@ -235,7 +235,13 @@ def _key_light(rng: np.random.Generator, light_ev: float) -> dict[str, Any]:
     template = default_scene_spec().lights["key"]
     here, normal = target[None], np.asarray(FACING_CAMERA)[None]
     unit = LightSpec(
-        kind, tuple(position), tuple(target), size, radiance=1.0, intensity=1.0, cutoff_deg=cutoff
+        kind,
+        tuple(position),
+        tuple(target),
+        size=size,
+        radiance=1.0,
+        intensity=1.0,
+        cutoff_deg=cutoff,
     )
     level = irradiance(template, here, normal)[0] * 2.0**light_ev
     power = level / irradiance(unit, here, normal)[0]
