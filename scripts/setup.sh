@@ -31,6 +31,8 @@ if ! .venv/bin/python -c "import simgap, mitsuba, cv2, pytest" >/dev/null 2>&1 \
   .venv/bin/python -m pip install -q -c constraints.txt -e ".[test]"
   touch .venv/.simgap-installed
 fi
+# the package's source is src/: mypy (pyproject.toml [tool.mypy]) reads it as simgap through this link
+mkdir -p .venv/mypy-root && ln -sfn ../../src .venv/mypy-root/simgap
 if [ ! -f assets/node.ply ] || [ ! -f assets/tag_0.png ]; then
   .venv/bin/simgap assets >/dev/null
 fi

@@ -182,7 +182,9 @@ class AppearanceCandidate(SimulationCandidate):
     def misfit(self, runner: Runner, base: VariantState, items: Items, x: float) -> float:
         """Misfit of the fit statistics with the parameter at ``x`` (:func:`evidence_misfit`)."""
         state = measuring_only(self.apply(base, self.params(x)), self.fit_stats)
-        return evidence_misfit(self.fit_stats, items.real_stats, runner.stats(state, items))
+        return evidence_misfit(
+            self.fit_stats, items.required("real_stats"), runner.stats(state, items)
+        )
 
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
         """Bounded scalar search of the parameter that best matches the image evidence."""
@@ -229,7 +231,9 @@ class AppearanceCandidate(SimulationCandidate):
 
         ``t0``: ``time.perf_counter()`` at the fit's start; ``extra``: more ``Fit.extra`` entries.
         """
-        before = evidence_misfit(self.fit_stats, items.real_stats, items.sim_stats)
+        before = evidence_misfit(
+            self.fit_stats, items.required("real_stats"), items.required("sim_stats")
+        )
         rms_before = float(np.sqrt(np.nan_to_num(before)))  # misfit_rms, without a second pass
         return Fit(
             self.effect,
@@ -267,7 +271,7 @@ class JpegCandidate(AppearanceCandidate):
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
         """The quality of the capture's DC step, or whose blockiness matches (see class doc)."""
         t0 = time.perf_counter()
-        step, tags = agreed_dc_step(items.real_stats[:, STAT_INDEX["jpeg_dc_step_dn"]])
+        step, tags = agreed_dc_step(items.required("real_stats")[:, STAT_INDEX["jpeg_dc_step_dn"]])
         if tags:
             # the quantiser read back; the capture's noise is then no sensor's to add
             # (simgap.analysis.sensor_noise: not supported under a JPEG quantiser)

@@ -127,8 +127,8 @@ def evidence_channels(
     no image evidence (blind seed 30, trials 2 and 13).
     """
     detection = np.minimum(detection, RESIDUAL_CAP)
-    head = [finite_or_zero(corner_px) / corner_unit_px, finite_or_zero(pose_all_axes), detection]
-    head = np.stack(np.broadcast_arrays(*head), axis=-1)
+    parts = [finite_or_zero(corner_px) / corner_unit_px, finite_or_zero(pose_all_axes), detection]
+    head = np.stack(np.broadcast_arrays(*parts), axis=-1)
     return np.concatenate([head, np.broadcast_to(image, head.shape[:-1] + image.shape[-1:])], -1)
 
 
@@ -166,6 +166,8 @@ def channel_misfits(
     if pred.stats is None or items.real_stats is None:
         shape = np.shape(pose)
         return corner, pose, np.zeros(shape)[()], np.zeros(shape + (len(SCORED_STATS),))
+    if items.real_detected is None or pred.detected is None:
+        raise ValueError("image statistics without detection rates: both are given or neither")
     detection = detection_score(at(items.real_detected), at(pred.detected), [at(g) for g in groups])
     return corner, pose, detection, image_misfits(at(items.real_stats), at(pred.stats))
 

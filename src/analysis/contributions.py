@@ -56,6 +56,8 @@ def pose_contributions(
     """
     axes = significant_axes if np.any(significant_axes) else np.ones(6, bool)
     return {
-        effect: float(np.max(np.nanmedian(np.abs(d) / scored.items.scale, axis=0)[axes]))
+        effect: float(
+            np.max(np.nanmedian(np.abs(d) / scored.items_and_prediction()[0].scale, axis=0)[axes])
+        )
         for effect, d in member_deltas(scored, rig, base).items()
     }

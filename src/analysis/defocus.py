@@ -75,7 +75,7 @@ class DefocusCandidate(AppearanceCandidate):
         """Least squares of the thin-lens edge-width model."""
         t0 = time.perf_counter()
         i = STAT_INDEX["edge_width_px"]
-        w_real, w_sim = items.real_stats[:, i], items.sim_stats[:, i]
+        w_real, w_sim = items.required("real_stats")[:, i], items.required("sim_stats")[:, i]
         depth, focal_px = runner.depths(items), runner.focal_px
         ok = np.isfinite(w_real) & np.isfinite(w_sim) & np.isfinite(depth)
         w_real, w_sim, depth = w_real[ok], w_sim[ok], depth[ok]

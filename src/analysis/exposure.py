@@ -52,7 +52,7 @@ from scipy import stats
 from simgap.analysis.appearance import AppearanceCandidate, measuring_only
 from simgap.analysis.fitting import Fit, Items
 from simgap.analysis.runner import Runner
-from simgap.analysis.thresholds import IMAGE_FLOORS
+from simgap.analysis.thresholds import image_floor
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX, linearise
 
@@ -72,7 +72,7 @@ CLIPPED_MAJORITY = 0.5
 #: The unclipped tags' ink must follow their paper within this (EV) for the ink to read the
 #: clipped ones: the ink level's floor (:data:`~simgap.analysis.thresholds.IMAGE_FLOORS`), the
 #: smallest change of it that matters.
-INK_AGREEMENT_EV = float(IMAGE_FLOORS["ink_linear"][1])
+INK_AGREEMENT_EV = image_floor("ink_linear")
 
 
 def readable(real: np.ndarray, sim: np.ndarray) -> np.ndarray:
@@ -165,7 +165,7 @@ class ExposureCandidate(AppearanceCandidate):
         # the scan's state at 0 EV (levels need no edge fits; the ink is measured with the paper)
         reference = measuring_only(self.apply(base, self.params(0.0)), self.fit_stats)
         sim = runner.stats(reference, items)
-        real = items.real_stats
+        real = items.required("real_stats")
         tags = ink_exposures(real[:, paper], sim[:, paper], real[:, ink], sim[:, ink])
         if tags is not None:
             ev = float(np.clip(np.median(tags), *self.bounds))

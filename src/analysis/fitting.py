@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -87,12 +87,26 @@ class Items:
 
     def subset(self, index: np.ndarray) -> Items:
         """Items at ``index``."""
-        return Items(
-            **{
-                f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[index]
-                for f in dataclasses.fields(self)
-            }
-        )
+        fields: dict[str, Any] = {
+            f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[index]
+            for f in dataclasses.fields(self)
+        }
+        return Items(**fields)
+
+    def required(
+        self, name: Literal["real_stats", "sim_stats", "real_detected", "sim_detected"]
+    ) -> np.ndarray:
+        """The image evidence ``name`` (statistics or detection rates), which a fit needs.
+
+        Raises
+        ------
+        ValueError
+            Where the items carry none (the capture or the simulation measured no images).
+        """
+        value: np.ndarray | None = getattr(self, name)
+        if value is None:
+            raise ValueError(f"the items carry no {name}: a fit on image evidence needs them")
+        return value
 
 
 @dataclass
@@ -366,6 +380,10 @@ class SimulationCandidate:
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
         """The simulation's state with the effect at ``params``."""
         return make_effect(self.effect, params).apply(base)
+
+    def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
+        """The effect's parameters fitted on ``items`` under ``base`` (each subclass's own)."""
+        raise NotImplementedError(f"{type(self).__name__} does not fit {self.effect!r}")
 
     def delta(self, runner: Runner, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
         """Change of the simulated error (N, 6) with the fitted effect (m, rad)."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import xarray as xr
@@ -98,7 +99,7 @@ def configuration_noise(
     r_frame = r_frame.fillna(s_frame) if real.sizes["repeat"] < 2 else r_frame
     s_frame = s_frame.fillna(r_frame) if sim.sizes["repeat"] < 2 else s_frame
     var = r_frame**2 / real.sizes["repeat"] + s_frame**2 / sim.sizes["repeat"]
-    return np.sqrt(var)
+    return cast(xr.DataArray, np.sqrt(var))  # a ufunc keeps a DataArray (numpy's stubs: ndarray)
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,7 @@ def gap_field(real: xr.Dataset, sim: xr.Dataset, sim_variant: str | None = None)
     real_err, sim_err = mean_error(real), mean_error(sim, sim_variant)
     comparable = visible & real_err.notnull().all("axis") & sim_err.notnull().all("axis")
     gap = (real_err - sim_err).where(comparable)
-    sigma = np.sqrt(noise_scale(real) ** 2 + noise_scale(sim, sim_variant) ** 2)
+    sigma = cast(xr.DataArray, np.sqrt(noise_scale(real) ** 2 + noise_scale(sim, sim_variant) ** 2))
     det_r = real.detected.isel(variant=0).mean("repeat").where(visible)
     sim_det = sim.detected.sel(variant=sim_variant) if sim_variant else sim.detected.isel(variant=0)
     det_s = sim_det.mean("repeat").where(visible)

@@ -319,12 +319,14 @@ class GlossCandidate(AppearanceCandidate):
                 rendered_detected = runner.detected(state, items)
                 score = detection_score(items.real_detected, rendered_detected, groups)
                 detection = min(float(score), RESIDUAL_CAP)
-            levels = evidence_misfit(stats, items.real_stats, rendered)
+            levels = evidence_misfit(stats, items.required("real_stats"), rendered)
             return (len(stats) * levels + detection**2) / (len(stats) + 1), rendered
 
         ref_misfit, rendered = misfit(REFERENCE_INTENSITY_W_SR)
         geometry = tuple(fit.x[4:7])
-        rendered_levels = TagLevels.of(rendered, items.sim_stats, runner.eye_from_tag(items))
+        rendered_levels = TagLevels.of(
+            rendered, items.required("sim_stats"), runner.eye_from_tag(items)
+        )
         ref = fit_levels(rendered_levels, geometry)
         scales = [(fit.glint_scale, ref.glint_scale), (fit.x[2], ref.x[2])]
         if ratio is not None:
@@ -343,13 +345,15 @@ class GlossCandidate(AppearanceCandidate):
             if intensity not in tried:
                 tried[intensity] = misfit(intensity)[0]
         finite = {k: v for k, v in tried.items() if np.isfinite(v)}
-        return float(min(finite, key=finite.get)) if finite else 0.0
+        return float(min(finite, key=finite.__getitem__)) if finite else 0.0
 
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
         """The level model on the fit split, then the intensity whose renders match best."""
         t0 = time.perf_counter()
         eye_from_tag = runner.eye_from_tag(items)
-        levels = TagLevels.of(items.real_stats, items.sim_stats, eye_from_tag)
+        levels = TagLevels.of(
+            items.required("real_stats"), items.required("sim_stats"), eye_from_tag
+        )
         fit = fit_levels(levels)
         # the glint's geometry from the ink-to-paper ratios where enough papers are unclipped
         # (the capture's lights cancel in them), its scales from the levels at that geometry

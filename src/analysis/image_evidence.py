@@ -133,15 +133,15 @@ def plot_image_stats(
                     label=f"{label}, tag {int(tag)}",
                 )
     for ax, stat in zip(axes, stats, strict=False):
-        label = stat_label(stat)
-        ax.set_title(label.name, fontsize=10)
-        ax.set_ylabel(label.unit)
+        panel = stat_label(stat)
+        ax.set_title(panel.name, fontsize=10)
+        ax.set_ylabel(panel.unit)
         ax.set_xlabel(DISTANCE_LABEL if against == "distance" else VIEW_ANGLE_LABEL)
         ax.grid(alpha=0.3)
-        values = np.concatenate(shown[stat]) if shown[stat] else np.array([])
-        if values.size and np.all(values == values[0]):  # one value: say so, no invented scale
-            ax.set_yticks([values[0]])
-            ax.text(0.5, 0.75, f"every tag: {values[0]:g}", transform=ax.transAxes,
+        plotted = np.concatenate(shown[stat]) if shown[stat] else np.array([])
+        if plotted.size and np.all(plotted == plotted[0]):  # one value: say so, no invented scale
+            ax.set_yticks([plotted[0]])
+            ax.text(0.5, 0.75, f"every tag: {plotted[0]:g}", transform=ax.transAxes,
                     ha="center", fontsize=9, color="0.3")  # fmt: skip
     for ax in axes[len(stats) :]:
         ax.set_visible(False)

@@ -108,14 +108,14 @@ class Scored:
         real, scale = items.real_err, items.scale
         return cls(
             fits=fits,
-            pose_gap_before=gap_score(real, before.error, scale, significant_axes),
-            pose_gap_after=gap_score(real, prediction.error, scale, significant_axes),
+            pose_gap_before=float(gap_score(real, before.error, scale, significant_axes)),
+            pose_gap_after=float(gap_score(real, prediction.error, scale, significant_axes)),
             median_abs_gap_before=median_abs_gap(real, before.error),
             median_abs_gap_after=median_abs_gap(real, prediction.error),
-            pose_gap_all_axes_before=b_pose,
-            pose_gap_all_axes_after=a_pose,
-            corner_gap_before_px=b_corner,
-            corner_gap_after_px=a_corner,
+            pose_gap_all_axes_before=float(b_pose),
+            pose_gap_all_axes_after=float(a_pose),
+            corner_gap_before_px=float(b_corner),
+            corner_gap_after_px=float(a_corner),
             image_misfit_before=b_image,
             image_misfit_after=a_image,
             detection_mismatch_before=float(b_detection),
@@ -171,6 +171,18 @@ class Scored:
         b = self.pose_gap_before
         return 1.0 - self.pose_gap_after / b if b > 0 else 0.0
 
+    def items_and_prediction(self) -> tuple[Items, Prediction]:
+        """The scored items and the model's predictions for them.
+
+        Raises
+        ------
+        ValueError
+            For a model scored without them (built by hand, not by :meth:`measured`).
+        """
+        if self.items is None or self.prediction is None:
+            raise ValueError(f"model {self.effects} was scored without its items and predictions")
+        return self.items, self.prediction
+
     @property
     def effects(self) -> list[str]:
         """Names of the model's effects."""
@@ -204,7 +216,7 @@ def bootstrap_reductions(
     :class:`Scored`, :func:`simgap.analysis.channels.channel_misfits`) are recomputed before and
     after. Returns the central ``level`` interval of each relative reduction.
     """
-    h, after = scored.items, scored.prediction
+    h, after = scored.items_and_prediction()
     before = Prediction.simulated(h)
     groups = detection_groups(h)
     i = np.random.default_rng(seed).integers(0, len(h), (resamples, len(h)))  # one set per row
@@ -222,5 +234,7 @@ def bootstrap_reductions(
     with np.errstate(invalid="ignore", divide="ignore"):
         evidence = np.where(combined[0] > 0, 1.0 - combined[1] / combined[0], 0.0)
     q = [(1 - level) / 2 * 100, (1 + level) / 2 * 100]
-    low_high = [tuple(float(v) for v in np.nanpercentile(x, q)) for x in (pose, evidence)]
+    low_high = [
+        (float(lo), float(hi)) for lo, hi in (np.nanpercentile(x, q) for x in (pose, evidence))
+    ]
     return ReductionIntervals(pose_gap=low_high[0], evidence=low_high[1])

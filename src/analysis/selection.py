@@ -128,21 +128,22 @@ class ModelSearch:
             return self._evaluated[key]
         rig, base = self.rig, self.base
         tr = self.items.subset(self.fit_index)
-        fits: list[tuple[Candidate, Fit]] = list(
-            self.chain.fit(tuple(c for c in model if not isinstance(c, ProjectionCandidate)))
+        simulation = self.chain.fit(
+            tuple(c for c in model if not isinstance(c, ProjectionCandidate))
         )
+        fits: list[tuple[Candidate, Fit]] = list(simulation)
         proj = sorted(
             (c for c in model if isinstance(c, ProjectionCandidate)), key=lambda c: c.effect
         )
         projection = None
         if proj:
             joint = proj[0] if len(proj) == 1 else ProjectionSet(proj)
-            shift_tr, _, _ = self.chain.changes(fits, tr)
+            shift_tr, _, _ = self.chain.changes(simulation, tr)
             fit = joint.fit(
                 rig, base, dataclasses.replace(tr, sim_corners=tr.sim_corners + shift_tr)
             )
             projection = (joint, fit)
-            members = joint.member_fits(fit) if len(proj) > 1 else [fit]
+            members = joint.member_fits(fit) if isinstance(joint, ProjectionSet) else [fit]
             fits = list(zip(proj, members, strict=True)) + fits
         scored = self.score(fits, projection, self.choose_index)
         scored = self._evaluated[key] = cross_fitted(scored, rig, base, self.chain)
@@ -152,7 +153,7 @@ class ModelSearch:
     def score(
         self,
         fits: list[tuple[Candidate, Fit]],
-        projection: tuple[Candidate, Fit] | None,
+        projection: tuple[ProjectionCandidate, Fit] | None,
         index: np.ndarray,
     ) -> Scored:
         """Score fitted effects (no refit) on the items at ``index``."""
@@ -169,12 +170,15 @@ class ModelSearch:
             proj_record = (joint, fit, h_shifted)
             off_h += np.nan_to_num(joint.delta(rig, base, fit, h_shifted))
             corner_h = corner_h + np.nan_to_num(joint.corner_shift(rig, base, fit.extra["x"], h))
-        has_evidence = h.real_stats is not None and stats_h is not None
+        stats = detected = None
+        if h.real_stats is not None and stats_h is not None:  # None where h.sim_stats is
+            stats = h.required("sim_stats") + stats_h
+            detected = np.clip(h.required("sim_detected") + det_h, 0.0, 1.0)
         prediction = Prediction(
             error=h.sim_err + off_h,
             corners=h.sim_corners + corner_h,
-            stats=h.sim_stats + stats_h if has_evidence else None,
-            detected=np.clip(h.sim_detected + det_h, 0.0, 1.0) if has_evidence else None,
+            stats=stats,
+            detected=detected,
         )
         return Scored.measured(
             fits,
@@ -343,7 +347,7 @@ class ModelSearch:
         current = self.prune(current)
         current = with_corner_effects(current, pool, self.evaluate, max_effects)
         if len(current.fits) > 1:
-            model = [c for c, _ in current.fits]
+            model = tuple(c for c, _ in current.fits)
             loss = {
                 c.effect: self.evaluate(tuple(m for m in model if m is not c)).evidence_after
                 for c in model

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
@@ -110,7 +111,7 @@ class SensorNoiseCandidate(AppearanceCandidate):
         super().__init__("sensor_noise", stats, "full_well_e", FULL_WELL_BOUNDS_E, 0.0)
 
     @staticmethod
-    def excess_variance(x: np.ndarray, level: np.ndarray) -> np.ndarray:
+    def excess_variance(x: np.ndarray | Sequence[float], level: np.ndarray) -> np.ndarray:
         """Predicted excess variance of the linearised grey frame at measured ``level``.
 
         ``x`` = (1 / full well, (read / full well)^2, multiplicative c); linear units (squared).
@@ -134,8 +135,8 @@ class SensorNoiseCandidate(AppearanceCandidate):
         """
         levels, variances = [], []
         for level, noise in pairs:
-            mu = items.real_stats[:, STAT_INDEX[level]]
-            var = items.real_stats[:, STAT_INDEX[noise]] ** 2
+            mu = items.required("real_stats")[:, STAT_INDEX[level]]
+            var = items.required("real_stats")[:, STAT_INDEX[noise]] ** 2
             ok = np.isfinite(mu) & np.isfinite(var) & (var > 0) & (mu <= SATURATION_FIT_SHARE)
             levels.append(mu[ok])
             variances.append(var[ok])
@@ -229,7 +230,7 @@ class SensorNoiseCandidate(AppearanceCandidate):
         """
         t0 = time.perf_counter()
         fitted = self._photon_transfer(base, items)
-        quality = capture_jpeg_quality(items.real_stats)
+        quality = capture_jpeg_quality(items.required("real_stats"))
         if fitted is None:  # nothing to fit on: no noise found
             none = {"full_well_e": FULL_WELL_BOUNDS_E[1], "read_noise_e": 0.0}
             return Fit(self.effect, none, 0.0, {"supported": False, "jpeg_quality": quality})
@@ -249,13 +250,14 @@ class SensorNoiseCandidate(AppearanceCandidate):
         )
         # the capture's noise statistics the fit predicts, for the signature gate
         stats = self.fit_stats
-        pred = items.sim_stats.copy()
+        real, sim = items.required("real_stats"), items.required("sim_stats")
+        pred = sim.copy()
         for level, noise in NOISE_PAIRS:
             i, j = STAT_INDEX[level], STAT_INDEX[noise]
-            variance = self.excess_variance(x, items.real_stats[:, i])
+            variance = self.excess_variance(x, real[:, i])
             pred[:, j] = np.sqrt(np.clip(variance, 0.0, None))
-        rms_before = misfit_rms(stats, items.real_stats, items.sim_stats)
-        rms_after = misfit_rms(stats, items.real_stats, pred)
+        rms_before = misfit_rms(stats, real, sim)
+        rms_after = misfit_rms(stats, real, pred)
         return Fit(
             self.effect,
             params,

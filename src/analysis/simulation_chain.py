@@ -78,18 +78,25 @@ class SimulationChain:
 
     Attributes
     ----------
-    runner : Runner
-        Runs a state through the cached pipeline.
+    runner : Runner or None
+        Runs a state through the cached pipeline; needed only where a model has simulation
+        effects.
     base : VariantState
         The simulation's state, to which effects are added.
     items : Items
         The items the simulation effects are fitted on (the fit split's subsample).
     """
 
-    runner: Runner
+    runner: Runner | None
     base: VariantState
     items: Items
     _fits: dict[tuple[str, ...], Fit] = field(default_factory=dict, repr=False)
+
+    def _runner(self) -> Runner:
+        """The runner; ValueError without one (simulation effects run the pipeline)."""
+        if self.runner is None:
+            raise ValueError("simulation effects need a runner of the pipeline; none was given")
+        return self.runner
 
     def fit(
         self, candidates: tuple[SimulationCandidate, ...]
@@ -101,9 +108,9 @@ class SimulationChain:
             key = tuple(c.effect for c, _ in out) + (cand.effect,)
             if key not in self._fits:
                 items = (
-                    conditioned(self.runner, self.base, state, self.items) if out else self.items
+                    conditioned(self._runner(), self.base, state, self.items) if out else self.items
                 )
-                self._fits[key] = cand.fit(self.runner, state, items)
+                self._fits[key] = cand.fit(self._runner(), state, items)
             out.append((cand, self._fits[key]))
             state = cand.apply(state, self._fits[key].params)
         return out
@@ -141,12 +148,13 @@ class SimulationChain:
         0.0085, the capture's 0.0075, which the path-traced rule dropped, so a sensor noise took
         the compression's noise and the JPEG was left out).
         """
-        runner, base = self.runner, self.base
+        base = self.base
         corners = np.zeros((len(items), 4, 2))
         stats = None if items.sim_stats is None else np.zeros_like(items.sim_stats)
         detected = np.zeros(len(items))
         if not fits:
             return corners, stats, detected
+        runner = self._runner()
         full, deterministic = self.states(fits)
         stochastic = any(EFFECTS[c.effect].stochastic for c, _ in fits)
         corners = np.nan_to_num(runner.corners(deterministic, items) - runner.corners(base, items))
@@ -176,6 +184,6 @@ class SimulationChain:
             if EFFECTS[cand.effect].stochastic:
                 out[cand.effect] = np.zeros((len(items), 6))
                 continue
-            out[cand.effect] = np.nan_to_num(cand.delta(self.runner, state, fit, items))
+            out[cand.effect] = np.nan_to_num(cand.delta(self._runner(), state, fit, items))
             state = cand.apply(state, fit.params)
         return out

@@ -90,6 +90,14 @@ IMAGE_FLOORS: Final = MappingProxyType(
     }
 )
 
+
+def image_floor(stat: str) -> float:
+    """The floor of ``stat`` in :data:`IMAGE_FLOORS`; ValueError for one reported only (None)."""
+    floor = IMAGE_FLOORS[stat][1]
+    if floor is None:
+        raise ValueError(f"{stat} has no floor: it is reported only, never scored")
+    return floor
+
 # -- which: channel units and telling models apart ---------------------------------------------
 
 #: Unit of the corner channel (px): the ArUco detector's own corner bias on ideal renders

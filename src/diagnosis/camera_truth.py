@@ -58,7 +58,8 @@ def _tag_points(rig: Rig, p: tuple[int, ...], theta_deg: tuple[float, ...]) -> t
 
 
 def _scene_irradiance(spec: SceneSpec, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    return sum(irradiance(light, points, normals) for light in spec.lights.values())
+    lights = (irradiance(light, points, normals) for light in spec.lights.values())
+    return sum(lights, np.zeros(len(points)))
 
 
 def light_meter_ev(camera: NuisanceCamera, rig: Rig) -> float:
@@ -91,14 +92,16 @@ def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
     black, tone = camera.effects.get("black_level"), camera.effects.get("tone_curve")
     if gamma.get("encoding", "gamma") == "srgb" and black is None and tone is None:
         return 0.0
+    # (the ignores: make_effect returns the Effect base class; black_level is an ImageEffect,
+    # with process, and tone_curve a ToneCurve, with curve)
     x = np.array(level, np.float32)
     if black is not None:
         x = make_effect("black_level", black).process(x, None)  # type: ignore[attr-defined]
-    x = float(np.clip(x, 0.0, 1.0))
+    linear = float(np.clip(x, 0.0, 1.0))
     if gamma.get("encoding", "gamma") == "srgb":
-        encoded = float(colour.cctf_encoding(x, function="sRGB"))
+        encoded = float(colour.cctf_encoding(linear, function="sRGB"))
     else:
-        encoded = x ** (1.0 / float(gamma.get("gamma", 2.2)))
+        encoded = linear ** (1.0 / float(gamma.get("gamma", 2.2)))
     if tone is not None:
         encoded = float(make_effect("tone_curve", tone).curve(encoded))  # type: ignore[attr-defined]
     dn = np.round(255.0 * encoded)

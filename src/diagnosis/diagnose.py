@@ -181,8 +181,8 @@ class Diagnosis:
             errors = errors + np.nan_to_num(self.noise_shift.at(self.items))
         self.fitted_errors, self.fitted_confirmed = errors, True
         pred = self.fitted_errors[self.report_index]
-        before = gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes)
-        after = gap_score(h.real_err, pred, h.scale, self.significant_axes)
+        before = float(gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes))
+        after = float(gap_score(h.real_err, pred, h.scale, self.significant_axes))
         return Confirmed(
             configurations=len(h),
             pose_gap_after=after,
@@ -233,7 +233,7 @@ class Diagnosis:
         projection = chosen.projection[:2] if chosen.projection else None
         reported = self.search.score(chosen.fits, projection, self.report_index)
         self.fitted_errors = np.full_like(self.items.real_err, np.nan)
-        self.fitted_errors[self.report_index] = reported.prediction.error
+        self.fitted_errors[self.report_index] = reported.items_and_prediction()[1].error
         interval = bootstrap_reductions(reported, self.significant_axes, seed=self.settings.seed)
         return Combined(
             configurations=len(self.report_index),

@@ -107,6 +107,8 @@ def _pose_noise_sentence(result: DiagnosisResult) -> str:
 def which_markdown(result: DiagnosisResult) -> list[str]:
     """Markdown lines for the ranking, the selection and the before/after."""
     split = result.split
+    if split is None:
+        raise ValueError("the result has no split: the 'which' part reports on its splits")
     lines = [
         "## Which",
         "",
@@ -190,6 +192,8 @@ def selected_names(result: DiagnosisResult) -> str:
 
 def selection_markdown(result: DiagnosisResult) -> list[str]:
     """Markdown lines for the selected effects, what stays unexplained and the look-alikes."""
+    if result.selection is None:
+        raise ValueError("the result selects nothing")
     lines = [f"**Selected** (most important first): {selected_names(result)}."]
     if result.minor:
         lines.append(
@@ -235,6 +239,8 @@ def _look_alike_line(model: EquivalentModel) -> str:
 
 def how_far_markdown(result: DiagnosisResult) -> list[str]:
     """Markdown lines for the chosen model on the report split (fast and confirmed)."""
+    if result.combined is None or result.selection is None:
+        raise ValueError("the result has no selected model scored on the report split")
     c, s, f = result.combined, result.combined.scores, result.confirmed
     lines = [
         "## How far it shrinks",

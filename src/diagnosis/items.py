@@ -11,6 +11,7 @@ import dataclasses
 import json
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -38,7 +39,7 @@ def calibration_from_attrs(real: xr.Dataset) -> CameraModel | None:
         return None
     data = yaml.safe_load(text)
     keys = ("width", "height", "fx", "fy", "cx", "cy", "distortion")
-    model = {k: (tuple(data[k]) if k == "distortion" else data[k]) for k in keys}
+    model: dict[str, Any] = {k: (tuple(data[k]) if k == "distortion" else data[k]) for k in keys}
     if "distortion_model" in data:  # written only for a model other than plumb_bob
         model["distortion_model"] = data["distortion_model"]
     return CameraModel(**model)

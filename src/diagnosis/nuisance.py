@@ -15,8 +15,9 @@ tags, the pixel filter's width), never from the capture itself.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -228,13 +229,19 @@ def _key_light(rng: np.random.Generator, light_ev: float) -> dict[str, Any]:
         ]
     )
     position = target + distance * direction
-    kind = str(rng.choice(LIGHT_TYPES))
+    kind = cast(Literal["area", "point", "spot"], str(rng.choice(LIGHT_TYPES)))  # a light type
     size = (_uniform(rng, AREA_SIZE_M), _uniform(rng, AREA_SIZE_M))
     cutoff = _uniform(rng, SPOT_CUTOFF_DEG)
     template = default_scene_spec().lights["key"]
     here, normal = target[None], np.asarray(FACING_CAMERA)[None]
     unit = LightSpec(
-        kind, tuple(position), tuple(target), size, radiance=1.0, intensity=1.0, cutoff_deg=cutoff
+        kind,
+        tuple(position),
+        tuple(target),
+        size=size,
+        radiance=1.0,
+        intensity=1.0,
+        cutoff_deg=cutoff,
     )
     level = irradiance(template, here, normal)[0] * 2.0**light_ev
     power = level / irradiance(unit, here, normal)[0]
@@ -278,7 +285,7 @@ def _poses(rng: np.random.Generator) -> tuple[tuple[int, ...], tuple[float, ...]
 
 def draw_pipeline(rng: np.random.Generator) -> dict[str, dict[str, Any]]:
     """The stages of a camera's own image pipeline, each drawn with :data:`PIPELINE_SHARE`."""
-    samplers = {
+    samplers: dict[str, Callable[[], dict[str, Any]]] = {
         "gain_change": lambda: {"sigma_ev": _uniform(rng, GAIN_CHANGE_SIGMA_EV)},
         "black_level": lambda: {"level": _uniform(rng, BLACK_LEVEL)},
         "bayer": lambda: {

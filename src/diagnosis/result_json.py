@@ -14,13 +14,16 @@ import json
 import types
 import typing
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from simgap.core.atomic import atomic_write
 
-T = TypeVar("T")
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+T = TypeVar("T", bound="DataclassInstance")
 
 
 def jsonable(obj: Any) -> Any:
@@ -75,7 +78,7 @@ def _value(tp: Any, value: Any, where: str) -> Any:
             return None
         (inner,) = (a for a in args if a is not type(None))
         return _value(inner, value, where)
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
         return from_jsonable(tp, value, where)
     if origin in (list, tuple):
         if not isinstance(value, list):

@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis.candidates import geometric_effects
-from simgap.analysis.thresholds import IMAGE_FLOORS
+from simgap.analysis.thresholds import image_floor
 from simgap.core.rig import Rig
 from simgap.diagnosis.camera_truth import exposure_truth, softness_truth
 from simgap.diagnosis.hidden_effects import CAMERA_NAMED, HIDDEN, OUTSIDE, REPORTED_AS, found
@@ -64,7 +64,7 @@ def camera_named(crushed_black: float | None) -> tuple[str, ...]:
     least the floor of ``black_clipped_fraction`` in
     :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`), its black level.
     """
-    floor = IMAGE_FLOORS["black_clipped_fraction"][1]
+    floor = image_floor("black_clipped_fraction")
     crushed = crushed_black is not None and crushed_black >= floor
     return CAMERA_NAMED + (("black_level",) if crushed else ())
 

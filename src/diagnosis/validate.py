@@ -149,7 +149,9 @@ def draw_hidden(rng: np.random.Generator, settings: ValidateSettings) -> dict[st
         return {name: OUTSIDE[name](rng)}
     u = rng.uniform()
     k = 0 if u < settings.p_none else (2 if u > 1 - settings.p_pair else 1)
-    names = rng.choice(list(settings.effects), size=k, replace=False) if k else []
+    names: np.ndarray | list[str] = (
+        rng.choice(list(settings.effects), size=k, replace=False) if k else []
+    )
     return {str(n): HIDDEN[str(n)][0](rng) for n in names}
 
 

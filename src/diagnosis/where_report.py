@@ -29,6 +29,8 @@ def where_markdown(where: Where) -> list[str]:
         if not a.n:
             lines.append(f"| {axis} | 0 | | | | | | | no |")
             continue
+        if a.median is None or a.rms is None or a.slope_per_pin is None or a.noise is None:
+            raise ValueError(f"axis {axis}: {a.n} comparable items but no gap summary")
         unit, k = display_unit(axis)
         lines.append(
             f"| {axis} | {a.n} | {a.median * k:+.3f} {unit} | {a.rms * k:.3f} {unit} | "
@@ -36,6 +38,8 @@ def where_markdown(where: Where) -> list[str]:
             f"{a.z_median:+.1f} | {a.z_slope:+.1f} | {_yes(a.significant)} |"
         )
     det = where.detection
+    if det is None:
+        raise ValueError("the 'where' part has no detection rates")
     lines += [
         "",
         f"Detection rate over visible configurations: real {det.real:.1%}, "

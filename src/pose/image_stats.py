@@ -83,6 +83,7 @@ from dataclasses import dataclass
 import colour
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from simgap.core.robust import MAD_TO_SIGMA
 from simgap.pose.edge_spread import fit_esf_width
@@ -166,7 +167,7 @@ _SRGB_TO_LINEAR = colour.cctf_decoding(np.arange(256) / 255.0, function="sRGB").
 _UNIT_SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]], np.float64)
 
 
-def linearise(dn: np.ndarray) -> np.ndarray:
+def linearise(dn: ArrayLike) -> np.ndarray:
     """8-bit sRGB-encoded values (DN) to linear values (fraction of full scale)."""
     return _SRGB_TO_LINEAR[np.clip(np.asarray(dn), 0, 255).astype(np.intp)]
 

@@ -48,7 +48,7 @@ def evaluate_held_out(
     variant = variant or str(model.ds.attrs.get("variant", ds.variant.values[0]))
     sub = ds.sel(variant=variant)
     inside_all, hits, probs = [], [], []
-    cover: dict[int, list] = {}
+    cover: dict[int, np.ndarray] = {}
     n_outside = n_det_outside = 0
     for tag in model.tags:
         exp = sub.sel(tag=tag).expected.transpose("p", "theta", "axis").values

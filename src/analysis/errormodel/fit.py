@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -66,7 +67,9 @@ class FitSettings:
             raise ValueError("min_pooled: expected 2 <= min_pooled <= min_detections")
 
 
-def _samples(ds: xr.Dataset, tag: int, config_mask: np.ndarray | None):
+def _samples(
+    ds: xr.Dataset, tag: int, config_mask: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Covariates (N, 2), errors (N, 6) of detections; covariates (M, 2), flags (M,) of trials."""
     sub = ds.sel(tag=tag)
     x = np.stack(covariates(sub.expected.transpose("p", "theta", "axis").values), axis=-1)
@@ -135,7 +138,7 @@ def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int)
     h = np.array([settings.h_distance, settings.h_obliquity])
     nodes = np.stack(np.meshgrid(grid_d, grid_o, indexing="ij"), axis=-1).reshape(-1, 2)
     shape = (len(grid_d), len(grid_o))
-    out = {
+    out: dict[str, Any] = {
         "bias": np.full(shape + (6,), np.nan),
         "spread": np.full(shape + (6,), np.nan),
         "bias_se": np.full(shape + (6,), np.nan),

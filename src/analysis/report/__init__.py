@@ -94,7 +94,7 @@ def write_variant_report(
             figures.append(_save_figure(plot(summary, tag), out_dir / f"{stem}_tag{tag}.png"))
             steps.advance()
     for axis in against:
-        fig = plot_image_stats(image_datasets, axis)  # type: ignore[arg-type]
+        fig = plot_image_stats(image_datasets or {}, axis)  # against is () without them
         figures.append(_save_figure(fig, out_dir / f"image_stats_vs_{axis}.png"))
         steps.advance()
     table = save_text(table2_markdown(summary), out_dir / "table2.md")

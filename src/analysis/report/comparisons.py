@@ -150,8 +150,8 @@ def _facing_theta(
         if tag in facing:
             out[tag] = float(facing[tag])
             continue
-        seen = as_bool(ds["visible"].sel(tag=tag))
-        seen = seen.any([d for d in seen.dims if d != "theta"]).values
+        visible = as_bool(ds["visible"].sel(tag=tag))
+        seen = visible.any([d for d in visible.dims if d != "theta"]).values
         out[tag] = float(np.angle(np.exp(1j * theta[seen]).sum())) if seen.any() else 0.0
     return out
 

@@ -330,7 +330,7 @@ def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = N
         f"Signed error change, {variant!r} − {cmp.attrs['baseline']!r} (mean of "
         f"{cmp.attrs['n_repeat']} repeat(s))"
     )
-    for sub, tag in zip(np.atleast_1d(fig.subfigures(len(tags), 1)), tags, strict=True):
+    for sub, tag in zip(fig.subfigures(len(tags), 1, squeeze=False)[:, 0], tags, strict=True):
         sub.suptitle(f"Tag {tag}")
         for ax, axis in zip(sub.subplots(2, 3).flat, AXES, strict=True):
             _draw_change_heatmap(sub, ax, cmp, variant, tag, axis)

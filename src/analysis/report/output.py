@@ -14,7 +14,7 @@ FIGURE_DPI: Final[int] = 110
 """Resolution of the written PNG figures, in dots per inch."""
 
 
-def _write_binary(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
+def _write_binary(path: Path, write: Callable[[IO[bytes]], object]) -> Path:
     """Write a file through :func:`~simgap.core.atomic.atomic_write` (binary handle)."""
 
     def to_file(tmp: Path) -> None:

@@ -55,7 +55,9 @@ def sun_variants(ds: xr.Dataset) -> dict[str, tuple[float, float]]:
     """
     from simgap.effects.scene import Sun
 
-    defaults = Sun.Params()
+    # (the ignore: param() states each default positionally, which mypy's dataclass_transform
+    # support does not read, so it takes every field of an EffectParams for a required one)
+    defaults = Sun.Params()  # type: ignore[call-arg]
     common: dict = {}
     experiment_yaml = ds.attrs.get("experiment_yaml", "")
     if experiment_yaml:
@@ -185,16 +187,16 @@ def plot_sun_polar(sweep: SunSweep, title: str) -> Figure:
     """
     fig = Figure(figsize=(18, 9.5), layout="constrained")
     axes = fig.subplots(2, 4, subplot_kw={"projection": "polar"})
-    panels = [
+    panels: list[tuple[str, np.ndarray, str, tuple[float, float], float | None]] = [
         ("detection rate", sweep.detection_rate, "viridis", (0.0, 1.0), None),
         ("detections outside the envelope", sweep.outside_rate, "magma_r", (0.0, 1.0), None),
     ]
     for axis in AXES:
         scale, unit = DISPLAY[AXIS_UNITS[axis]]
         values = sweep.max_abs_error.sel(axis=axis).values * scale
-        limit = ENVELOPE[AXIS_UNITS[axis]] * scale
-        top = float(np.nanmax(values, initial=limit)) if np.isfinite(values).any() else limit
-        panels.append((f"largest |{axis}| ({unit})", values, "magma_r", (0.0, top), limit))
+        envelope = ENVELOPE[AXIS_UNITS[axis]] * scale
+        top = float(np.nanmax(values, initial=envelope)) if np.isfinite(values).any() else envelope
+        panels.append((f"largest |{axis}| ({unit})", values, "magma_r", (0.0, top), envelope))
     for ax, (name, values, cmap, (lo, hi), limit) in zip(axes.ravel(), panels, strict=True):
         theta, zenith, grid = _on_sky(sweep, values)
         mesh = ax.pcolormesh(theta, zenith, np.ma.masked_invalid(grid), cmap=cmap, vmin=lo,
