@@ -45,10 +45,11 @@ if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
 #: Part of the render key of a converged render: bump when what it holds changes.
-#: 7: a border pixel's background pooled from its neighbours' samples; 6: thin-lens
+#: 8: the relative noise pooled only where the fitted light is (a black shadow's penumbra left
+#: out); 7: a border pixel's background pooled from its neighbours' samples; 6: thin-lens
 #: footprints; 5: exact footprints; 4: coated fits keep the darkest pixels; 3: laminates
 #: demodulated.
-CONVERGED_VERSION = "exact-7"
+CONVERGED_VERSION = "exact-8"
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
