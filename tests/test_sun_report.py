@@ -73,7 +73,7 @@ def test_the_report_section_maps_the_sky_and_shows_the_worst_frames(sweep, tmp_p
     assert "4 sun directions" in text and "| 35° |" in text and "| 60° |" in text
     rows = envelope_rows(ds, summarize_sun(ds))
     assert f"Detections outside the envelope: {len(rows)}" in text
-    assert all(abs(r.value) > (5.0 if r.unit == "mm" else 87.3) for r in rows)
+    assert all(r.share > 1 and abs(r.value) > (5.0 if r.unit == "mm" else 87.3) for r in rows)
 
 
 def test_a_dataset_without_a_sun_has_no_sun_section(tmp_path):

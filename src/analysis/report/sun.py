@@ -22,7 +22,11 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from simgap.analysis.paper import ROTATION_THRESHOLD_RAD, TRANSLATION_THRESHOLD_M
+from simgap.analysis.paper import (
+    ROTATION_THRESHOLD_RAD,
+    THRESHOLD_BY_UNIT,
+    TRANSLATION_THRESHOLD_M,
+)
 from simgap.analysis.report.summaries import as_bool
 from simgap.core.axes import AXES, AXIS_UNITS
 
@@ -42,8 +46,8 @@ __all__ = [
 DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
 #: Chords per azimuth cell of the polar maps (a cell 30 deg wide is drawn in 2 deg steps).
 ARC_STEPS = 16
-#: Envelope per SI unit of the error (the paper's high-precision thresholds).
-ENVELOPE = {"m": TRANSLATION_THRESHOLD_M, "rad": ROTATION_THRESHOLD_RAD}
+#: Envelope per SI unit of the error: the paper's high-precision thresholds.
+ENVELOPE = THRESHOLD_BY_UNIT
 
 
 def sun_variants(ds: xr.Dataset) -> dict[str, tuple[float, float]]:
@@ -107,11 +111,15 @@ class SunSweep:
     max_abs_error: xr.DataArray
 
 
+def _envelope_share(error: xr.DataArray) -> xr.DataArray:
+    """Each axis's absolute error as a share of its envelope (1: on the threshold)."""
+    limit = [ENVELOPE[AXIS_UNITS[a]] for a in AXES]
+    return abs(error) / xr.DataArray(limit, dims="axis", coords={"axis": list(AXES)})
+
+
 def _outside(error: xr.DataArray) -> xr.DataArray:
     """Whether each estimate has some axis outside the envelope (NaN errors are inside)."""
-    limit = xr.DataArray([ENVELOPE[AXIS_UNITS[a]] for a in AXES], dims="axis",
-                         coords={"axis": list(AXES)})  # fmt: skip
-    return (abs(error) > limit).any("axis")
+    return (_envelope_share(error) > 1).any("axis")
 
 
 def summarize_sun(ds: xr.Dataset) -> SunSweep | None:
@@ -218,7 +226,7 @@ def plot_sun_polar(sweep: SunSweep, title: str) -> Figure:
 
 @dataclass(frozen=True)
 class EnvelopeRow:
-    """One configuration and repeat whose estimate leaves the envelope (or is lost)."""
+    """One detection (configuration and repeat) whose estimate leaves the envelope."""
 
     variant: str
     azimuth_deg: float
@@ -230,6 +238,8 @@ class EnvelopeRow:
     axis: str
     value: float
     unit: str
+    #: the absolute error as a share of its axis's envelope (above 1)
+    share: float
 
 
 def envelope_rows(ds: xr.Dataset, sweep: SunSweep) -> list[EnvelopeRow]:
@@ -242,8 +252,7 @@ def envelope_rows(ds: xr.Dataset, sweep: SunSweep) -> list[EnvelopeRow]:
         sub = ds.sel(variant=name)
         detected = as_bool(sub.detected)
         error = sub.error.where(detected)
-        limit = np.array([ENVELOPE[AXIS_UNITS[a]] for a in AXES])
-        ratio = abs(error) / xr.DataArray(limit, dims="axis", coords={"axis": list(AXES)})
+        ratio = _envelope_share(error)
         worst = ratio.fillna(0.0).argmax(dim="axis")
         over = (ratio.max("axis") > 1).values
         for index in zip(*np.nonzero(over), strict=True):
@@ -257,9 +266,10 @@ def envelope_rows(ds: xr.Dataset, sweep: SunSweep) -> list[EnvelopeRow]:
                     float(np.degrees(sub.theta.values[at["theta"]])),
                     int(sub.repeat.values[at["repeat"]]), a,
                     float(error.isel(at).sel(axis=a)) * scale, unit,
+                    float(ratio.isel(at).sel(axis=a)),
                 )
             )  # fmt: skip
-    rows.sort(key=lambda r: -abs(r.value) / (ENVELOPE["m" if r.unit == "mm" else "rad"] * 1e3))
+    rows.sort(key=lambda r: -r.share)
     return rows
 
 
@@ -292,9 +302,7 @@ def _worst_configuration(ds: xr.Dataset, name: str) -> tuple[int, int, float, st
     sub = ds.sel(variant=name).isel(repeat=0)
     visible = as_bool(sub.visible).broadcast_like(sub.detected)
     detected = as_bool(sub.detected)
-    limit = xr.DataArray([ENVELOPE[AXIS_UNITS[a]] for a in AXES], dims="axis",
-                         coords={"axis": list(AXES)})  # fmt: skip
-    ratio = (abs(sub.error) / limit).max("axis").where(detected, np.inf).where(visible, -1.0)
+    ratio = _envelope_share(sub.error).max("axis").where(detected, np.inf).where(visible, -1.0)
     flat = int(np.argmax(ratio.values))
     at = {d: int(i) for d, i in zip(ratio.dims, np.unravel_index(flat, ratio.shape), strict=True)}
     tag, p = int(sub.tag.values[at["tag"]]), int(sub.p.values[at["p"]])
@@ -302,7 +310,7 @@ def _worst_configuration(ds: xr.Dataset, name: str) -> tuple[int, int, float, st
     if not bool(detected.isel(at)):
         return tag, p, theta, f"tag {tag} lost"
     err = sub.error.isel(at)
-    a = str(err.axis.values[int(np.argmax((abs(err) / limit).values))])
+    a = str(err.axis.values[int(np.argmax(_envelope_share(err).values))])
     scale, unit = DISPLAY[AXIS_UNITS[a]]
     return tag, p, theta, f"tag {tag} {a} {float(err.sel(axis=a)) * scale:+.1f} {unit}"
 
