@@ -94,3 +94,16 @@ def test_pooled_variants_keep_every_draw(sweep):
                 ds.error.isel(variant=k, repeat=r).values,
             )
     assert pooled.error.dims == ds.error.dims
+
+
+def test_a_pooled_model_is_checked_on_the_variants_it_did_not_see(sweep):
+    """Fitted on every other sun direction (the baseline's eclipse among them), tested on the
+    others at the same poses. Six detections of tag 0 give a pooled fit (constant bias and
+    spread, t intervals): the held-out draws' errors all lie in its range."""
+    from simgap.analysis.errormodel import check_pooled_model
+
+    ds, _ = sweep
+    out = check_pooled_model(ds)
+    assert set(out["coverage"]) == {"tx", "ty", "tz", "rx", "ry", "rz"}
+    assert out["n_errors"] == 4 and out["n_outside"] == 0  # 2 directions x 2 stops of tag 0
+    assert all(0.0 <= v <= 1.0 for v in out["coverage"].values())

@@ -40,7 +40,8 @@ def errormodel(
         False,
         "--pool-variants",
         help="Model every variant's repeats as draws of one: a Monte Carlo over what the "
-        "variants vary (the sun's direction of experiments/orbital_lighting.yaml).",
+        "variants vary (the sun's direction of experiments/orbital_lighting.yaml); the check "
+        "then fits on every other variant and tests on the rest.",
     ),
     check: bool = typer.Option(
         True, "--check/--no-check", help="Also fit on half the configurations, test on the rest."
@@ -59,16 +60,22 @@ def errormodel(
     ds = read_result_dataset(result)
     if pool and variant is not None:
         fail("--pool-variants models every variant at once: expected no --variant with it")
+    pooled_check = None
     if pool:
+        from simgap.analysis.errormodel import check_pooled_model
         from simgap.results.dataset import pooled_variants
 
+        if check and ds.sizes["variant"] > 1:
+            pooled_check = check_pooled_model(ds)
         ds = pooled_variants(ds)
     from simgap.analysis.errormodel import FitSettings
     from simgap.analysis.errormodel.io import FIT_METHODS
 
     model = fit_error_model(ds, variant=variant, source=str(result))
     summary, skipped = None, ""
-    if check:
+    if pooled_check is not None:
+        summary = pooled_check
+    elif check and not pool:
         try:
             summary = check_error_model(ds, variant=variant)
         except ValueError as exc:  # half of a small dataset: too few detections to fit
@@ -96,8 +103,9 @@ def errormodel(
     elif summary is not None:
         cover = ", ".join(f"{a} {v:.0%}" for a, v in summary["coverage"].items())
         det = summary["detection"]
+        half = "held-out variants" if pool else "held-out half"
         typer.echo(
-            f"held-out half: 90 % interval coverage {cover} ({summary['n_errors']} errors, "
+            f"{half}: 90 % interval coverage {cover} ({summary['n_errors']} errors, "
             f"{summary['n_outside']} outside the range); detection predicted "
             f"{det['predicted_rate']:.1%} vs observed {det['observed_rate']:.1%}"
         )

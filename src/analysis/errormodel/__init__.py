@@ -54,6 +54,7 @@ from __future__ import annotations
 
 from simgap.analysis.errormodel.check import (
     check_error_model,
+    check_pooled_model,
     evaluate_held_out,
     split_configurations,
 )
@@ -72,6 +73,7 @@ __all__ = [
     "OutOfRangeError",
     "TagPoses",
     "check_error_model",
+    "check_pooled_model",
     "covariates",
     "evaluate_held_out",
     "fit_error_model",

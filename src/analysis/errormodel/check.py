@@ -89,7 +89,9 @@ def evaluate_held_out(
     return {
         "coverage": {a: float(allc[:, k].mean()) for k, a in enumerate(AXES)},
         "coverage_by_tag": {
-            int(t): {a: float(c[:, k].mean()) for k, a in enumerate(AXES)} for t, c in cover.items()
+            int(t): {a: float(c[:, k].mean()) for k, a in enumerate(AXES)}
+            for t, c in cover.items()
+            if len(c)  # a tag with no held-out error in range has no coverage
         },
         "n_errors": int(len(allc)),
         "n_outside": n_outside,
@@ -117,3 +119,23 @@ def check_error_model(
     train = split_configurations(ds, seed)
     model = fit_error_model(ds, settings, variant, config_mask=train)
     return evaluate_held_out(model, ds, ~train, variant)
+
+
+def check_pooled_model(ds: xr.Dataset, settings: FitSettings | None = None) -> dict:
+    """Fit on every other variant pooled, evaluate on the others at every configuration.
+
+    The held-out check of a model pooled over variants
+    (:func:`simgap.results.dataset.pooled_variants`): its draws are the variants (the sun's
+    directions of an orbital sweep), so the question is whether the intervals fitted on some
+    draws cover the errors of others at the same poses. Returns :func:`evaluate_held_out`'s
+    mapping.
+    """
+    from simgap.results.dataset import POOLED, pooled_variants
+
+    names = [str(v) for v in ds.variant.values]
+    if len(names) < 2:
+        raise ValueError(f"a pooled check needs two variants or more, got {len(names)}")
+    model = fit_error_model(pooled_variants(ds.sel(variant=names[0::2])), settings)
+    held = pooled_variants(ds.sel(variant=names[1::2]))
+    every = np.ones((ds.sizes["p"], ds.sizes["theta"]), bool)
+    return evaluate_held_out(model, held, every, POOLED)

@@ -107,7 +107,7 @@ class ErrorModel:
         j = np.clip(np.searchsorted(go, o, side="right") - 1, 0, max(len(go) - 2, 0))
         fd = np.clip((d - gd[i]) / np.maximum(np.diff(gd)[i] if len(gd) > 1 else 1, 1e-12), 0, 1)
         fo = np.clip((o - go[j]) / np.maximum(np.diff(go)[j] if len(go) > 1 else 1, 1e-12), 0, 1)
-        ti = np.array([self._tags.index(t) for t in tags])
+        ti = np.array([self._tags.index(t) for t in tags], dtype=int)  # none: an empty query
         return ti, i, j, fd, fo, inside, np.abs(o) >= np.pi / 2, d, o
 
     def _interp(self, name: str, loc) -> tuple[np.ndarray, np.ndarray]:
