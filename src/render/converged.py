@@ -22,6 +22,15 @@ background around it, pooled from its own and its neighbours' samples that left 
 (:func:`pooled_background`). Pixels off the stickers (node, table) keep their path-traced
 mean: only the detector's thresholds see them. The treatment of every sticker is returned so
 that the caller can record it.
+
+Under a ``sun`` light on a matte print (:func:`simgap.render.sun_direct.split_sun`) the stickers'
+samples carry their light less the sun's direct part (the sky, reflections: smooth across the
+sun's shadow edges), which is treated as above; the sun's direct light, ``albedo E cos(t) V /
+pi`` over each pixel's footprint with one shadow ray per point of a fixed pattern
+(:func:`simgap.render.sun_direct.sun_direct`, :data:`~simgap.render.sun_direct.SUN_DIRECT_POINTS`
+points), is added to every sticker pixel: noise-free, the same for every render seed, as sharp
+as the geometry at a shadow edge. Every other scene is rendered as if the sun were not in the
+code (the same samples, bit for bit).
 """
 
 from __future__ import annotations
@@ -40,16 +49,18 @@ from simgap.render.print_footprint import (
     exact_footprint_applies,
     print_footprint,
 )
+from simgap.render.sun_direct import SUN_DIRECT_POINTS, split_sun, sun_direct
 
 if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
 
 #: Part of the render key of a converged render: bump when what it holds changes.
+#: 9: a sun's direct light on matte stickers from the footprint pass (sun_direct);
 #: 8: the relative noise pooled only where the fitted light is (a black shadow's penumbra left
 #: out); 7: a border pixel's background pooled from its neighbours' samples; 6: thin-lens
 #: footprints; 5: exact footprints; 4: coated fits keep the darkest pixels; 3: laminates
 #: demodulated.
-CONVERGED_VERSION = "exact-8"
+CONVERGED_VERSION = "exact-9"
 #: Samples per pixel, relative to the scene's, of a sticker whose smooth model was rejected.
 #: Four: the path-traced noise halves (a 16-spp sticker then carries the noise of 64 spp).
 FALLBACK_SPP_FACTOR = 4
@@ -66,6 +77,9 @@ FALLBACK_SPP_FACTOR = 4
 FOOTPRINT_POINTS = 64
 #: Treatment of a coated print's sticker whose diffuse and specular fields were both smooth.
 COATED = "smooth (coated print)"
+#: Appended to a sticker's treatment where the sun's direct light was added from the footprint
+#: pass (:mod:`simgap.render.sun_direct`) to the treated rest of its light.
+SUN_SUFFIX = " + sun direct"
 
 
 @dataclass(frozen=True)
@@ -99,7 +113,10 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
         Sampler seed (same seed, same render).
     """
     pixels = np.asarray(pixels).reshape(-1, 2)
-    samples = sample_pixels(scene, pixels, seed)
+    sun = split_sun(scene)
+    # with a sun, the stickers' samples leave its direct light out: it is added from the
+    # footprint pass (sun_direct), noise-free and sharp at its shadow edges
+    samples = sample_pixels(scene, pixels, seed, rest=sun is not None)
     values = samples.mean.copy()
     tags = [int(t) for t in np.unique(samples.sticker[samples.sticker >= 0])]
     coated = scene.spec.tag.coating is not None
@@ -139,17 +156,23 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
                 coated=coated,
             )
         )
+        direct = 0.0
+        if sun is not None:
+            direct = sun_direct(scene, pixels[on], np.full(len(on), tag), sun, SUN_DIRECT_POINTS)
         if result.treatment is Treatment.DARK:
-            treatments[tag] = Treatment.DARK.value
+            values[on] += direct
+            treatments[tag] = Treatment.DARK.value + SUN_SUFFIX * (sun is not None)
             continue
         if result.treatment is Treatment.SMOOTH:
-            values[on] = result.radiance
-            treatments[tag] = COATED if coated else Treatment.SMOOTH.value
+            values[on] = result.radiance + direct
+            treatments[tag] = (COATED if coated else Treatment.SMOOTH.value) + SUN_SUFFIX * (
+                sun is not None
+            )
             continue
         spp = samples.spp * FALLBACK_SPP_FACTOR
-        more = sample_pixels(scene, pixels[on], seed + 1 + tag, spp)
-        values[on] = more.mean
-        treatments[tag] = f"fallback ({result.reason}): {spp} spp"
+        more = sample_pixels(scene, pixels[on], seed + 1 + tag, spp, rest=sun is not None)
+        values[on] = more.mean + direct
+        treatments[tag] = f"fallback ({result.reason}): {spp} spp" + SUN_SUFFIX * (sun is not None)
     return ConvergedRender(values.astype(np.float32), treatments)
 
 

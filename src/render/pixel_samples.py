@@ -75,14 +75,23 @@ def _to_numpy(value) -> np.ndarray:
     return np.stack([np.asarray(c, np.float32) for c in (value.x, value.y, value.z)], -1)
 
 
-def _launch(scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, pattern):
+def _launch(
+    scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, pattern, rest: bool = False
+):
     """One kernel launch: per sample radiance, sticker id and albedo ((L, 3), (L,), (L, 3)).
 
-    With a ``pattern`` only the primary rays are traced and the radiance is None.
+    With a ``pattern`` only the primary rays are traced and the radiance is None; with ``rest``
+    the stickers' samples leave out the sun's direct light
+    (:func:`simgap.render.sun_direct.rest_trace`).
     """
     import drjit as dr
 
-    ray, value = scene.trace(pixels, seed, spp, pattern)
+    if rest:
+        from simgap.render.sun_direct import rest_trace
+
+        ray, value = rest_trace(scene, pixels, seed, spp)
+    else:
+        ray, value = scene.trace(pixels, seed, spp, pattern)
     sticker, albedo = _primary_hits(scene, ray)
     dr.eval(sticker, albedo) if value is None else dr.eval(value, sticker, albedo)
     rgb = None if value is None else _to_numpy(value)
@@ -90,7 +99,12 @@ def _launch(scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, patter
 
 
 def _reduced(
-    scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int, pattern: np.ndarray | None
+    scene: FixtureScene,
+    pixels: np.ndarray,
+    seed: int,
+    spp: int,
+    pattern: np.ndarray | None,
+    rest: bool = False,
 ) -> PixelSamples:
     """Trace ``spp`` samples per pixel (the sampler's, or ``pattern``) and reduce them."""
     from simgap.render.scene import launches
@@ -100,7 +114,7 @@ def _reduced(
     rad = np.empty((n, spp, 3), np.float32) if pattern is None else None
     ids, alb = np.empty((n, spp), np.int32), np.empty((n, spp, 3), np.float32)
     for start, padded, launch_seed in launches(pixels, seed, spp, 1):
-        r, i, a = _launch(scene, padded, launch_seed, spp, pattern)
+        r, i, a = _launch(scene, padded, launch_seed, spp, pattern, rest)
         m = min(len(padded), n - start)
         if rad is not None:
             rad[start : start + m] = r.reshape(-1, spp, 3)[:m]
@@ -110,7 +124,11 @@ def _reduced(
 
 
 def sample_pixels(
-    scene: FixtureScene, pixels: np.ndarray, seed: int, spp: int | None = None
+    scene: FixtureScene,
+    pixels: np.ndarray,
+    seed: int,
+    spp: int | None = None,
+    rest: bool = False,
 ) -> PixelSamples:
     """Trace ``spp`` samples (default: the scene's) per pixel; reduce them per pixel.
 
@@ -124,11 +142,15 @@ def sample_pixels(
         Sampler seed (same seed, same statistics).
     spp : int, optional
         Samples per pixel (at least 2: the variance needs two).
+    rest : bool
+        The samples that land on a sticker leave out the sun's direct light
+        (:func:`simgap.render.sun_direct.rest_trace`; the scene must have a sun:
+        :func:`simgap.render.sun_direct.split_sun`).
     """
     spp = scene.spp if spp is None else int(spp)
     if spp < 2:
         raise ValueError(f"spp: expected at least 2 samples per pixel, got {spp}")
-    return _reduced(scene, pixels, seed, spp, None)
+    return _reduced(scene, pixels, seed, spp, None, rest)
 
 
 @functools.lru_cache(maxsize=4)

@@ -106,9 +106,29 @@ class PixelTracer:
         (columns: the pixel filter's sample, then the aperture's, in [0, 1)); ``seed`` and
         ``spp`` are then unused, and only the primary rays are traced (radiance None).
         """
+        ray, sampler = self.camera_rays(pixels, seed, spp, pattern)
+        if sampler is None:
+            return ray, None
+        value, _, _ = self.scene.integrator().sample(
+            self.scene, sampler, self.mi.RayDifferential3f(ray)
+        )
+        return ray, value
+
+    def camera_rays(
+        self,
+        pixels: np.ndarray,
+        seed: int,
+        spp: int | None = None,
+        pattern: np.ndarray | None = None,
+    ):
+        """The primary rays of :meth:`trace` and the sampler that continues their paths.
+
+        The sampler is None with a ``pattern`` (primary rays only).
+        """
         import drjit as dr
 
         mi = self.mi
+        sampler = None
         if pattern is None:
             spp = self.spp if spp is None else int(spp)
             sampler = self.camera.sampler().clone()
@@ -126,11 +146,7 @@ class PixelTracer:
         u = dr.gather(mi.Float, mi.Float(pixels[:, 0]), pixel)
         v = dr.gather(mi.Float, mi.Float(pixels[:, 1]), pixel)
         offset = filter_offsets(self.spec.rfilter, filter_sample, mi)
-        ray = self.camera.ray_through(u + offset.x, v + offset.y, aperture)
-        if pattern is not None:
-            return ray, None
-        value, _, _ = self.scene.integrator().sample(self.scene, sampler, mi.RayDifferential3f(ray))
-        return ray, value
+        return self.camera.ray_through(u + offset.x, v + offset.y, aperture), sampler
 
     def _render_launch(self, pixels: np.ndarray, seed: int) -> np.ndarray:
         """One kernel launch of :meth:`render_pixels` (N, 3)."""
@@ -191,12 +207,14 @@ class FixtureScene(PixelTracer):
         self.mi = mi = mitsuba()
         self.rig, self.spec, self.errors, self.tag_scale = rig, spec, errors, float(tag_scale)
         self.film_size, self.spp = tuple(film_size), int(spp)
+        #: the integrator's settings (the template's, with ``max_depth`` if given)
+        self.integrator_dict: dict[str, Any] = {
+            **copy.deepcopy(spec.integrator),
+            **({} if max_depth is None else {"max_depth": int(max_depth)}),
+        }
         scene_dict: dict[str, Any] = {
             "type": "scene",
-            "integrator": {
-                **copy.deepcopy(spec.integrator),
-                **({} if max_depth is None else {"max_depth": int(max_depth)}),
-            },
+            "integrator": copy.deepcopy(self.integrator_dict),
             "sensor": sensor_dict(film_size, spec.rfilter, sampler, self.spp),
         }
         for name, obj in spec.objects.items():
