@@ -24,6 +24,7 @@ plus the effect's change; model choice is ``simgap.analysis.selection``.
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import time
 from dataclasses import dataclass, field
@@ -358,7 +359,7 @@ class ProjectionCandidate:
         return out
 
 
-class SimulationCandidate:
+class SimulationCandidate(abc.ABC):
     """An effect whose change of the evidence comes from running the pipeline with it.
 
     Subclasses fit the parameters (:class:`simgap.analysis.appearance.AppearanceCandidate` on
@@ -381,9 +382,9 @@ class SimulationCandidate:
         """The simulation's state with the effect at ``params``."""
         return make_effect(self.effect, params).apply(base)
 
+    @abc.abstractmethod
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
         """The effect's parameters fitted on ``items`` under ``base`` (each subclass's own)."""
-        raise NotImplementedError(f"{type(self).__name__} does not fit {self.effect!r}")
 
     def delta(self, runner: Runner, base: VariantState, fit: Fit, items: Items) -> np.ndarray:
         """Change of the simulated error (N, 6) with the fitted effect (m, rad)."""

@@ -58,6 +58,19 @@ def matrix_to_rotvec(r: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(np.asarray(r, dtype=float)).as_rotvec()
 
 
+def perpendicular_axes(direction) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors ``e1``, ``e2`` perpendicular to ``direction`` and to each other.
+
+    ``e1 = up x d`` normalised with ``up`` the +Z axis (+Y where ``d`` is within 26 deg of it),
+    ``e2 = d x e1``: a right-handed frame (``e1``, ``e2``, ``d``) about a unit ``direction``.
+    """
+    d = np.asarray(direction, float)
+    up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(up, d)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(d, e1)
+
+
 def invert(a_from_b: np.ndarray) -> np.ndarray:
     """Invert a rigid transform exactly (no general matrix inverse)."""
     r, t = a_from_b[:3, :3], a_from_b[:3, 3]

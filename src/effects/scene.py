@@ -279,6 +279,16 @@ def sun_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
     return np.array([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)])
 
 
+def sun_angles(direction) -> tuple[float, float]:
+    """Azimuth in [0, 360) and elevation (deg) of a unit vector: :func:`sun_direction` inverted.
+
+    Rounded to 1e-9 deg, so that a grid's values come back as they were given.
+    """
+    x, y, z = (float(v) for v in direction)
+    azimuth = round(float(np.degrees(np.arctan2(x, y))), 9) % 360.0
+    return azimuth, round(float(np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))), 9)
+
+
 class Ambient(Effect, name="ambient", stage="scene"):
     """Uniform environment light (room ambient): radiance (W m^-2 sr^-1) and colour temperature."""
 

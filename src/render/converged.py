@@ -117,6 +117,7 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
     # with a sun, the stickers' samples leave its direct light out: it is added from the
     # footprint pass (sun_direct), noise-free and sharp at its shadow edges
     samples = sample_pixels(scene, pixels, seed, rest=sun is not None)
+    suffix = "" if sun is None else SUN_SUFFIX
     values = samples.mean.copy()
     tags = [int(t) for t in np.unique(samples.sticker[samples.sticker >= 0])]
     coated = scene.spec.tag.coating is not None
@@ -161,18 +162,16 @@ def converged_pixels(scene: FixtureScene, pixels: np.ndarray, seed: int) -> Conv
             direct = sun_direct(scene, pixels[on], np.full(len(on), tag), sun, SUN_DIRECT_POINTS)
         if result.treatment is Treatment.DARK:
             values[on] += direct
-            treatments[tag] = Treatment.DARK.value + SUN_SUFFIX * (sun is not None)
+            treatments[tag] = Treatment.DARK.value + suffix
             continue
         if result.treatment is Treatment.SMOOTH:
             values[on] = result.radiance + direct
-            treatments[tag] = (COATED if coated else Treatment.SMOOTH.value) + SUN_SUFFIX * (
-                sun is not None
-            )
+            treatments[tag] = (COATED if coated else Treatment.SMOOTH.value) + suffix
             continue
         spp = samples.spp * FALLBACK_SPP_FACTOR
         more = sample_pixels(scene, pixels[on], seed + 1 + tag, spp, rest=sun is not None)
         values[on] = more.mean + direct
-        treatments[tag] = f"fallback ({result.reason}): {spp} spp" + SUN_SUFFIX * (sun is not None)
+        treatments[tag] = f"fallback ({result.reason}): {spp} spp{suffix}"
     return ConvergedRender(values.astype(np.float32), treatments)
 
 

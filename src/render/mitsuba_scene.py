@@ -140,9 +140,7 @@ def distant_disc(light: LightSpec, mi: ModuleType) -> dict[str, Any]:
     ``a``), a wide one (:data:`SPHERE_MIN_DIAMETER_DEG`) a ``sphere`` (radius ``D sin(a)``):
     see there why.
     """
-    target = np.asarray(light.target, float)
-    towards = np.asarray(light.position, float) - target
-    towards /= np.linalg.norm(towards)
+    target, towards = np.asarray(light.target, float), light.towards()
     half = np.radians(light.angular_diameter_deg) / 2
     centre = target + DISTANT_DISC_M * towards
     emitting = {

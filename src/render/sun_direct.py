@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from simgap.core.transforms import perpendicular_axes
 from simgap.render.mitsuba_scene import DISTANT_DISC_M
 from simgap.render.pixel_samples import STICKER_PREFIX, footprint_pattern
 
@@ -162,15 +163,10 @@ def sun_points(light: LightSpec, points: int) -> tuple[np.ndarray, bool]:
     frame) at the offsets of :func:`disc_pattern`, so that each shading point sees the disc
     where the path tracer's emitter is.
     """
-    target = np.asarray(light.target, float)
-    towards = np.asarray(light.position, float) - target
-    towards /= np.linalg.norm(towards)
+    target, towards = np.asarray(light.target, float), light.towards()
     if light.angular_diameter_deg == 0:
         return np.tile(towards, (points, 1)), False
-    up = np.array([0.0, 0.0, 1.0]) if abs(towards[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(up, towards)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(towards, e1)
+    e1, e2 = perpendicular_axes(towards)
     offsets = disc_pattern(points, float(np.radians(light.angular_diameter_deg) / 2))
     centre = target + DISTANT_DISC_M * towards
     return centre + DISTANT_DISC_M * (offsets[:, :1] * e1 + offsets[:, 1:] * e2), True

@@ -10,6 +10,7 @@ import numpy as np
 
 from simgap.core.config import OMIT_DEFAULT, require
 from simgap.core.rig import load_rig
+from simgap.core.transforms import perpendicular_axes
 
 #: Height (m, rail frame) that lights aim at by default: about the middle of the tag node.
 AIM_HEIGHT_M = 0.06
@@ -90,6 +91,11 @@ class LightSpec:
             "frame: a directional light is distant: expected the rail frame",
         )
 
+    def towards(self) -> np.ndarray:
+        """Unit vector from the light's target towards its position (rail frame if placed)."""
+        d = np.asarray(self.position, float) - np.asarray(self.target, float)
+        return d / np.linalg.norm(d)
+
     def placed(self, rail_from_frame: np.ndarray) -> LightSpec:
         """The light with its position and target in the rail frame (m), ``frame`` ``rail``.
 
@@ -147,10 +153,7 @@ def _disc_cosine(light: LightSpec, towards: np.ndarray, normals: np.ndarray) -> 
     rings, azimuths = DISC_QUADRATURE
     u = 1 - (1 - np.cos(half)) * (np.arange(rings) + 0.5) / rings  # cos of the angle from centre
     phi = 2 * np.pi * (np.arange(azimuths) + 0.5) / azimuths
-    helper = (0.0, 0.0, 1.0) if abs(towards[2]) < 0.9 else (1.0, 0.0, 0.0)
-    e1 = np.cross(towards, helper)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(towards, e1)
+    e1, e2 = perpendicular_axes(towards)
     sin_u = np.sqrt(1 - u**2)
     dirs = (
         u[:, None, None] * towards
@@ -199,10 +202,9 @@ def irradiance(light: LightSpec, points: np.ndarray, normals: np.ndarray) -> np.
     tint = float(np.dot(light.rgb, BT709_LUMINANCE))
     if light.type == "constant":
         return np.full(len(points), np.pi * light.radiance * tint)
-    position, target = np.asarray(light.position, float), np.asarray(light.target, float)
     if light.type == "directional":  # E cos(t) towards the source, whatever the distance
-        towards = (position - target) / np.linalg.norm(position - target)
-        return light.irradiance * tint * _disc_cosine(light, towards, normals)
+        return light.irradiance * tint * _disc_cosine(light, light.towards(), normals)
+    position, target = np.asarray(light.position, float), np.asarray(light.target, float)
     if light.type == "area":
         forward = target - position
         forward /= np.linalg.norm(forward)

@@ -151,9 +151,10 @@ def write_sun_report(
 
     ``sun_polar.png`` (:func:`~simgap.analysis.report.sun.plot_sun_polar`),
     ``sun_worst_frames.png`` (the worst directions' frames, from the pipeline's cache in
-    ``cache_dir``, default the user's; none without ``experiment_yaml``) and ``sun.md``.
+    ``cache_dir``, default the user's) and ``sun.md``.
     """
     from simgap.analysis.report import sun
+    from simgap.core.paths import default_cache_dir
 
     sweep = sun.summarize_sun(ds)
     if sweep is None:
@@ -161,11 +162,8 @@ def write_sun_report(
     out_dir = Path(out_dir)
     title = str(ds.attrs.get("experiment", "result"))
     paths = [_save_figure(sun.plot_sun_polar(sweep, title), out_dir / "sun_polar.png")]
-    if ds.attrs.get("experiment_yaml"):
-        from simgap.core.paths import default_cache_dir
-
-        frames = sun.worst_frames(ds, sweep, cache_dir or default_cache_dir())
-        fig = sun.plot_frames(frames, f"{title}: the worst sun directions")
-        paths.append(_save_figure(fig, out_dir / "sun_worst_frames.png"))
+    frames = sun.worst_frames(ds, sweep, cache_dir or default_cache_dir())
+    fig = sun.plot_frames(frames, f"{title}: the worst sun directions")
+    paths.append(_save_figure(fig, out_dir / "sun_worst_frames.png"))
     text = sun.sun_markdown(ds, sweep, [p.name for p in paths], sun.envelope_rows(ds, sweep))
     return [*paths, save_text(text, out_dir / "sun.md")]

@@ -1,10 +1,10 @@
 """Where over the sun's direction detection fails and the pose leaves the envelope.
 
-A dataset whose variants set the ``sun`` effect from a grid of directions (its ``variant_effects``
-attribute; ``experiments/orbital_lighting.yaml``) is reduced per direction over every visible
-configuration and repeat (:func:`summarize_sun`): the detection rate, the largest absolute error
-per axis (mm, mrad) and the share of detections outside the paper's high-precision envelope
-(:data:`~simgap.analysis.paper.TRANSLATION_THRESHOLD_M`,
+A dataset whose variants set the ``sun`` effect from a grid of directions (read from its own
+experiment, ``experiment_yaml``; ``experiments/orbital_lighting.yaml``) is reduced per direction
+over every visible configuration and repeat (:func:`summarize_sun`): the detection rate, the
+largest absolute error per axis (mm, mrad) and the share of detections outside the paper's
+high-precision envelope (:data:`~simgap.analysis.paper.TRANSLATION_THRESHOLD_M`,
 :data:`~simgap.analysis.paper.ROTATION_THRESHOLD_RAD`). :func:`plot_sun_polar` draws them as polar
 heatmaps over the sky: the sun's azimuth around (0 at the top: the rail's +Y, towards the node;
 90 to the right: +X) and its zenith angle outwards (the centre is straight up, the outer ring
@@ -15,7 +15,6 @@ the horizon). :func:`envelope_rows` lists the configurations that leave the enve
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,36 +49,32 @@ ARC_STEPS = 16
 ENVELOPE = THRESHOLD_BY_UNIT
 
 
+def _experiment(ds: xr.Dataset):
+    """The experiment a dataset was made with (its ``experiment_yaml``), or None."""
+    from simgap.pipeline.experiment import experiment_from_yaml
+
+    text = ds.attrs.get("experiment_yaml", "")
+    return experiment_from_yaml(text, source="the dataset's experiment") if text else None
+
+
 def sun_variants(ds: xr.Dataset) -> dict[str, tuple[float, float]]:
-    """Variants that place a sun: name -> (azimuth, elevation) in degrees (rail frame).
+    """Variants that place a sun: name -> (azimuth in [0, 360), elevation) in degrees.
 
-    Read from the dataset's ``variant_effects`` attribute (the experiment's ``effects`` apply to
-    every variant, so a sun there is each variant's unless the variant moves it); the ``sun``
-    effect's own defaults fill what neither sets. Empty when no variant has a sun.
+    Read from the ``sun`` light of each variant's state, rebuilt from the dataset's own
+    experiment (:func:`simgap.effects.scene.sun_angles`; rail frame). Empty without a sun, or
+    for a dataset that does not carry its experiment.
     """
-    from simgap.effects.scene import Sun
+    from simgap.effects.scene import sun_angles
 
-    # (the ignore: param() states each default positionally, which mypy's dataclass_transform
-    # support does not read, so it takes every field of an EffectParams for a required one)
-    defaults = Sun.Params()  # type: ignore[call-arg]
-    common: dict = {}
-    experiment_yaml = ds.attrs.get("experiment_yaml", "")
-    if experiment_yaml:
-        import yaml
-
-        common = (yaml.safe_load(experiment_yaml).get("effects") or {}).get("sun") or {}
-    per_variant = json.loads(ds.attrs.get("variant_effects", "{}"))
-    out = {}
-    for name in (str(v) for v in ds.variant.values):
-        own = (per_variant.get(name) or {}).get("sun")
-        if own is None and not common:
-            continue
-        params = {**common, **(own or {})}
-        out[name] = (
-            float(params.get("azimuth_deg", defaults.azimuth_deg)),
-            float(params.get("elevation_deg", defaults.elevation_deg)),
-        )
-    return out
+    exp = _experiment(ds)
+    if exp is None:
+        return {}
+    names = {str(v) for v in ds.variant.values}
+    return {
+        name: sun_angles(state.scene.spec.lights["sun"].towards())
+        for name, state in exp.variant_states()
+        if name in names and "sun" in state.scene.spec.lights
+    }
 
 
 @dataclass(frozen=True)
@@ -122,6 +117,13 @@ def _outside(error: xr.DataArray) -> xr.DataArray:
     return (_envelope_share(error) > 1).any("axis")
 
 
+def _detections(sub: xr.Dataset) -> tuple[xr.DataArray, xr.DataArray, xr.DataArray]:
+    """Visible configurations (on the detections' dims), visible detections, and their errors."""
+    visible = as_bool(sub.visible).broadcast_like(sub.detected)
+    detected = as_bool(sub.detected) & visible
+    return visible, detected, sub.error.where(detected)
+
+
 def summarize_sun(ds: xr.Dataset) -> SunSweep | None:
     """Reduce a sun-direction sweep per direction; None unless two or more directions.
 
@@ -131,13 +133,7 @@ def summarize_sun(ds: xr.Dataset) -> SunSweep | None:
     if len(set(directions.values())) < 2:
         return None
     names = tuple(directions)
-    sub = ds.sel(variant=list(names))
-    visible = as_bool(sub.visible)
-    if "variant" not in visible.dims:
-        visible = visible.expand_dims(variant=list(names))
-    visible = visible.broadcast_like(sub.detected)
-    detected = as_bool(sub.detected) & visible
-    error = sub.error.where(detected)
+    visible, detected, error = _detections(ds.sel(variant=list(names)))
     dims = ("repeat", "tag", "p", "theta")
     n_visible = visible.sum(dims).values
     n_detected = detected.sum(dims).values
@@ -324,10 +320,11 @@ def worst_frames(
     cached pipeline in ``cache_dir`` (the frames of the run that wrote the dataset are read
     back; missing ones are rendered).
     """
-    from simgap.pipeline.experiment import experiment_from_yaml
     from simgap.pipeline.simulator import Simulator
 
-    exp = experiment_from_yaml(ds.attrs["experiment_yaml"], source="the dataset's experiment")
+    exp = _experiment(ds)
+    if exp is None:
+        return []
     states = dict(exp.variant_states())
     simulator = Simulator(cache_dir, show_progress=False)
     out = []
@@ -352,9 +349,7 @@ def _by_carriage(ds: xr.Dataset, sweep: SunSweep) -> list[str]:
     from simgap.analysis.report.summaries import dataset_distance_m
 
     sub = ds.sel(variant=list(sweep.variants))
-    visible = as_bool(sub.visible).broadcast_like(sub.detected)
-    detected = as_bool(sub.detected) & visible
-    error = sub.error.where(detected)
+    visible, detected, error = _detections(sub)
     outside = _outside(error) & detected
     seen = as_bool(ds.visible.isel(variant=0, missing_dims="ignore"))
     distance = dataset_distance_m(ds).where(seen)
