@@ -50,11 +50,19 @@ ENVELOPE = THRESHOLD_BY_UNIT
 
 
 def _experiment(ds: xr.Dataset):
-    """The experiment a dataset was made with (its ``experiment_yaml``), or None."""
+    """The experiment a dataset was made with (its ``experiment_yaml``), or None.
+
+    None too where that experiment no longer loads (a dataset written by another version, or
+    by hand): such a dataset's report has no sun section.
+    """
+    from simgap.core.config import ConfigError
     from simgap.pipeline.experiment import experiment_from_yaml
 
     text = ds.attrs.get("experiment_yaml", "")
-    return experiment_from_yaml(text, source="the dataset's experiment") if text else None
+    try:
+        return experiment_from_yaml(text, source="the dataset's experiment") if text else None
+    except ConfigError:
+        return None
 
 
 def sun_variants(ds: xr.Dataset) -> dict[str, tuple[float, float]]:
@@ -62,7 +70,7 @@ def sun_variants(ds: xr.Dataset) -> dict[str, tuple[float, float]]:
 
     Read from the ``sun`` light of each variant's state, rebuilt from the dataset's own
     experiment (:func:`simgap.effects.scene.sun_angles`; rail frame). Empty without a sun, or
-    for a dataset that does not carry its experiment.
+    for a dataset whose experiment is not there or does not load.
     """
     from simgap.effects.scene import sun_angles
 
