@@ -1,27 +1,24 @@
 """The ink-to-paper ratio of a tag under a glint: a laminate's signature whatever the lights.
 
 Any matte light, exposure, colour or vignetting scales a tag's ink and its paper alike; a glint
-(the laminate's mirror reflection of a light beside the lens) and veiling flare add the same
-radiance to both. So the ratio of ink to paper of a tag whose paper is not clipped is
+(the laminate's mirror reflection of a light beside the lens), the laminate's veil (its mirror
+reflection of the surroundings) and veiling flare add the same radiance to both. So the ratio of
+ink to paper of a tag whose paper is not clipped is
 
-    r = h r_sim + (1 - h r_sim) (S + F) / P
+    r = h r_sim + (1 - h r_sim) (S + V R(theta_o) + F) / P
 
 with ``r_sim`` the simulation's ratio (matte print, its lights), ``h`` a constant (a transfer
 curve's or the print's darker ink), ``P`` the real paper level, ``F`` a flare level (the same on
-every tag) and ``S = c D(theta_h; alpha) / (d^2 cos(theta_o))`` the glint of
-:mod:`simgap.analysis.gloss` (its level model, step 2). The capture's own lights cancel: the
-level model of ink and paper must absorb them with its exposure and a matte light beside the
-lens, and where the capture's key light differs from the simulation's (another place, a spot's
-cone) a glint placed elsewhere absorbed them better. On three of the four laminate captures of
-blind seed 47 it missed, the level model's best fit put the light 5-16 cm from where it was
-(once on the wrong side of the lens, once on a bound; on one, the true geometry fitted worse
-than a matte light: 1.22 floors against 1.13); the ratio found the roughness within 9 % and
-the horizontal offset within 1 cm on two of them (the third: roughness 0.33 for 0.27, the light
-0.9 cm on the other side of the lens, 3.9 cm from where it was; the fourth has too few
-unclipped papers). On the 23 development
-captures without a laminate whose levels made it a candidate, the level model supported a glint
-on every one (most on a bound of the offsets), the ratio on two (blind seeds 44-47, development
-data since).
+every tag), ``S = c D(theta_h; alpha) / (d^2 cos(theta_o))`` the glint of
+:mod:`simgap.analysis.gloss` (its level model, step 2) and ``V R(theta_o)`` the veil: the
+surroundings' radiance ``V`` times the coating's Fresnel reflectance relative to its normal one
+(:func:`simgap.analysis.lobe.fresnel_veil`), which grows towards grazing views where flare
+does not. The capture's own lights cancel: the level model of ink and paper must absorb them
+with its exposure and a matte light beside the lens. The model without a laminate has ``h``
+and ``F``; the laminate adds the glint and the veil. A laminate under a room's ambient light
+and a weak light beside the lens shows mostly its veil (oblique tags' ink lifted beyond any
+flare) and a few faint glints; without the veil the flare absorbs the oblique tags and the
+glint's gain stays below the support (docs/results/laminate.md).
 
 The model needs tags whose paper is not clipped (``P`` is known): at least :data:`MIN_TAGS`.
 """
@@ -34,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simgap.analysis.appearance import capped_rms
-from simgap.analysis.lobe import MIN_COS, beckmann, lobe_geometry
+from simgap.analysis.lobe import MIN_COS, beckmann, fresnel_veil, lobe_geometry
 from simgap.analysis.subset_fit import fit_subset
 from simgap.analysis.thresholds import IMAGE_FLOORS
 
@@ -62,11 +59,12 @@ class RatioFit:
 
     Attributes
     ----------
-    x : ndarray (6,)
-        ``(log2 h, F, c, alpha, offset_x_m, offset_z_m)`` of the model with a glint (the height
-        ``offset_z_m`` is :data:`HEIGHT_M`, or the ``fixed`` one).
+    x : ndarray (7,)
+        ``(log2 h, F, c, alpha, offset_x_m, offset_z_m, V)`` of the model with a laminate (the
+        height ``offset_z_m`` is :data:`HEIGHT_M`, or the ``fixed`` one); ``F`` and ``V`` in
+        linear full scale.
     rms_flat, rms_glint : float
-        RMS misfits (floors of ``ink_linear``) without and with the glint.
+        RMS misfits (floors of ``ink_linear``) without a laminate and with its glint and veil.
     tags : int
         Tags fitted.
     """
@@ -78,13 +76,18 @@ class RatioFit:
 
     @property
     def gain(self) -> float:
-        """What the glint explains beyond flare and a constant ratio (floors)."""
+        """What the laminate (glint and veil) explains beyond flare and a flat ratio (floors)."""
         return self.rms_flat - self.rms_glint
 
     @property
     def geometry(self) -> tuple[float, float, float]:
         """``(alpha, offset_x_m, offset_z_m)`` of the glint."""
         return float(self.x[3]), float(self.x[4]), float(self.x[5])
+
+    @property
+    def veil(self) -> float:
+        """``V``: the surroundings' radiance the coating mirrors, at normal view (full scale)."""
+        return float(self.x[6])
 
     @property
     def glint_scale(self) -> float:
@@ -99,8 +102,9 @@ def ratio_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
     paper = levels.real_paper[ok]
     cos_h, cos_o, _, distance = lobe_geometry(levels.eye_from_tag[ok], x[4], x[5])
     glint = x[2] * beckmann(cos_h, x[3]) / (distance**2 * np.maximum(cos_o, MIN_COS))
+    added = glint + x[6] * fresnel_veil(cos_o) + x[1]
     flat = 2.0 ** x[0] * r_sim
-    ratio = flat + (1.0 - flat) * np.minimum((glint + x[1]) / paper, 1.0)
+    ratio = flat + (1.0 - flat) * np.minimum(added / paper, 1.0)
     observed = levels.real_ink[ok] / paper
     return np.log2(np.maximum(ratio, 1e-6) / observed) / IMAGE_FLOORS["ink_linear"][1]
 
@@ -113,8 +117,8 @@ def fit_ratios(
 ) -> RatioFit | None:
     """Robust least squares of the ratio model; None with fewer than :data:`MIN_TAGS` tags.
 
-    With ``fixed`` ``(alpha, offset_x_m, offset_z_m)`` only ``h``, the flare and the glint's
-    scale are fitted (the calibration render of :meth:`simgap.analysis.gloss.GlossCandidate.
+    With ``fixed`` ``(alpha, offset_x_m, offset_z_m)`` only ``h``, the flare, the glint's scale
+    and the veil are fitted (the calibration render of :meth:`simgap.analysis.gloss.GlossCandidate.
     intensity`).
     """
     tags = int(np.count_nonzero(~levels.clipped & ~levels.ink_clipped))
@@ -126,8 +130,8 @@ def fit_ratios(
         return x, capped_rms(ratio_residuals(levels, x))
 
     flat_x, rms_flat = solve(
-        np.array([0.0, 0.0, 0.0, alpha_range[1], 0.0, HEIGHT_M]),
-        np.array([1, 1, 0, 0, 0, 0], bool),
+        np.array([0.0, 0.0, 0.0, alpha_range[1], 0.0, HEIGHT_M, 0.0]),
+        np.array([1, 1, 0, 0, 0, 0, 0], bool),
         (-4.0, 0.0),
         (4.0, 1.0),
     )
@@ -136,16 +140,19 @@ def fit_ratios(
     if fixed is not None:
         start = flat_x.copy()
         start[2], start[3:6] = scale * fixed[0], fixed
-        x, rms = solve(start, np.array([1, 1, 1, 0, 0, 0], bool), (-4, 0, 0), (4, 1, np.inf))
+        x, rms = solve(
+            start, np.array([1, 1, 1, 0, 0, 0, 1], bool), (-4, 0, 0, 0), (4, 1, np.inf, 1)
+        )
         return RatioFit(x, rms_flat, rms, tags)
     best, best_rms = flat_x, rms_flat
-    lower = (-4.0, 0.0, 0.0, alpha_range[0], offset_range[0])
-    upper = (4.0, 1.0, np.inf, alpha_range[1], offset_range[1])
+    lower = (-4.0, 0.0, 0.0, alpha_range[0], offset_range[0], 0.0)
+    upper = (4.0, 1.0, np.inf, alpha_range[1], offset_range[1], 1.0)
     for alpha in STARTS[0]:
         for offset_x in STARTS[1]:
             start = flat_x.copy()
             start[2:5] = scale * alpha, alpha, offset_x
-            x, rms = solve(start, np.array([1, 1, 1, 1, 1, 0], bool), lower, upper)
+            free = np.array([1, 1, 1, 1, 1, 0, 1], bool)
+            x, rms = solve(start, free, lower, upper)
             if rms < best_rms:
                 best, best_rms = x, rms
     return RatioFit(best, rms_flat, best_rms, tags)

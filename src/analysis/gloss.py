@@ -66,7 +66,7 @@ from simgap.analysis.appearance import (
 from simgap.analysis.channels import detection_groups, detection_score
 from simgap.analysis.fitting import Fit, Items, on_bound
 from simgap.analysis.glint_ratio import STARTS, RatioFit, fit_ratios
-from simgap.analysis.lobe import MIN_COS, beckmann, lobe_geometry
+from simgap.analysis.lobe import LAMINATE_IOR, MIN_COS, beckmann, lobe_geometry
 from simgap.analysis.runner import Runner
 from simgap.analysis.subset_fit import fit_subset
 from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
@@ -85,8 +85,6 @@ OFFSET_M: tuple[float, float] = (-0.15, 0.15)
 #: 0.45 m away gets the template key light's irradiance) and the largest intensity reported.
 REFERENCE_INTENSITY_W_SR = 0.24
 INTENSITY_W_SR: tuple[float, float] = (0.0, 5.0)
-#: Index of refraction of the laminate (PET / acrylic film; Fresnel 4 % at normal incidence).
-LAMINATE_IOR = 1.49
 #: Smallest gain (floors) of the laminate over a matte light for a supported fit.
 GLINT_MIN_GAIN = SIGNATURE_MIN_GAIN
 #: 8-bit levels at or beyond which a real tag's paper or ink is clipped (no ratio).
@@ -370,7 +368,7 @@ class GlossCandidate(AppearanceCandidate):
         if ratio is None:
             supported = fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
         else:
-            supported = ratio.gain >= GLINT_MIN_GAIN and ratio.glint_scale > 0
+            supported = ratio.gain >= GLINT_MIN_GAIN and (ratio.glint_scale > 0 or ratio.veil > 0)
         if supported:
             params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit, ratio)
         top = INTENSITY_W_SR[1]
