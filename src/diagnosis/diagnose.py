@@ -17,7 +17,9 @@ Steps (docs/conventions.md §5):
 
 The pipeline is reached only through a :class:`simgap.pipeline.simulator.Simulator` given by the
 caller (the CLI, the blind validation); the result is a
-:class:`simgap.diagnosis.result.DiagnosisResult` (``result.json``).
+:class:`simgap.diagnosis.result.DiagnosisResult` (``result.json``), and what the report draws beyond
+it a :class:`simgap.diagnosis.diagnosis_files.DiagnosisEvidence` (:meth:`Diagnosis.evidence`,
+``evidence.nc``).
 """
 
 from __future__ import annotations
