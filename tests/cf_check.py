@@ -84,8 +84,19 @@ def label_dimensions(path: Path) -> int:
         )
 
 
+def _variables(group, prefix: str = ""):
+    """``(name, variable)`` of every variable of a netCDF group and of the groups in it.
+
+    A variable of a group is named by its path, ``group/name``.
+    """
+    for name, var in group.variables.items():
+        yield prefix + name, var
+    for name, child in group.groups.items():
+        yield from _variables(child, f"{prefix}{name}/")
+
+
 def missing_metadata(path: Path) -> list[str]:
-    """Variables of ``path`` without a ``long_name``, and numeric ones without ``units``.
+    """Variables of ``path``, in any group, without a ``long_name``; numeric ones without ``units``.
 
     Flags (``flag_values``) have no units, as CF's flags; char arrays (labels) hold no quantity.
     ``cfchecks`` asks for neither a long_name nor units on every variable; simgap's files have both.
@@ -94,7 +105,7 @@ def missing_metadata(path: Path) -> list[str]:
 
     out = []
     with netCDF4.Dataset(path) as nc:
-        for name, var in nc.variables.items():
+        for name, var in _variables(nc):
             attrs = set(var.ncattrs())
             if "long_name" not in attrs:
                 out.append(f"{name}: no long_name")

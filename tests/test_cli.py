@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from simgap.cli import app
 from simgap.core.rig import load_rig
+from simgap.pose.image_stats import STAT_NAMES
 from simgap.results.dataset import build_dataset, write_netcdf
 
 TAGS = (0, 1)
@@ -25,8 +26,11 @@ def runner():
     return CliRunner()
 
 
-def small_dataset(seed: int = 0):
-    """A result dataset shaped like `simgap run`'s, with mm-sized random errors."""
+def small_dataset(seed: int = 0, image_stats: bool = False):
+    """A result dataset shaped like `simgap run`'s, with mm-sized random errors.
+
+    With ``image_stats``, random image statistics of every visible configuration too.
+    """
     rig = load_rig()
     rng = np.random.default_rng(seed)
     shape = (len(TAGS), len(PS), len(THETAS))
@@ -54,6 +58,9 @@ def small_dataset(seed: int = 0):
         "reproj_px": reproj,
         "corners": corners,
     }
+    if image_stats:
+        stats = rng.uniform(0.0, 1.0, full + (len(STAT_NAMES),))
+        results["image_stats"] = np.where(visible[None, None, ..., None], stats, np.nan)
     return build_dataset(
         TAGS, PS, THETAS, expected, visible, results, attrs={"config": "name: cli-test\n"}
     )
@@ -186,7 +193,7 @@ def test_version_prints_the_package_version(runner):
 
 def test_every_command_has_plain_help_under_h_and_help(runner):
     paths = command_paths()
-    assert len(paths) == 13  # the app and its 12 commands (see simgap.cli)
+    assert len(paths) == 14  # the app and its 13 commands (see simgap.cli)
     for path in paths:
         short = runner.invoke(app, path + ["-h"], prog_name="simgap")
         assert short.exit_code == 0, (path, short.output)
@@ -450,7 +457,7 @@ def test_plain_progress_lines_come_every_interval_with_an_estimate(monkeypatch):
 #: that take an experiment: the positional EXPERIMENT (export-bag: SOURCE, which may also be a
 #: capture folder), older option spellings kept hidden.
 WRITES = {"run", "report", "compare", "study", "ingest", "calibrate", "export-bag", "errormodel",
-          "diagnose", "validate"}  # fmt: skip
+          "diagnose", "report-diagnosis", "validate"}  # fmt: skip
 PROGRESS = {
     "run",
     "report",

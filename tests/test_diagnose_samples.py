@@ -8,6 +8,9 @@ pytest-xdist runs them beside the blind validation's trials instead of after the
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -16,16 +19,34 @@ from simgap.analysis.candidates import geometric_effects
 from simgap.cli import app
 from simgap.cli.outputs import DIAGNOSIS_JSON
 from simgap.core.outputs import OUTPUT_MARKER
+from simgap.diagnosis.diagnosis_files import EVIDENCE_FILE, RESULT_FILE, DiagnosisEvidence
 from simgap.diagnosis.result import DiagnosisResult
 
+#: The figures of a diagnosis report, in the order its "Figures" section lists them.
+REPORT_FIGURES = (
+    "abs_error_vs_distance.png",
+    "ranking.png",
+    "gap_by_distance.png",
+    "gap_heatmap.png",
+    "image_stats_vs_distance.png",
+    "image_stats_vs_view_angle.png",
+)
+#: Every file of a diagnosis folder, in the order `simgap diagnose` writes and lists them.
+DIAGNOSIS_FILES = (RESULT_FILE, EVIDENCE_FILE, *REPORT_FIGURES, "diagnosis.md")
 
-def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sample):
-    """`simgap ingest` + `simgap diagnose` on the shared sample-focal capture: focal ~+2 %."""
+
+@pytest.fixture(scope="module")
+def focal_diagnosis(tmp_path_factory, session_cache, sample) -> tuple[Path, Path]:
+    """`simgap ingest` + `simgap diagnose --json` of sample-focal: its folder and the --json file.
+
+    Made once for this file's tests (they run on one worker: ``--dist loadfile``).
+    """
     runner = CliRunner()
-    real = tmp_path / "real.nc"
+    folder = tmp_path_factory.mktemp("focal")
+    real = folder / "real.nc"
     res = runner.invoke(app, ["ingest", str(sample), "-o", str(real)])
     assert res.exit_code == 0, res.output
-    out, js = tmp_path / "diag", tmp_path / "result.json"
+    out, js = folder / "diag", folder / "result.json"
     res = runner.invoke(
         app,
         [
@@ -42,6 +63,12 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
         ],
     )
     assert res.exit_code == 0, res.output
+    return out, js
+
+
+def test_public_sample_is_diagnosed_as_focal_length(focal_diagnosis):
+    """`simgap ingest` + `simgap diagnose` on the shared sample-focal capture: focal ~+2 %."""
+    out, js = focal_diagnosis
     # its outputs are recognised as simgap's: a rerun may replace them (issue 26)
     assert DIAGNOSIS_JSON.is_ours(js) and (out / OUTPUT_MARKER).is_file()
     result = DiagnosisResult.from_json(json.loads(js.read_text()))
@@ -57,14 +84,7 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
     assert result.ranking[0].params["scale"] == pytest.approx(0.02, abs=0.003)
     # measured: 93 % reduction on the report split, confirmed by re-rendering
     assert result.confirmed.pose_gap_reduction >= 0.7
-    for name in (
-        "diagnosis.md",
-        "ranking.png",
-        "gap_heatmap.png",
-        "gap_by_distance.png",
-        "image_stats_vs_distance.png",
-        "abs_error_vs_distance.png",
-    ):
+    for name in DIAGNOSIS_FILES:
         assert (out / name).is_file()
     # 9 configurations: simulated converged at 4 render seeds (the capture keeps its frames),
     # each pose read with the capture's corner noise beyond the simulation's, and the report
@@ -80,6 +100,35 @@ def test_public_sample_is_diagnosed_as_focal_length(tmp_path, session_cache, sam
     verdict = report.split("## Where")[0]
     assert "Largest gap: **ty far**" in verdict and " mm" in verdict
     assert "| ty | near (p 0-0) |" in verdict
+
+
+def test_the_report_is_written_again_from_its_folder_alone(tmp_path, focal_diagnosis):
+    """`simgap report-diagnosis` in another process writes diagnosis.md and every figure again
+    from result.json and evidence.nc alone, byte for byte: into another folder (with copies of
+    the two) and in place. --json's file is the folder's result.json, byte for byte (serialised
+    once); evidence.nc holds the 9 comparable items, and its records round-trip."""
+    out, js = focal_diagnosis
+    assert js.read_bytes() == (out / RESULT_FILE).read_bytes()
+    written = {name: (out / name).read_bytes() for name in DIAGNOSIS_FILES}
+    again = tmp_path / "again"
+    cmd = [sys.executable, "-m", "simgap", "report-diagnosis", str(out), "-o", str(again)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == [str(again / name) for name in DIAGNOSIS_FILES]
+    differ = [name for name in DIAGNOSIS_FILES if (again / name).read_bytes() != written[name]]
+    assert not differ, differ
+    res = CliRunner().invoke(app, ["report-diagnosis", str(out)])  # in place
+    assert res.exit_code == 0, res.output
+    assert res.output.splitlines() == [str(out / name) for name in DIAGNOSIS_FILES[2:]]
+    differ = [name for name in DIAGNOSIS_FILES if (out / name).read_bytes() != written[name]]
+    assert not differ, differ
+    evidence = DiagnosisEvidence.read(out / EVIDENCE_FILE)
+    result = DiagnosisResult.from_json(json.loads(js.read_text()))
+    assert len(evidence.items) == result.where.comparable_configurations == 9
+    assert evidence.items.report_items == result.split.report
+    assert evidence.items.confirmed_error is not None and evidence.image_stats is not None
+    for record in (evidence.items, evidence.gap, evidence.image_stats):
+        assert type(record).from_dataset(record.to_dataset()) == record
 
 
 def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sample_null):

@@ -78,6 +78,37 @@ def repeat_median_stats(ds: xr.Dataset, variant: str | None = None) -> xr.DataAr
     return median.reindex(stat=list(STAT_NAMES))
 
 
+def image_stat_view(ds: xr.Dataset) -> xr.Dataset:
+    """What :func:`plot_image_stats` draws of one dataset, per (tag, p, theta).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result dataset with ``image_stats`` and ``expected``; its first variant is read.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``distance_m`` (m) and ``sight_elevation_deg`` (deg: 90 facing the camera, 0 edge-on) of
+        :func:`tag_distance_and_view_angle`, ``visible`` (bool) and ``image_stat_median`` (tag, p,
+        theta, stat): :func:`repeat_median_stats` over the statistics of
+        :data:`~simgap.pose.image_stats.STAT_NAMES` that ``ds`` has, in that order.
+    """
+    distance, elevation = tag_distance_and_view_angle(ds)
+    visible = ds.visible if "variant" not in ds.visible.dims else ds.visible.isel(variant=0)
+    own = [s for s in STAT_NAMES if s in ds.stat.values]
+    median = repeat_median_stats(ds).sel(stat=own).transpose("tag", "p", "theta", "stat")
+    view = xr.Dataset(
+        {
+            "distance_m": distance,
+            "sight_elevation_deg": elevation,
+            "visible": visible.astype(bool),
+            "image_stat_median": median,
+        }
+    )
+    return view.reset_coords(drop=True)  # the scalar variant, the stat's units and meanings
+
+
 def plot_image_stats(
     datasets: Mapping[str, xr.Dataset],
     against: str = "distance",
@@ -95,16 +126,21 @@ def plot_image_stats(
     Parameters
     ----------
     datasets : mapping of label to dataset
-        Datasets with ``image_stats`` (e.g. ``{"real": real, "simulation": sim}``); the first
-        variant of each, median over repeats, visible tags only.
+        Datasets with ``image_stats`` (e.g. ``{"real": real, "simulation": sim}``; the first
+        variant of each, median over repeats), or their :func:`image_stat_view`; visible tags
+        only are drawn.
     against : {"distance", "view_angle"}
         The x axis.
     stats : sequence of str
-        Statistics to plot, one panel each.
+        Statistics to plot, one panel each (those every dataset has).
     title : str
         Figure title.
     """
-    stats = [s for s in stats if all(s in ds.stat.values for ds in datasets.values())]
+    views = {
+        label: ds if "image_stat_median" in ds else image_stat_view(ds)
+        for label, ds in datasets.items()
+    }
+    stats = [s for s in stats if all(s in view.stat.values for view in views.values())]
     cols = 3
     rows = max(1, int(np.ceil(len(stats) / cols)))
     fig = Figure(figsize=(4.6 * cols, 3.2 * rows), layout="constrained")
@@ -112,14 +148,12 @@ def plot_image_stats(
     axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
     markers = "o^sDv<>"
     shown: dict[str, list[np.ndarray]] = {stat: [] for stat in stats}
-    for k, (label, ds) in enumerate(datasets.items()):
-        distance, view = tag_distance_and_view_angle(ds)
-        x = distance if against == "distance" else 90.0 - view  # deg from facing, 0 facing
-        visible = ds.visible if "variant" not in ds.visible.dims else ds.visible.isel(variant=0)
-        values = repeat_median_stats(ds)
+    for k, (label, view) in enumerate(views.items()):
+        # x: the distance (m), or the view angle from facing (deg, 0 facing)
+        x = view.distance_m if against == "distance" else 90.0 - view.sight_elevation_deg
         for ax, stat in zip(axes, stats, strict=False):
-            y = values.sel(stat=stat).where(visible)
-            for tag in ds.tag.values:
+            y = view.image_stat_median.sel(stat=stat).where(view.visible)
+            for tag in view.tag.values:
                 xs, ys = x.sel(tag=tag).values.ravel(), y.sel(tag=tag).values.ravel()
                 ok = np.isfinite(ys)
                 shown[stat].append(ys[ok])

@@ -121,7 +121,9 @@ def diagnose(
     ] = None,
     sim: Annotated[Path | None, typer.Option("--sim", hidden=True)] = None,
     calibration: CalibrationOption = None,
-    json_path: Path | None = typer.Option(None, "--json", help="Also write result.json here."),
+    json_path: Path | None = typer.Option(
+        None, "--json", help="Also copy the report folder's result.json here."
+    ),
     cache: CacheOption = None,
     seed: int = typer.Option(
         0, "--seed", help="Seed of the fit / choose / report split (>= 0).", min=0
@@ -135,13 +137,22 @@ def diagnose(
     scheduler: SchedulerOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
-    """Diagnose the sim-to-real gap: where, which effect, how far it shrinks."""
+    """Diagnose the sim-to-real gap: where, which effect, how far it shrinks.
+
+    Writes result.json and evidence.nc into OUTPUT, then the report (diagnosis.md and figures)
+    from those two files alone, as report-diagnosis writes it again.
+    """
     from simgap.cli.progress import StepBars
+    from simgap.core.atomic import atomic_copy
     from simgap.core.outputs import claimed_folder
     from simgap.core.paths import default_cache_dir
     from simgap.diagnosis.diagnose import diagnose as run_diagnosis
+    from simgap.diagnosis.diagnosis_files import (
+        RESULT_FILE,
+        read_diagnosis_files,
+        write_diagnosis_files,
+    )
     from simgap.diagnosis.diagnosis_report import selected_names, write_diagnosis_report
-    from simgap.diagnosis.result_json import write_json
     from simgap.diagnosis.settings import DiagnoseSettings
     from simgap.pipeline.simulator import Simulator
     from simgap.results.dataset import read_netcdf
@@ -161,11 +172,12 @@ def diagnose(
     with StepBars(progress) as bars:
         result, state = run_diagnosis(data, exp, simulator, settings, progress=bars)
     with claimed_folder(output):
-        paths = write_diagnosis_report(result, state, output)
+        paths = write_diagnosis_files(result, state.evidence(), output)
+        paths += write_diagnosis_report(*read_diagnosis_files(output), output)
     for p in paths:
         typer.echo(str(p))
-    if json_path:
-        typer.echo(str(write_json(result, json_path)))
+    if json_path:  # the bytes of OUTPUT's result.json, serialised once
+        typer.echo(str(atomic_copy(output / RESULT_FILE, json_path)))
     if not result.where.significant and not result.selection:
         verdict = "no significant gap"
     else:  # a calibration effect the corners single out is a finding without a significant gap
@@ -174,6 +186,46 @@ def diagnose(
             names = "; ".join(map(evidence_name, result.unexplained_evidence))
             verdict += f"; unexplained: {names}"
     typer.echo(f"diagnosis: {verdict}")
+
+
+@app.command("report-diagnosis")
+def report_diagnosis(
+    diagnosis: Annotated[
+        Path,
+        typer.Argument(
+            help="Diagnosis folder from simgap diagnose: its result.json and evidence.nc."
+        ),
+    ],
+    output: Annotated[
+        Path | None,
+        output_option(
+            "Folder to write the report to (default: DIAGNOSIS itself); another folder also gets "
+            "copies of result.json and evidence.nc."
+        ),
+    ] = None,
+    overwrite: OverwriteOption = False,
+) -> None:
+    """Write a diagnosis's report (diagnosis.md and its figures) again from its folder's files.
+
+    The report is a function of result.json and evidence.nc alone: written again, from the same
+    two files, it is the same byte for byte.
+    """
+    from simgap.core.atomic import atomic_copy
+    from simgap.core.outputs import claimed_folder
+    from simgap.diagnosis.diagnosis_files import EVIDENCE_FILE, RESULT_FILE, read_diagnosis_files
+    from simgap.diagnosis.diagnosis_report import write_diagnosis_report
+
+    output = diagnosis if output is None else output
+    files = (RESULT_FILE, EVIDENCE_FILE)
+    inputs = [(f"DIAGNOSIS ({name})", diagnosis / name) for name in files]
+    check_outputs([(OUTPUT, output, DIAGNOSIS_FOLDER)], inputs, overwrite)
+    result, evidence = read_diagnosis_files(diagnosis)
+    with claimed_folder(output):
+        copies = output.resolve() != diagnosis.resolve()
+        paths = [atomic_copy(diagnosis / name, output / name) for name in files if copies]
+        paths += write_diagnosis_report(result, evidence, output)
+    for p in paths:
+        typer.echo(str(p))
 
 
 def evidence_name(name: str) -> str:

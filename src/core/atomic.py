@@ -29,6 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = [
+    "atomic_copy",
     "atomic_write",
     "remove_dead_writers",
     "remove_stale_temporaries",
@@ -173,6 +174,16 @@ def atomic_write(
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+def atomic_copy(source: str | Path, target: str | Path) -> Path:
+    """Copy the bytes of the file ``source`` to ``target`` atomically; return ``target``.
+
+    ``target``'s folder is created where missing; ``source`` is read once, as it is.
+    """
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    return atomic_write(target, Path(source).read_bytes())
 
 
 def _link_or_replace(tmp: Path, path: Path) -> None:

@@ -17,7 +17,9 @@ Steps (docs/conventions.md §5):
 
 The pipeline is reached only through a :class:`simgap.pipeline.simulator.Simulator` given by the
 caller (the CLI, the blind validation); the result is a
-:class:`simgap.diagnosis.result.DiagnosisResult` (``result.json``).
+:class:`simgap.diagnosis.result.DiagnosisResult` (``result.json``), and what the report draws beyond
+it a :class:`simgap.diagnosis.diagnosis_files.DiagnosisEvidence` (:meth:`Diagnosis.evidence`,
+``evidence.nc``).
 """
 
 from __future__ import annotations
@@ -42,10 +44,18 @@ from simgap.analysis.selection import ModelSearch
 from simgap.core.axes import AXES
 from simgap.core.progress import ProgressCallback, Steps
 from simgap.diagnosis.camera_signatures import pipeline_signatures
+from simgap.diagnosis.diagnosis_files import (
+    SPLITS,
+    DiagnosisEvidence,
+    GapEvidence,
+    ImageStatEvidence,
+    ItemEvidence,
+)
 from simgap.diagnosis.items import (
     NoiseShift,
     build_items,
     demosaicing_from_attrs,
+    item_distances,
     repeats_of_simulation,
     simulation_experiment,
     split_items,
@@ -144,10 +154,10 @@ class Diagnosis:
         self.fit_index, self.report_index = fit, report
         self.choose_index = subsample(choose, settings.max_choose_items, settings.seed)
         #: errors (m, rad) with the chosen effects, per item: the report split's from the fast
-        #: model (:meth:`combined`, NaN elsewhere), or every item re-rendered (:meth:`confirm`)
+        #: model (:meth:`combined`; NaN elsewhere)
         self.fitted_errors: np.ndarray | None = None
-        #: whether :attr:`fitted_errors` were re-rendered
-        self.fitted_confirmed = False
+        #: errors (m, rad) of every item re-rendered with the chosen effects (:meth:`confirm`)
+        self.confirmed_errors: np.ndarray | None = None
         self.axis_gaps = gapmod.axis_summary(self.field)
         #: axes where the gap is significant: the pose gap is scored on them
         self.significant_axes = np.array([self.axis_gaps[a].significant for a in AXES])
@@ -167,7 +177,7 @@ class Diagnosis:
     def confirm(self, chosen: Scored) -> Confirmed:
         """Re-run the pipeline (re-render) with all selected effects; score the report split.
 
-        Every item is re-rendered (:attr:`fitted_errors`, for the report in mm and mrad); the
+        Every item is re-rendered (:attr:`confirmed_errors`, for the report in mm and mrad); the
         scores are those of the report split's items, which neither fitted nor chose the model.
         """
         state = self.base
@@ -179,8 +189,8 @@ class Diagnosis:
         errors = self.runner.errors(state, self.items, self.search.steps.advance)
         if self.noise_shift is not None:  # as the simulation's own errors (with_noise_shift)
             errors = errors + np.nan_to_num(self.noise_shift.at(self.items))
-        self.fitted_errors, self.fitted_confirmed = errors, True
-        pred = self.fitted_errors[self.report_index]
+        self.confirmed_errors = errors
+        pred = errors[self.report_index]
         before = float(gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes))
         after = float(gap_score(h.real_err, pred, h.scale, self.significant_axes))
         return Confirmed(
@@ -226,6 +236,34 @@ class Diagnosis:
             equivalent_model(other),
             capture_difference_px=float(np.max(own)) if own.size else None,
             telling_poses=telling_poses(self.rig, self.base, chosen, other),
+        )
+
+    def evidence(self) -> DiagnosisEvidence:
+        """What the report draws beyond the result (``evidence.nc``): items, gap, image statistics.
+
+        Per item its splits and its real, simulated, fitted and confirmed errors as they stand
+        after :meth:`combined` and :meth:`confirm`; the gap and the image statistics of
+        :attr:`real` against :attr:`sim`.
+        """
+        membership = np.zeros((len(self.items), len(SPLITS)), bool)
+        splits = {"fit": self.fit_index, "choose": self.choose_index, "report": self.report_index}
+        for k, name in enumerate(SPLITS):
+            membership[splits[name], k] = True
+        items = ItemEvidence(
+            tag=self.items.tag,
+            p=self.items.p,
+            theta_rad=self.items.theta,
+            distance_m=item_distances(self.items, self.rig),
+            in_split=membership,
+            real_error=self.items.real_err,
+            simulated_error=self.items.sim_err,
+            fitted_error=self.fitted_errors,
+            confirmed_error=self.confirmed_errors,
+        )
+        return DiagnosisEvidence(
+            items=items,
+            gap=GapEvidence.of(self.real, self.sim),
+            image_stats=ImageStatEvidence.of(self.real, self.sim),
         )
 
     def combined(self, chosen: Scored) -> Combined:

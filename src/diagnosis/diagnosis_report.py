@@ -1,10 +1,13 @@
-"""The diagnosis report: the effect ranking, before/after, figures, JSON.
+"""The diagnosis report: ``diagnosis.md`` and its figures, from the diagnosis folder's files.
 
-Where the gap lies, its markdown, is :mod:`simgap.diagnosis.where_report`.
+:func:`write_diagnosis_report` reads nothing but a :class:`~simgap.diagnosis.result.DiagnosisResult`
+(``result.json``) and a :class:`~simgap.diagnosis.diagnosis_files.DiagnosisEvidence`
+(``evidence.nc``), so ``simgap report-diagnosis`` writes it again from those two files, byte for
+byte. Where the gap lies, its markdown, is :mod:`simgap.diagnosis.where_report`.
 
-The gap heatmap reuses the comparison figure (:mod:`simgap.analysis.report.figures`): the
-simulation and the real data are put into one dataset as two variants, so the signed shift of
-``real`` against ``simulation`` is the gap. ``gap_by_distance.png``
+The gap heatmap is the comparison figure (:mod:`simgap.analysis.report.figures`) of the real data
+against the simulation as two variants (:class:`~simgap.diagnosis.diagnosis_files.GapEvidence`),
+so the signed shift of ``real`` against ``simulation`` is the gap. ``gap_by_distance.png``
 (:func:`simgap.diagnosis.engineering.plot_gap_by_distance`) draws the same signed gap,
 real - simulated, as the report's region table.
 """
@@ -14,42 +17,23 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from simgap.analysis.gap import align
 from simgap.analysis.image_evidence import plot_image_stats
-from simgap.analysis.report.figures import plot_change_heatmap
+from simgap.analysis.report.figures import plot_comparison_heatmap
 from simgap.analysis.report.output import save_figure, save_text
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL, GEOMETRY_CORNER_GAP_PX
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.camera_signatures import pipeline_markdown
-from simgap.diagnosis.diagnose import Diagnosis
+from simgap.diagnosis.diagnosis_files import GAP_VARIANT, DiagnosisEvidence
 from simgap.diagnosis.engineering import (
     engineering_markdown,
-    item_distances,
     plot_abs_error_vs_distance,
     plot_gap_by_distance,
 )
 from simgap.diagnosis.result import DiagnosisResult, EquivalentModel
-from simgap.diagnosis.result_json import write_json
 from simgap.diagnosis.where_report import where_markdown
-
-
-def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
-    """The simulation and the real data as variants ``simulation`` and ``real`` of one dataset."""
-    real, sim = align(real, sim)
-    sim = sim.isel(variant=[0]).assign_coords(variant=["simulation"])
-    real = real.isel(variant=[0]).assign_coords(variant=["real"])
-    keep = ["error", "estimated", "detected", "reproj_px", "corners"]
-    both = xr.concat([sim[keep], real[keep]], dim="variant", join="outer", fill_value=np.nan)
-    both["detected"] = both.detected.fillna(False).astype(bool)
-    visible = real.visible if "variant" not in real.visible.dims else real.visible.isel(variant=0)
-    both["visible"] = visible
-    both["expected"] = real.expected
-    return both
 
 
 def _render_seeds_sentence(result: DiagnosisResult) -> str:
@@ -331,35 +315,39 @@ def plot_ranking(result: DiagnosisResult) -> Figure:
     return fig
 
 
-def write_diagnosis_report(result: DiagnosisResult, d: Diagnosis, out_dir: Path) -> list[Path]:
-    """Write ``diagnosis.md``, figures (gap heatmap, by distance, ranking) and ``result.json``."""
+def write_diagnosis_report(
+    result: DiagnosisResult, evidence: DiagnosisEvidence, out_dir: Path
+) -> list[Path]:
+    """Write ``diagnosis.md`` and its figures into ``out_dir``; return their paths.
+
+    Figures: |error| and the signed gap against distance, the ranking, the gap heatmap and,
+    where both sides have image statistics, those against distance and view angle. A function
+    of ``result`` and ``evidence`` alone (the diagnosis folder's ``result.json`` and
+    ``evidence.nc``, :func:`~simgap.diagnosis.diagnosis_files.read_diagnosis_files`): the same
+    two give the same bytes.
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    both = gap_dataset(d.real, d.sim)
     paths = [save_figure(plot_ranking(result), out_dir / "ranking.png")]
-    paths.append(
-        save_figure(plot_change_heatmap(both, "real", "simulation"), out_dir / "gap_heatmap.png")
-    )
-    if "image_stats" in d.real and "image_stats" in d.sim:
-        real, sim = align(d.real, d.sim)
-        images = {"real": real, "simulation": sim}
+    heatmap = plot_comparison_heatmap(evidence.gap.comparison(), GAP_VARIANT)
+    paths.append(save_figure(heatmap, out_dir / "gap_heatmap.png"))
+    if evidence.image_stats is not None:
+        views = evidence.image_stats.views()
         for against in ("distance", "view_angle"):
-            fig = plot_image_stats(images, against, title="Image evidence: real vs simulation")
+            fig = plot_image_stats(views, against, title="Image evidence: real vs simulation")
             paths.append(save_figure(fig, out_dir / f"image_stats_vs_{against}.png"))
-    distance = item_distances(d)
-    items = d.items
-    fitted = np.full_like(items.real_err, np.nan) if d.fitted_errors is None else d.fitted_errors
-    figure = plot_abs_error_vs_distance(distance, items.real_err, items.sim_err, fitted)
+    items = evidence.items
+    real, sim, fitted = items.real_error, items.simulated_error, items.with_fitted_effects
+    figure = plot_abs_error_vs_distance(items.distance_m, real, sim, fitted)
     paths.insert(0, save_figure(figure, out_dir / "abs_error_vs_distance.png"))
-    figure = plot_gap_by_distance(items.p, distance, items.real_err, items.sim_err, fitted)
+    figure = plot_gap_by_distance(items.p, items.distance_m, real, sim, fitted)
     paths.insert(2, save_figure(figure, out_dir / "gap_by_distance.png"))
     lines = ["# Sim-to-real gap diagnosis", ""]
-    lines += engineering_markdown(d, distance, fitted, selected_names(result))
+    lines += engineering_markdown(items, selected_names(result))
     lines += where_markdown(result.where)
     lines += which_markdown(result)
     lines += pipeline_markdown(result.camera_pipeline)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]
     lines.append(f"Diagnosis time: {result.seconds:.0f} s.")
     paths.append(save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))
-    paths.append(write_json(result, out_dir / "result.json"))
     return paths

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -26,10 +25,8 @@ from simgap.analysis.gap import distance_thirds
 from simgap.analysis.paper import THRESHOLD_BY_UNIT
 from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, ROTATION_AXES, axis_unit, display_unit
-from simgap.core.distance import DISTANCE_LABEL, camera_to_tag_distance
-
-if TYPE_CHECKING:
-    from simgap.diagnosis.diagnose import Diagnosis
+from simgap.core.distance import DISTANCE_LABEL
+from simgap.diagnosis.diagnosis_files import ItemEvidence
 
 #: A pose whose rotation error is larger than :data:`~simgap.analysis.thresholds.FLIP_RAD`
 #: (0.15 rad) while its translation error on every axis stays within the mission threshold
@@ -358,29 +355,25 @@ def verdict(rows: list[RegionRow], selected: str, fitted_on: str) -> list[str]:
     return lines
 
 
-def item_distances(d: Diagnosis) -> np.ndarray:
-    """Camera-to-tag distance of every comparable item of a diagnosis (m)."""
-    items, rig = d.items, d.rig
-    poses = rig.eyepoints_from_tags(items.tag, items.p, items.theta)
-    return camera_to_tag_distance(poses[:, :3, 3])
-
-
-def engineering_markdown(
-    d: Diagnosis, distance_m: np.ndarray, fitted: np.ndarray, selected: str
-) -> list[str]:
+def engineering_markdown(items: ItemEvidence, selected: str) -> list[str]:
     """The verdict in mm and mrad, the per-axis near / mid / far table and the planar flips.
 
-    ``distance_m``: :func:`item_distances`; ``fitted``: errors with the fitted effects (N, 6)
-    (m, rad; :attr:`Diagnosis.fitted_errors`, NaN where not predicted); ``selected``: the
-    selected effects in words.
+    Parameters
+    ----------
+    items : ItemEvidence
+        The diagnosis's comparable items: pin holes, distances (m), real, simulated and, with the
+        selected effects, fitted or confirmed errors (m, rad;
+        :attr:`~simgap.diagnosis.diagnosis_files.ItemEvidence.with_fitted_effects`).
+    selected : str
+        The selected effects in words.
     """
-    items = d.items
-    rows = region_rows(items.p, distance_m, items.real_err, items.sim_err, fitted)
+    fitted = items.with_fitted_effects
+    rows = region_rows(items.p, items.distance_m, items.real_error, items.simulated_error, fitted)
     fitted_on = (
         "every configuration re-rendered with the fitted effects; the "
-        f"{len(d.report_index)} of the report split neither fitted nor chose them"
-        if d.fitted_confirmed
-        else f"fast model, the {len(d.report_index)} report-split configurations"
+        f"{items.report_items} of the report split neither fitted nor chose them"
+        if items.confirmed_error is not None
+        else f"fast model, the {items.report_items} report-split configurations"
     )
     lines = ["## In mm and mrad", ""]
     lines += verdict(rows, selected, fitted_on)
@@ -392,5 +385,5 @@ def engineering_markdown(
         "",
     ]
     lines += region_table(rows)
-    lines += ["", flip_sentence(items.real_err, items.sim_err, fitted), ""]
+    lines += ["", flip_sentence(items.real_error, items.simulated_error, fitted), ""]
     return lines

@@ -25,6 +25,7 @@ from simgap.analysis.pose_noise import noise_shift, propagated_pose_noise
 from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.config import to_mapping
+from simgap.core.distance import camera_to_tag_distance
 from simgap.core.rig import CameraModel, Rig
 from simgap.effects.state import VariantState
 from simgap.pipeline.experiment import Configurations, Experiment
@@ -182,6 +183,12 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
         real_detected=field.real_detection.values[at],
         sim_detected=field.sim_detection.values[at],
     )
+
+
+def item_distances(items: Items, rig: Rig) -> np.ndarray:
+    """Camera-to-tag distance of each item in the rig's nominal pose (N,) (m)."""
+    poses = rig.eyepoints_from_tags(items.tag, items.p, items.theta)
+    return camera_to_tag_distance(poses[:, :3, 3])
 
 
 def with_propagated_noise(items: Items, sigma_px: float, rig: Rig, base: VariantState) -> Items:

@@ -321,7 +321,22 @@ def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = N
         (:func:`robust_colour_limit`; cells beyond it hatched, counted in the panel's title);
         grey where the configuration is not paired.
     """
-    cmp = as_comparison(data, baseline)
+    return plot_comparison_heatmap(as_comparison(data, baseline), variant)
+
+
+def plot_comparison_heatmap(cmp: xr.Dataset, variant: str) -> Figure:
+    """:func:`plot_change_heatmap` of a comparison: what it reads of it, and nothing else.
+
+    Parameters
+    ----------
+    cmp : xarray.Dataset
+        :func:`~simgap.analysis.report.comparisons.compare_variants`' layout, with at least
+        ``signed_shift`` (variant, tag, p, theta, axis; m or rad), ``paired`` (variant, tag, p,
+        theta), the coordinates ``view_angle_deg`` (tag, theta; deg) and ``distance_m`` (tag, p,
+        theta; m), and the attrs ``baseline`` and ``n_repeat``.
+    variant : str
+        A compared (non-reference) variant.
+    """
     _check_compared(cmp, variant)
     tags = [int(t) for t in cmp["tag"].values]
     fig = Figure(figsize=(15, 7.5 * len(tags)), layout="constrained")
