@@ -281,8 +281,9 @@ def run_validation(
         result, _ = diagnose(real, base, simulator, diagnose_settings)
         crushed = crushed_black_share(real)
         trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig, crushed)
-        score = trial.score()
-        write_json(trial.record(), path)
+        record = trial.record()
+        write_json(record, path)
+        score = record.score
         log(
             f"trial {i}: hidden {list(score.hidden) or ['none']} -> "
             f"{list(score.selected) or ['-']} "
