@@ -12,11 +12,36 @@ from typer.testing import CliRunner
 from simgap.analysis.candidates import geometric_effects
 from simgap.cli import app
 from simgap.diagnosis.result import DiagnosisResult, Finding, Scores, Selection
+from simgap.diagnosis.trial_score import TrialScore
+
+
+def _score(
+    hidden: list[str],
+    selected: list[str],
+    correct: bool = False,
+    recall: float | None = None,
+    spurious: tuple[str, ...] = (),
+    geometric: tuple[str, ...] = (),
+    **more,
+) -> TrialScore:
+    """A trial's score: what was hidden and selected, the rest as given (top-1: the first)."""
+    return TrialScore(
+        hidden=tuple(hidden),
+        selected=tuple(selected),
+        top1=selected[0] if selected else "none",
+        unexplained=False,
+        geometric_selected=geometric,
+        spurious=spurious,
+        correct=correct,
+        recall=recall,
+        **more,
+    )
 
 
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table."""
     from simgap.diagnosis.trial import camera_named
+    from simgap.diagnosis.trial_score import TrialRecord
     from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
     from simgap.pipeline.experiment import load_experiment
 
@@ -37,43 +62,45 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         part = run_validation(
             exp, tmp_path, session_cache, replace(settings, shard=shard), log=ran.append
         )
-        assert part["trials"] == 1 + (shard == (0, 2))  # the summary covers the finished trials
+        assert part.trials == 1 + (shard == (0, 2))  # the summary covers the finished trials
     assert [m.split(":")[0] for m in ran] == ["trial 1", "trial 0"]
     summary = run_validation(exp, tmp_path, session_cache, settings, log=ran.append)
     assert len(ran) == 2  # resumed: nothing ran again
-    assert summary["trials"] == 2 and summary["trials_planned"] == 2
+    assert summary.trials == 2 and summary.trials_planned == 2
     # the same trials diagnosed path traced would mix two simulations in one summary: refused
     with pytest.raises(ValueError, match="diagnosed with a converged simulation"):
         path_traced = replace(settings, converged_simulation=False)
         run_validation(exp, tmp_path, session_cache, path_traced, log=ran.append)
     kept = tmp_path / "trials" / "trial_000.json"  # as if made by another seed: refused
-    kept.write_text(json.dumps(dict(json.loads(kept.read_text()), params={"x": {"v": 1}})))
+    kept.write_text(json.dumps(dict(json.loads(kept.read_text()), hidden_params={"x": {"v": 1}})))
     with pytest.raises(ValueError, match="other hidden effects or another camera"):
         run_validation(exp, tmp_path, session_cache, settings, log=ran.append)
     text = (tmp_path / "validation.md").read_text()
     assert "Confusion table" in text
     data = json.loads((tmp_path / "validation.json").read_text())
+    assert data["schema_version"] == 2 and data["summary"]["trials_planned"] == 2
     assert len(data["trials"]) == 2
     assert (tmp_path / "captures" / "trial_000" / "manifest.csv").is_file()
-    for t in data["trials"]:
-        geometric = set(t["selected"]) & geometric_effects()
+    for t in (TrialRecord.from_json(t) for t in data["trials"]):
+        s = t.score
+        geometric = set(s.selected) & geometric_effects()
         # the camera's own exposure, noise and softness (and crushed shadows' black level) may
         # be named; nothing else not hidden
-        extra = set(t["selected"]) - set(t["hidden"]) - set(camera_named(t["crushed_black"]))
-        if set(t["hidden"]) & set(OUTSIDE):  # outside the catalogue: must read "unexplained"
-            expected = bool(t["unexplained"]) and not geometric
-        elif t["hidden"]:
-            expected = set(t["hidden"]) <= set(t["selected"]) and not extra
+        extra = set(s.selected) - set(s.hidden) - set(camera_named(s.crushed_black_share))
+        if set(s.hidden) & set(OUTSIDE):  # outside the catalogue: must read "unexplained"
+            expected = s.unexplained and not geometric
+        elif s.hidden:
+            expected = set(s.hidden) <= set(s.selected) and not extra
         else:
             expected = not extra
-        assert t["correct"] == expected
-        assert t["camera"]["p"] == [0, 7, 14] and t["camera"]["frames_per_pose"] == 2
+        assert s.correct == expected
+        assert t.camera.p == (0, 7, 14) and t.camera.frames_per_pose == 2
         stages = {"demosaicing", "sharpening", "denoising", "black level", "tone curve"}
         stages |= {"lateral colour", "gain changes"}
         basic = {"exposure", "softness", "noise", "frames", "poses", "crushed blacks"}
-        assert set(t["bins"]) == basic | stages
-        assert t["crushed_black"] is not None and 0.0 <= t["crushed_black"] <= 1.0
-        result = DiagnosisResult.from_json(t["result"])
+        assert set(s.nuisance_bins) == basic | stages
+        assert s.crushed_black_share is not None and 0.0 <= s.crushed_black_share <= 1.0
+        result = t.result
         if result.combined:  # the reduction is measured on configurations that did not choose
             assert result.combined.configurations == result.split.report
 
@@ -82,20 +109,11 @@ def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
     from simgap.diagnosis.validate import confusion
 
     scores = [
-        {
-            "hidden": ["focal_length", "principal_point"],
-            "selected": ["principal_point"],
-            "top1": "principal_point",
-        },
-        {"hidden": ["principal_point"], "selected": ["camera_mount"], "top1": "camera_mount"},
-        {"hidden": [], "selected": ["blur"], "top1": "blur", "geometric_selected": []},
-        {
-            "hidden": [],
-            "selected": ["blur", "tag_scale"],
-            "top1": "blur",
-            "geometric_selected": ["tag_scale"],
-        },
-        {"hidden": ["motion_blur"], "selected": ["blur"], "top1": "blur", "correct": True},
+        _score(["focal_length", "principal_point"], ["principal_point"]),
+        _score(["principal_point"], ["camera_mount"], spurious=("camera_mount",)),
+        _score([], ["blur"], correct=True),
+        _score([], ["blur", "tag_scale"], spurious=("tag_scale",), geometric=("tag_scale",)),
+        _score(["motion_blur"], ["blur"], correct=True),
     ]
     assert confusion(scores) == {
         "focal_length": {"principal_point": 1},  # missed: counted under the top-1 answer
@@ -143,26 +161,26 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     hidden = {"focal_length": {"scale": 0.02}}
     result = _selecting("exposure", "focal_length", focal_length={"scale": 0.021})
     hit = Trial(0, hidden, camera, result, rig=rig).score()
-    assert hit["correct"] and hit["top1"] == "focal_length" and hit["spurious"] == []
-    assert hit["magnitude_error"]["focal_length.scale"] == pytest.approx(0.05)
+    assert hit.correct and hit.top1 == "focal_length" and hit.spurious == ()
+    assert hit.magnitude_error["focal_length.scale"] == pytest.approx(0.05)
     miss = Trial(0, hidden, camera, _selecting("focal_length", "tag_scale"), rig=rig).score()
-    assert not miss["correct"] and miss["spurious"] == ["tag_scale"]
+    assert not miss.correct and miss.spurious == ("tag_scale",)
     answer = _selecting("exposure", exposure={"ev": 1.08})
     found_exposure = Trial(0, {"exposure": {"ev": 1.2}}, camera, answer, rig=rig).score()
-    assert found_exposure["correct"]
-    assert found_exposure["magnitude_error"]["exposure.ev"] == pytest.approx(0.1, abs=1e-3)
+    assert found_exposure.correct
+    assert found_exposure.magnitude_error["exposure.ev"] == pytest.approx(0.1, abs=1e-3)
     # a calibration file claiming k1 0.1 for a lens without distortion: lens_distortion names it,
     # and a fitted k1 of 0.01 is 10 % of the claimed distortion off
     answer = _selecting("lens_distortion", "blur", lens_distortion={"k1": 0.01})
     faulty = Trial(0, {"faulty_calibration": {"k1": 0.1}}, camera, answer, rig=rig).score()
-    assert faulty["correct"]
-    assert faulty["magnitude_error"]["lens_distortion.k1"] == pytest.approx(0.1)
+    assert faulty.correct
+    assert faulty.magnitude_error["lens_distortion.k1"] == pytest.approx(0.1)
     # beside a lens with its own distortion (k1 -0.14) the lens as it is is the truth: blind
     # seed 37 trial 69 read k1 -0.115, scored 104 % off against "no distortion"
     both = {"lens_distortion": {"k1": -0.14}, "faulty_calibration": {"k1": -0.11}}
     answer = _selecting("lens_distortion", lens_distortion={"k1": -0.115})
     lens = Trial(0, both, camera, answer, rig=rig).score()
-    assert lens["magnitude_error"]["lens_distortion.k1"] == pytest.approx(0.025 / 0.14)
+    assert lens.magnitude_error["lens_distortion.k1"] == pytest.approx(0.025 / 0.14)
 
 
 def test_targeted_validation_draws_only_the_named_effects(tmp_path):
@@ -181,58 +199,40 @@ def test_targeted_validation_draws_only_the_named_effects(tmp_path):
 
 
 def test_strict_accuracy_asks_for_every_hidden_effect_of_a_pair():
-    from simgap.diagnosis.validation_report import summarize_scores
-
-    def score(hidden, selected, correct, recall, spurious=()):
-        return dict(
-            hidden=hidden,
-            selected=selected,
-            correct=correct,
-            recall=recall,
-            spurious=list(spurious),
-            top1=selected[0],
-            bins={},
-        )
+    from simgap.diagnosis.validation_summary import summarize_scores
 
     scores = [
-        score(["jpeg", "faulty_calibration"], ["exposure", "jpeg"], True, 0.5),  # seed 31 trial 16
-        score(["tag_scale", "camera_mount"], ["camera_mount", "tag_scale"], True, 1.0),
-        score(["blur"], ["blur"], True, 1.0),
-        score(["defocus"], ["tag_scale", "blur"], False, 0.0, ["tag_scale"]),
+        _score(["jpeg", "faulty_calibration"], ["exposure", "jpeg"], True, 0.5),
+        _score(["tag_scale", "camera_mount"], ["camera_mount", "tag_scale"], True, 1.0),
+        _score(["blur"], ["blur"], True, 1.0),
+        _score(["defocus"], ["tag_scale", "blur"], False, 0.0, ("tag_scale",)),
     ]
     summary = summarize_scores(scores)
-    assert summary["top1_accuracy"] == 0.75
-    assert summary["every_effect_accuracy"] == 0.5
-    assert summary["pair_recall"] == 0.75
+    assert summary.top1_accuracy == 0.75
+    assert summary.every_effect_accuracy == 0.5
+    assert summary.pair_recall == 0.75
 
 
 def test_no_effect_trials_count_geometry_apart_from_any_spurious_finding():
     """Issue 25's no-effect criterion is "free of geometric and calibration effects"; blind seed 43
     trial 43 named a laminate (an appearance effect) on a capture without one: not correct, but
     free of geometry. The report gives both rows."""
-    from simgap.diagnosis.validation_report import summarize_scores, validation_markdown
+    from simgap.diagnosis.validation_report import validation_markdown
+    from simgap.diagnosis.validation_summary import summarize_scores
 
     def none(selected, geometric):
-        return dict(
-            hidden=[],
-            selected=selected,
-            correct=not set(selected) - {"exposure", "blur", "sensor_noise"},
-            recall=None,
-            spurious=[e for e in selected if e not in ("exposure", "blur", "sensor_noise")],
-            geometric_selected=geometric,
-            top1=selected[0] if selected else None,
-            bins={},
-        )
+        spurious = tuple(e for e in selected if e not in ("exposure", "blur", "sensor_noise"))
+        return _score([], selected, not spurious, spurious=spurious, geometric=geometric)
 
     scores = [
-        none(["tag_gloss", "blur"], []),
-        none(["exposure"], []),
-        none(["tag_scale"], ["tag_scale"]),
-        none([], []),
+        none(["tag_gloss", "blur"], ()),
+        none(["exposure"], ()),
+        none(["tag_scale"], ("tag_scale",)),
+        none([], ()),
     ]
     summary = summarize_scores(scores)
-    assert summary["no_effect_correct"] == 0.5
-    assert summary["no_effect_free_of_geometry"] == 0.75
+    assert summary.no_effect_correct == 0.5
+    assert summary.no_effect_free_of_geometry == 0.75
     text = validation_markdown(summary, [])
     assert "| no-effect trials free of geometric and calibration effects | 75% |" in text
 
@@ -240,7 +240,7 @@ def test_no_effect_trials_count_geometry_apart_from_any_spurious_finding():
 def test_a_selected_parameter_on_its_bound_is_counted():
     """Issue 25's "no selected parameter on a bound" is measured per trial, not assumed."""
     from simgap.diagnosis.trial import Trial
-    from simgap.diagnosis.validation_report import summarize_scores
+    from simgap.diagnosis.validation_summary import summarize_scores
 
     on = _selecting("defocus", defocus={"aperture_radius_m": 2e-4, "focus_distance_m": 5.0})
     on.selection.findings[0].at_bound = ["focus_distance_m"]  # the searched range's far end
@@ -249,8 +249,8 @@ def test_a_selected_parameter_on_its_bound_is_counted():
         Trial(1, {"blur": {"sigma_px": 1.0}}, None, _selecting("blur", blur={"sigma_px": 1.0})),
     ]
     scores = [t.score() for t in records]
-    assert scores[0]["on_bound"] == ["defocus.focus_distance_m"] and scores[1]["on_bound"] == []
-    assert summarize_scores(scores)["on_bound_trials"] == 0.5
+    assert scores[0].on_bound == ("defocus.focus_distance_m",) and scores[1].on_bound == ()
+    assert summarize_scores(scores).on_bound_share == 0.5
 
 
 def test_other_cameras_draw_their_own_image_pipeline_and_frontal_poses():
@@ -284,20 +284,15 @@ def test_other_cameras_draw_their_own_image_pipeline_and_frontal_poses():
 def test_jpeg_behind_crushed_blacks_and_blur_only_trials_are_scored_apart():
     """The issue's bars: JPEG named where a capture's blacks are crushed (at least 10 % of a tag
     at 0 DN, measured on the capture), and blur-only trials free of geometry; their rows."""
-    from simgap.diagnosis.validation_report import summarize_scores, validation_markdown
+    from simgap.diagnosis.validation_report import validation_markdown
+    from simgap.diagnosis.validation_summary import summarize_scores
 
     def trial(hidden, selected, crushed, geometric=()):
-        return dict(
-            hidden=hidden,
-            selected=selected,
-            correct=set(hidden) <= set(selected) and not geometric,
-            recall=float(set(hidden) <= set(selected)),
-            spurious=list(geometric),
-            geometric_selected=list(geometric),
-            top1=selected[0] if selected else "none",
-            bins={},
-            crushed_black=crushed,
-        )
+        hit = set(hidden) <= set(selected)
+        return _score(
+            hidden, selected, hit and not geometric, float(hit), geometric, geometric,
+            crushed_black_share=crushed,
+        )  # fmt: skip
 
     scores = [
         trial(["jpeg"], ["jpeg"], 0.17),
@@ -307,8 +302,8 @@ def test_jpeg_behind_crushed_blacks_and_blur_only_trials_are_scored_apart():
         trial(["blur"], ["blur", "lens_distortion"], None, ("lens_distortion",)),
     ]
     summary = summarize_scores(scores)
-    assert summary["jpeg_crushed_trials"] == 2 and summary["jpeg_crushed_recall"] == 0.5
-    assert summary["blur_only_free_of_geometry"] == 0.5
+    assert summary.jpeg_crushed_trials == 2 and summary.jpeg_crushed_recall == 0.5
+    assert summary.blur_only_free_of_geometry == 0.5
     text = validation_markdown(summary, [])
     row = "crushed (>= 10% of a tag at 0 DN; 2 trials) | 50% |"
     assert f"| JPEG named where the capture's blacks are {row}" in text

@@ -321,6 +321,5 @@ def validate(
         summary = run_validation(exp, output, cache_dir, settings, typer.echo, simulator)
     typer.echo((output / "validation.md").read_text())
     typer.echo(
-        f"top-1 accuracy {summary['top1_accuracy']}, "
-        f"no-effect correct {summary['no_effect_correct']}"
+        f"top-1 accuracy {summary.top1_accuracy}, no-effect correct {summary.no_effect_correct}"
     )

@@ -7,7 +7,7 @@ tables are data, extended as the catalogue grows.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Sequence
 from typing import Any
 
 import numpy as np
@@ -128,6 +128,15 @@ def rendered_effects(hidden: dict[str, dict[str, Any]]) -> dict[str, dict[str, A
     return out
 
 
-def found(hidden: str, selected: list[str]) -> bool:
+def hides_catalogue_effects(hidden: Collection[str]) -> bool:
+    """Whether a trial hiding the effects ``hidden`` hides catalogue ones.
+
+    Not when it hides nothing, nor when it hides only effects outside the catalogue
+    (:data:`OUTSIDE`).
+    """
+    return bool(hidden) and not set(hidden) <= set(OUTSIDE)
+
+
+def found(hidden: str, selected: Sequence[str]) -> bool:
     """Whether a hidden effect is among the selected ones (itself or as :data:`REPORTED_AS`)."""
     return REPORTED_AS.get(hidden, hidden) in selected

@@ -176,31 +176,6 @@ class NuisanceCamera:
         """The stages of the camera's own image pipeline it has (:data:`PIPELINE_SHARE`)."""
         return {k: v for k, v in self.effects.items() if k in PIPELINE_SHARE}
 
-    def record(self) -> dict[str, Any]:
-        """The camera as ``trial_NNN.json`` keeps it (plain JSON types)."""
-        return {
-            "effects": self.effects,
-            "scene": self.scene,
-            "spp": self.spp,
-            "p": list(self.p),
-            "theta_deg": list(self.theta_deg),
-            "frames_per_pose": self.frames_per_pose,
-            "light_ev": self.light_ev,
-        }
-
-    @classmethod
-    def from_record(cls, data: dict[str, Any]) -> NuisanceCamera:
-        """Inverse of :meth:`record`."""
-        return cls(
-            data["effects"],
-            data["scene"],
-            int(data["spp"]),
-            tuple(int(p) for p in data["p"]),
-            tuple(float(t) for t in data["theta_deg"]),
-            int(data["frames_per_pose"]),
-            float(data["light_ev"]),
-        )
-
 
 def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     return float(rng.uniform(*bounds))

@@ -23,7 +23,7 @@ from simgap.analysis.evidence import DetectionTest, ImageTest, ScatterTest
 from simgap.analysis.gap import AxisGap, DetectionRates, RegionGap
 from simgap.analysis.scored import Scored
 from simgap.core.axes import AXES
-from simgap.diagnosis.result_json import from_jsonable, jsonable
+from simgap.diagnosis.result_json import VersionedRecord
 
 #: Version of the ``result.json`` schema written.
 SCHEMA_VERSION = 2
@@ -254,101 +254,6 @@ class PipelineSignature:
     simulated: float | None
 
 
-@dataclass(kw_only=True)
-class DiagnosisResult:
-    """The whole diagnosis (``result.json``); see the module docstring.
-
-    ``selected``, ``minor`` and ``unexplained`` follow from the others (written to
-    ``result.json`` for readers, never read back).
-    """
-
-    json_derived: ClassVar[tuple[str, ...]] = ("selected", "minor", "unexplained")
-
-    schema_version: int = SCHEMA_VERSION
-    where: Where = field(default_factory=Where)
-    #: every candidate alone, best first
-    ranking: list[RankedEffect] = field(default_factory=list)
-    #: candidates whose fit put a parameter on the end of its searched range: not findings
-    #: (:func:`simgap.analysis.admission.at_bound`), listed for the engineer
-    on_bound: list[RankedEffect] = field(default_factory=list)
-    #: None when nothing is selected
-    selection: Selection | None = None
-    #: the model with geometry the search refused because it left the corners more than
-    #: :data:`~simgap.analysis.thresholds.GEOMETRY_CORNER_GAP_PX` off (None: none refused)
-    refused_geometry: EquivalentModel | None = None
-    #: significant evidence the chosen model leaves unexplained: "pose", "detection",
-    #: "scatter", "corners" (geometry refused) or an image statistic
-    unexplained_evidence: list[str] = field(default_factory=list)
-    split: Split | None = None
-    #: render seeds per configuration of the simulation
-    render_seeds: int = 1
-    #: how the simulation was rendered: ``render.mode`` and samples per pixel, e.g. "path 16 spp"
-    simulation_render: str = ""
-    #: the capture's demosaicing, simulated with it; None where its frames show none
-    demosaicing: Demosaicing | None = None
-    #: what the capture and the simulation show of each stage of a camera's own pipeline
-    camera_pipeline: list[PipelineSignature] = field(default_factory=list)
-    #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
-    #: noise, where the simulation's repeats measure none (a converged render); None otherwise
-    propagated_corner_noise_px: float | None = None
-    #: corner noise (px per coordinate of one frame) of the capture beyond the simulation's,
-    #: whose pose shift moved each converged simulated pose
-    #: (:func:`simgap.diagnosis.items.with_noise_shift`); None where path traced
-    noise_shift_corner_px: float | None = None
-    combined: Combined | None = None
-    confirmed: Confirmed | None = None
-    seconds: float = 0.0
-
-    @property
-    def selected(self) -> list[str]:
-        """The selected effects, most important first."""
-        return [f.effect for f in self.selection.findings] if self.selection else []
-
-    @property
-    def minor(self) -> list[str]:
-        """The selected effects that move no pose beyond the floor."""
-        return [f.effect for f in self.selection.findings if f.minor] if self.selection else []
-
-    def selected_on_bound(self) -> list[str]:
-        """``effect.parameter`` of every selected parameter fitted on the end of its range."""
-        findings = self.selection.findings if self.selection else []
-        return [f"{f.effect}.{name}" for f in findings for name in f.at_bound]
-
-    @property
-    def unexplained(self) -> bool:
-        """Some significant evidence is left unexplained."""
-        return bool(self.unexplained_evidence)
-
-    def to_json(self) -> dict[str, Any]:
-        """The plain-JSON form of ``result.json``."""
-        return jsonable(self)
-
-    @classmethod
-    def from_json(cls, data: dict[str, Any], source: str = "result.json") -> DiagnosisResult:
-        """Read ``result.json`` data of schema 2, or of schema 1 (:func:`upgrade_v1`).
-
-        Raises
-        ------
-        ValueError
-            Naming ``source`` and the key that does not fit the schema.
-        """
-        if not isinstance(data, dict):
-            raise ValueError(f"{source}: expected a mapping, got {type(data).__name__}")
-        version = data.get("schema_version", 1)
-        if version == 1:
-            data = upgrade_v1(data)
-        elif version != SCHEMA_VERSION:
-            raise ValueError(
-                f"{source}: schema_version: expected 1 or {SCHEMA_VERSION}, got {version!r}"
-            )
-        return from_jsonable(cls, data, source)
-
-
-def per_axis(values: Any) -> dict[str, float]:
-    """A (6,) per-axis array as ``{axis: value}``."""
-    return dict(zip(AXES, map(float, values), strict=True))
-
-
 #: Schema 1 keys renamed in schema 2, per record.
 _V1_RANKED = {
     "heldout_gap_before": "pose_gap_before",
@@ -426,3 +331,78 @@ def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
     if data.get("confirmed") is not None:
         out["confirmed"] = {_V1_RANKED.get(k, k): v for k, v in data["confirmed"].items()}
     return out
+
+
+@dataclass(kw_only=True)
+class DiagnosisResult(VersionedRecord):
+    """The whole diagnosis (``result.json``); see the module docstring.
+
+    ``selected``, ``minor`` and ``unexplained`` follow from the others (written to
+    ``result.json`` for readers, never read back). :meth:`to_json` and :meth:`from_json` write
+    and read ``result.json`` data of schema 2, and read schema 1 (:func:`upgrade_v1`).
+    """
+
+    json_derived: ClassVar[tuple[str, ...]] = ("selected", "minor", "unexplained")
+    json_schema = SCHEMA_VERSION
+    json_upgrades = {1: upgrade_v1}
+    json_source = "result.json"
+
+    schema_version: int = SCHEMA_VERSION
+    where: Where = field(default_factory=Where)
+    #: every candidate alone, best first
+    ranking: list[RankedEffect] = field(default_factory=list)
+    #: candidates whose fit put a parameter on the end of its searched range: not findings
+    #: (:func:`simgap.analysis.admission.at_bound`), listed for the engineer
+    on_bound: list[RankedEffect] = field(default_factory=list)
+    #: None when nothing is selected
+    selection: Selection | None = None
+    #: the model with geometry the search refused because it left the corners more than
+    #: :data:`~simgap.analysis.thresholds.GEOMETRY_CORNER_GAP_PX` off (None: none refused)
+    refused_geometry: EquivalentModel | None = None
+    #: significant evidence the chosen model leaves unexplained: "pose", "detection",
+    #: "scatter", "corners" (geometry refused) or an image statistic
+    unexplained_evidence: list[str] = field(default_factory=list)
+    split: Split | None = None
+    #: render seeds per configuration of the simulation
+    render_seeds: int = 1
+    #: how the simulation was rendered: ``render.mode`` and samples per pixel, e.g. "path 16 spp"
+    simulation_render: str = ""
+    #: the capture's demosaicing, simulated with it; None where its frames show none
+    demosaicing: Demosaicing | None = None
+    #: what the capture and the simulation show of each stage of a camera's own pipeline
+    camera_pipeline: list[PipelineSignature] = field(default_factory=list)
+    #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
+    #: noise, where the simulation's repeats measure none (a converged render); None otherwise
+    propagated_corner_noise_px: float | None = None
+    #: corner noise (px per coordinate of one frame) of the capture beyond the simulation's,
+    #: whose pose shift moved each converged simulated pose
+    #: (:func:`simgap.diagnosis.items.with_noise_shift`); None where path traced
+    noise_shift_corner_px: float | None = None
+    combined: Combined | None = None
+    confirmed: Confirmed | None = None
+    seconds: float = 0.0
+
+    @property
+    def selected(self) -> list[str]:
+        """The selected effects, most important first."""
+        return [f.effect for f in self.selection.findings] if self.selection else []
+
+    @property
+    def minor(self) -> list[str]:
+        """The selected effects that move no pose beyond the floor."""
+        return [f.effect for f in self.selection.findings if f.minor] if self.selection else []
+
+    def selected_on_bound(self) -> list[str]:
+        """``effect.parameter`` of every selected parameter fitted on the end of its range."""
+        findings = self.selection.findings if self.selection else []
+        return [f"{f.effect}.{name}" for f in findings for name in f.at_bound]
+
+    @property
+    def unexplained(self) -> bool:
+        """Some significant evidence is left unexplained."""
+        return bool(self.unexplained_evidence)
+
+
+def per_axis(values: Any) -> dict[str, float]:
+    """A (6,) per-axis array as ``{axis: value}``."""
+    return dict(zip(AXES, map(float, values), strict=True))

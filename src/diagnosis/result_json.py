@@ -1,10 +1,11 @@
-"""``result.json`` and ``validation.json``: typed results to plain JSON and back, atomically.
+"""``result.json``, ``validation.json`` and trial files: typed results to plain JSON and back.
 
 :func:`jsonable` turns dataclasses (their fields, and the read-only keys a class names in
 ``json_derived``), numpy scalars and arrays and tuples into plain JSON values;
 :func:`from_jsonable` builds a dataclass back from them, by its type hints (nested dataclasses,
 ``list``, ``dict``, ``tuple``, ``X | None``, numbers, strings), and names the key of anything
-that does not fit.
+that does not fit; a :class:`VersionedRecord` does so for a file with a ``schema_version``,
+lifting older schemas to the current one first. :func:`write_json` writes atomically.
 """
 
 from __future__ import annotations
@@ -13,8 +14,9 @@ import dataclasses
 import json
 import types
 import typing
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, cast
 
 import numpy as np
 
@@ -44,7 +46,9 @@ def jsonable(obj: Any) -> Any:
 def from_jsonable(cls: type[T], data: Any, where: str) -> T:
     """The dataclass ``cls`` built from its :func:`jsonable` form.
 
-    Keys with a default may be missing; the read-only keys ``cls.json_derived`` are ignored.
+    Keys with a default may be missing; the read-only keys ``cls.json_derived`` are ignored. A
+    nested :class:`VersionedRecord` (a record with schema versions of its own, such as
+    :class:`~simgap.diagnosis.result.DiagnosisResult`) is read by its ``from_json``.
 
     Raises
     ------
@@ -68,6 +72,50 @@ def from_jsonable(cls: type[T], data: Any, where: str) -> T:
     return cls(**values)
 
 
+#: Lifts a record's JSON data of an older schema to the current one.
+Upgrade = Callable[[dict[str, Any]], dict[str, Any]]
+R = TypeVar("R", bound="VersionedRecord")
+
+
+class VersionedRecord:
+    """A typed record kept as a JSON file with a ``schema_version`` (a base of dataclasses).
+
+    A subclass is a dataclass whose ``schema_version`` field defaults to :attr:`json_schema`,
+    the version it writes; :attr:`json_upgrades` maps each older version still read (a file
+    without the key is version 1) to the function that lifts its data to the current layout;
+    :attr:`json_source` names the file in errors where the reader names none.
+    """
+
+    json_schema: ClassVar[int]
+    json_upgrades: ClassVar[Mapping[int, Upgrade]] = {}
+    json_source: ClassVar[str] = "JSON data"
+
+    def to_json(self) -> dict[str, Any]:
+        """The plain-JSON form (:func:`jsonable`)."""
+        return jsonable(self)
+
+    @classmethod
+    def from_json(cls: type[R], data: Any, source: str | None = None) -> R:
+        """Read data of schema :attr:`json_schema`, or of an older one :attr:`json_upgrades` lifts.
+
+        Raises
+        ------
+        ValueError
+            Naming ``source`` (default :attr:`json_source`) and the key that does not fit: a
+            schema version neither current nor lifted, or a key :func:`from_jsonable` refuses.
+        """
+        source = source or cls.json_source
+        if not isinstance(data, dict):
+            raise ValueError(f"{source}: expected a mapping, got {type(data).__name__}")
+        version = data.get("schema_version", 1)
+        if version in cls.json_upgrades:
+            data = cls.json_upgrades[version](data)
+        elif version != cls.json_schema:
+            readable = " or ".join(str(v) for v in sorted({*cls.json_upgrades, cls.json_schema}))
+            raise ValueError(f"{source}: schema_version: expected {readable}, got {version!r}")
+        return from_jsonable(cast(Any, cls), data, source)
+
+
 def _value(tp: Any, value: Any, where: str) -> Any:
     """``value`` read as the type ``tp`` (see :func:`from_jsonable`)."""
     origin, args = typing.get_origin(tp), typing.get_args(tp)
@@ -79,6 +127,8 @@ def _value(tp: Any, value: Any, where: str) -> Any:
         (inner,) = (a for a in args if a is not type(None))
         return _value(inner, value, where)
     if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        if issubclass(tp, VersionedRecord):  # a record with schema versions of its own
+            return tp.from_json(value, where)
         return from_jsonable(tp, value, where)
     if origin in (list, tuple):
         if not isinstance(value, list):

@@ -12,10 +12,16 @@ from simgap.analysis.candidates import geometric_effects
 from simgap.analysis.thresholds import image_floor
 from simgap.core.rig import Rig
 from simgap.diagnosis.camera_truth import exposure_truth, softness_truth
-from simgap.diagnosis.hidden_effects import CAMERA_NAMED, HIDDEN, OUTSIDE, REPORTED_AS, found
+from simgap.diagnosis.hidden_effects import (
+    CAMERA_NAMED,
+    HIDDEN,
+    REPORTED_AS,
+    found,
+    hides_catalogue_effects,
+)
 from simgap.diagnosis.nuisance import FRONTAL_HEAVY_STOPS_DEG, OBLIQUE_STOPS_DEG, NuisanceCamera
 from simgap.diagnosis.result import DiagnosisResult
-from simgap.diagnosis.result_json import jsonable
+from simgap.diagnosis.trial_score import TrialRecord, TrialScore
 
 
 def _magnitude(params: dict[str, Any], key: str) -> np.ndarray:
@@ -127,7 +133,11 @@ def nuisance_bins(
 
 @dataclass
 class Trial:
-    """One trial: what was hidden, the other camera, and what the diagnosis said."""
+    """One trial: what was hidden, the other camera, and what the diagnosis said.
+
+    ``seconds``: its wall time (s); ``rig``: the rig its camera's truths are read on
+    (:meth:`truth`; with ``camera``, needed for the nuisance bins).
+    """
 
     index: int
     hidden: dict[str, dict[str, Any]]
@@ -135,21 +145,19 @@ class Trial:
     result: DiagnosisResult = field(default_factory=DiagnosisResult)
     seconds: float = 0.0
     rig: Rig | None = None
-    #: The largest share of a tag's pixels at 0 DN in the capture (:func:`crushed_black_share`).
-    crushed_black: float | None = None
+    #: The largest share of a tag's pixels at 0 DN in the capture (0-1,
+    #: :func:`crushed_black_share`).
+    crushed_black_share: float | None = None
 
-    def record(self) -> dict[str, Any]:
-        """The trial as ``validation.json`` keeps it: its score, draws, result and seconds."""
-        return jsonable(
-            dict(
-                self.score(),
-                index=self.index,
-                crushed_black=self.crushed_black,
-                params=self.hidden,
-                camera=self.camera.record() if self.camera else None,
-                result=self.result,
-                seconds=self.seconds,
-            )
+    def record(self) -> TrialRecord:
+        """The trial as its file keeps it: draws, camera, score, diagnosis and seconds."""
+        return TrialRecord(
+            index=self.index,
+            hidden_params=self.hidden,
+            camera=self.camera,
+            score=self.score(),
+            result=self.result,
+            seconds=self.seconds,
         )
 
     def truth(self) -> dict[str, tuple[dict[str, Any], dict[str, float]]]:
@@ -183,62 +191,73 @@ class Trial:
             out[name] = (params, {k: float(np.linalg.norm(_magnitude(params, k))) for k in keys})
         return out
 
-    def score(self) -> dict[str, Any]:
-        """Correctness, recall, magnitude errors, reduction and nuisance bins of this trial.
+    def score(self) -> TrialScore:
+        """How the diagnosis answered this trial (:class:`TrialScore` defines each value).
 
         Correct: every hidden catalogue effect is named (for a pair: at least one, and the
         recall says how many), and nothing is named that the capture does not have (a geometric
         or calibration effect that was not hidden; an appearance effect that neither was hidden
         nor is the camera's own, :func:`camera_named`); for an effect outside the catalogue,
         "unexplained" and no geometric effect; without a hidden effect, nothing but the camera's
-        own appearance. ``top1`` is the first named effect that is not only the camera's own.
-        Magnitude errors are per scored parameter (``effect.parameter``), relative to
-        :meth:`truth`'s scale.
+        own appearance. Magnitude errors are per scored parameter (``effect.parameter``),
+        relative to :meth:`truth`'s scale.
         """
-        selected = list(self.result.selected)
-        hidden = list(self.hidden)
+        selected = tuple(self.result.selected)
+        hidden = tuple(self.hidden)
         named = {REPORTED_AS.get(h, h) for h in hidden}
-        geometric = [e for e in selected if e in geometric_effects()]
-        camera_own = camera_named(self.crushed_black)
-        spurious = [e for e in selected if e not in named and e not in camera_own]
+        geometric = tuple(e for e in selected if e in geometric_effects())
+        camera_own = camera_named(self.crushed_black_share)
+        spurious = tuple(e for e in selected if e not in named and e not in camera_own)
         own = [e for e in selected if e in named or e not in camera_own]
-        out: dict[str, Any] = {
-            "hidden": hidden,
-            "selected": selected,
-            "top1": own[0] if own else (selected[0] if selected else "none"),
-            "unexplained": self.result.unexplained,
-            "geometric_selected": geometric,
-            "spurious": spurious,
-            "on_bound": self.result.selected_on_bound(),
-            "bins": (
-                nuisance_bins(self.camera, self.rig, self.crushed_black)
+        catalogue = hides_catalogue_effects(hidden)
+        hits = [found(h, selected) for h in hidden] if catalogue else []
+        if not hidden:
+            correct = not spurious
+        elif not catalogue:
+            correct = self.result.unexplained and not geometric
+        else:
+            correct = (all(hits) if len(hidden) == 1 else any(hits)) and not spurious
+        combined, confirmed = self.result.combined, self.result.confirmed
+        if confirmed is not None:
+            reduction: float | None = confirmed.pose_gap_reduction
+        else:
+            reduction = combined.scores.pose_gap_reduction if combined else None
+        return TrialScore(
+            hidden=hidden,
+            selected=selected,
+            top1=own[0] if own else (selected[0] if selected else "none"),
+            unexplained=self.result.unexplained,
+            geometric_selected=geometric,
+            spurious=spurious,
+            on_bound=tuple(self.result.selected_on_bound()),
+            nuisance_bins=(
+                nuisance_bins(self.camera, self.rig, self.crushed_black_share)
                 if self.camera and self.rig
                 else {}
             ),
-        }
-        if not hidden:
-            out["correct"] = not spurious
-            return out
-        if set(hidden) <= set(OUTSIDE):
-            out["correct"] = self.result.unexplained and not geometric
-            return out
-        hits = [found(h, selected) for h in hidden]
-        out["correct"] = (all(hits) if len(hidden) == 1 else any(hits)) and not spurious
-        out["recall"] = sum(hits) / len(hidden)
+            correct=correct,
+            recall=sum(hits) / len(hidden) if catalogue else None,
+            magnitude_error=self._magnitude_errors() if catalogue else {},
+            pose_gap_reduction=reduction if catalogue else None,
+            pose_gap_reduction_interval_90=(
+                combined.pose_gap_reduction_interval_90 if catalogue and combined else None
+            ),
+            crushed_black_share=self.crushed_black_share,
+        )
+
+    def _magnitude_errors(self) -> dict[str, float]:
+        """Per scored parameter of each named hidden effect: its error relative to the truth's.
+
+        Keys ``effect.parameter``; the distance between the fitted and the true values over
+        :meth:`truth`'s scale.
+        """
         selection = self.result.selection
         fitted = {f.effect: f.params for f in selection.findings} if selection else {}
-        mags = {}
+        errors = {}
         for name, (params, scales) in self.truth().items():
             if name not in fitted:
                 continue
             for key, scale in scales.items():
                 error = _magnitude(fitted[name], key) - _magnitude(params, key)
-                mags[f"{name}.{key}"] = float(np.linalg.norm(error) / scale)
-        out["magnitude_error"] = mags
-        combined, confirmed = self.result.combined, self.result.confirmed
-        if confirmed is not None:
-            out["reduction"] = confirmed.pose_gap_reduction
-        else:
-            out["reduction"] = combined.scores.pose_gap_reduction if combined else None
-        out["reduction_interval_90"] = combined.pose_gap_reduction_interval_90 if combined else None
-        return out
+                errors[f"{name}.{key}"] = float(np.linalg.norm(error) / scale)
+        return errors

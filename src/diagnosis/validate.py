@@ -44,7 +44,9 @@ from simgap.diagnosis.nuisance import NuisanceCamera, draw_nuisance
 from simgap.diagnosis.result_json import jsonable, write_json
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.trial import Trial, crushed_black_share
-from simgap.diagnosis.validation_report import confusion, summarize_scores, validation_markdown
+from simgap.diagnosis.trial_score import TrialRecord
+from simgap.diagnosis.validation_report import validation_json, validation_markdown
+from simgap.diagnosis.validation_summary import ValidationSummary, confusion, summarize_scores
 from simgap.pipeline.capture import ingest, write_capture
 from simgap.pipeline.experiment import Configurations, Experiment, VariantSpec
 from simgap.pipeline.simulator import Simulator
@@ -63,6 +65,7 @@ __all__ = [
     "summarize_scores",
     "confusion",
     "found",
+    "validation_json",
     "validation_markdown",
 ]
 
@@ -242,10 +245,11 @@ def run_validation(
     settings: ValidateSettings,
     log: Callable[[str], object] = print,
     simulator: Simulator | None = None,
-) -> dict[str, Any]:
+) -> ValidationSummary:
     """Run the trials and write ``validation.md`` and ``validation.json`` into ``out_dir``.
 
-    Each finished trial is kept in ``out_dir/trials/trial_NNN.json`` (atomic write): a run that is
+    Each finished trial is kept in ``out_dir/trials/trial_NNN.json`` (atomic write, a
+    :class:`~simgap.diagnosis.trial_score.TrialRecord`; those of schema 1 are read): a run that is
     stopped resumes where it was, and processes given disjoint shards (``settings.shard``) may
     run side by side on one output folder and cache; the draws are the same whatever the shard,
     since every process draws all trials in order. The summary covers every trial finished by
@@ -279,41 +283,49 @@ def run_validation(
         trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig, crushed)
         record = trial.record()
         write_json(record, path)
+        score = record.score
         log(
-            f"trial {i}: hidden {record['hidden'] or ['none']} -> {record['selected'] or ['-']} "
-            f"({'ok' if record['correct'] else 'MISS'}, {trial.seconds:.0f} s)"
+            f"trial {i}: hidden {list(score.hidden) or ['none']} -> "
+            f"{list(score.selected) or ['-']} "
+            f"({'ok' if score.correct else 'MISS'}, {trial.seconds:.0f} s)"
         )
     trials_dir = out_dir / "trials"
     kept = (_kept_trial(trials_dir / f"trial_{i:03d}.json", *d, mode) for i, d in enumerate(draws))
     records = [r for r in kept if r is not None]  # every shard's trials finished so far
-    summary = summarize_scores(records)
-    summary["trials_planned"] = settings.trials
-    write_json({"summary": summary, "trials": records}, out_dir / "validation.json")
+    summary = summarize_scores([r.score for r in records], settings.trials)
+    write_json(validation_json(summary, records), out_dir / "validation.json")
     atomic_write(out_dir / "validation.md", validation_markdown(summary, records))
     return summary
 
 
 def _kept_trial(
     path: Path, hidden: dict[str, Any], camera: NuisanceCamera, mode: str
-) -> dict[str, Any] | None:
+) -> TrialRecord | None:
     """The trial kept at ``path`` (None if there is none yet), checked against its draw.
 
     ``mode``: the render mode this run simulates with (``converged`` or ``path``); a trial
     diagnosed with the other is refused, so that one summary never mixes the two.
+
+    Raises
+    ------
+    ValueError
+        When the file does not fit the trial schema, or was made with another render mode,
+        other hidden effects or another camera.
     """
     if not path.is_file():
         return None
-    record = json.loads(path.read_text())
-    kept_mode = str(record.get("result", {}).get("simulation_render", "")).split(" ")[0]
+    record = TrialRecord.from_json(json.loads(path.read_text()), str(path))
+    kept_mode = record.result.simulation_render.split(" ")[0]
     if kept_mode and kept_mode != mode:
         raise ValueError(
             f"{path}: diagnosed with a {kept_mode} simulation, this run simulates {mode}; use "
             "another output folder, or --converged-simulation / --path-simulation as before"
         )
-    if record["params"] != jsonable(hidden) or record.get("camera") != jsonable(camera.record()):
+    drawn = jsonable(hidden)
+    if jsonable(record.hidden_params) != drawn or jsonable(record.camera) != jsonable(camera):
         raise ValueError(
-            f"{path}: made with other hidden effects or another camera ({record['params']}, "
-            f"this run draws {jsonable(hidden)}); use another output folder for another seed "
-            "or settings"
+            f"{path}: made with other hidden effects or another camera "
+            f"({jsonable(record.hidden_params)}, this run draws {drawn}); use another output "
+            "folder for another seed or settings"
         )
     return record

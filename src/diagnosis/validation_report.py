@@ -1,93 +1,33 @@
-"""The blind validation's scores over trials and its report (``validation.md``).
+"""The blind validation's report: ``validation.md`` and ``validation.json`` from its summary.
 
-Reads the per-trial scores :meth:`simgap.diagnosis.trial.Trial.score` makes (as
-``validation.json`` keeps them): top-1 accuracy overall, per effect and for appearance effects,
-recall for pairs, magnitude errors, reductions, and the confusion table.
+Renders a :class:`~simgap.diagnosis.validation_summary.ValidationSummary` (computed by
+:func:`~simgap.diagnosis.validation_summary.summarize_scores`) and the finished trials
+(:class:`~simgap.diagnosis.trial_score.TrialRecord`): :func:`validation_markdown` writes the
+report, :func:`validation_json` the plain-JSON ``validation.json`` (schema
+:data:`VALIDATION_SCHEMA_VERSION`; docs/validation.md documents it).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
-
-from simgap.diagnosis.hidden_effects import APPEARANCE, OUTSIDE, REPORTED_AS, found
-from simgap.diagnosis.result import DiagnosisResult
+from simgap.diagnosis.result_json import jsonable
 from simgap.diagnosis.trial import CRUSHED_BLACK_SHARE
+from simgap.diagnosis.trial_score import TrialRecord
+from simgap.diagnosis.validation_summary import ValidationSummary
+
+#: Version of the ``validation.json`` schema written; 1 (no ``schema_version`` key) had the
+#: trials' schema-1 records and the summary keys before the typed summary (docs/validation.md).
+VALIDATION_SCHEMA_VERSION = 2
 
 
-def _share(flags: list[bool]) -> float | None:
-    return float(np.mean(flags)) if flags else None
-
-
-def summarize_scores(scores: list[dict[str, Any]]) -> dict[str, Any]:
-    """Scores over trials from each trial's :meth:`Trial.score` (as validation.json keeps)."""
-    outside = [s for s in scores if s["hidden"] and set(s["hidden"]) <= set(OUTSIDE)]
-    inside = [s for s in scores if s["hidden"] and s not in outside]
-    single = [s for s in inside if len(s["hidden"]) == 1]
-    pairs = [s for s in inside if len(s["hidden"]) == 2]
-    none = [s for s in scores if not s["hidden"]]
-    mags = [v for s in inside for v in s.get("magnitude_error", {}).values()]
-    red = [s["reduction"] for s in inside if s.get("correct") and s.get("reduction") is not None]
-    per_effect = {}
-    for name in sorted({h for s in inside for h in s["hidden"]}):
-        alone = [s for s in single if s["hidden"] == [name]]
-        anywhere = [s for s in inside if name in s["hidden"]]
-        errors = [
-            v
-            for s in anywhere
-            for k, v in s.get("magnitude_error", {}).items()
-            if k.split(".")[0] in (name, REPORTED_AS.get(name))
-        ]
-        per_effect[name] = {
-            "single_trials": len(alone),
-            "top1_single": _share([s["correct"] for s in alone]),
-            "trials": len(anywhere),
-            "recall": _share([found(name, s["selected"]) for s in anywhere]),
-            "magnitude_error_median": float(np.median(errors)) if errors else None,
-            "magnitude_error_p90": float(np.percentile(errors, 90)) if errors else None,
-        }
-    appearance = [s for s in single if s["hidden"][0] in APPEARANCE]
-    blur_only = [s for s in single if s["hidden"] == ["blur"]]
-    crushed_jpeg = [
-        s
-        for s in inside
-        if "jpeg" in s["hidden"] and (s.get("crushed_black") or 0.0) >= CRUSHED_BLACK_SHARE
-    ]
-    bins: dict[str, dict[str, dict[str, Any]]] = {}
-    for s in scores:
-        for dimension, label in s.get("bins", {}).items():
-            cell = bins.setdefault(dimension, {}).setdefault(label, {"trials": 0, "correct": 0})
-            cell["trials"] += 1
-            cell["correct"] += int(bool(s["correct"]))
-    for dimension in bins.values():
-        for cell in dimension.values():
-            cell["share_correct"] = cell["correct"] / cell["trials"]
+def validation_json(summary: ValidationSummary, trials: Sequence[TrialRecord]) -> dict[str, Any]:
+    """``validation.json``: schema version, summary, and the trials as their files keep them."""
     return {
-        "trials": len(scores),
-        "top1_accuracy": _share([s["correct"] for s in inside]),
-        "every_effect_accuracy": _share(
-            [s.get("recall") == 1.0 and not s["spurious"] for s in inside]
-        ),
-        "top1_accuracy_single": _share([s["correct"] for s in single]),
-        "top1_accuracy_appearance_single": _share([s["correct"] for s in appearance]),
-        "pair_recall": _share([s["recall"] for s in pairs]),
-        "no_effect_correct": _share([s["correct"] for s in none]),
-        "no_effect_free_of_geometry": _share([not s.get("geometric_selected") for s in none]),
-        "blur_only_free_of_geometry": _share([not s.get("geometric_selected") for s in blur_only]),
-        "jpeg_crushed_recall": _share([found("jpeg", s["selected"]) for s in crushed_jpeg]),
-        "jpeg_crushed_trials": len(crushed_jpeg),
-        "outside_unexplained": _share([s["correct"] for s in outside]),
-        "magnitude_within_25pct": _share([m <= 0.25 for m in mags]),
-        "magnitude_error_median": float(np.median(mags)) if mags else None,
-        "magnitude_error_p90": float(np.percentile(mags, 90)) if mags else None,
-        "reduction_median": float(np.median(red)) if red else None,
-        "reduction_at_least_70pct": _share([r >= 0.7 for r in red]),
-        "spurious_trials": _share([bool(s.get("spurious")) for s in scores]),
-        "on_bound_trials": _share([bool(s.get("on_bound")) for s in scores]),
-        "per_effect": per_effect,
-        "per_nuisance_bin": bins,
-        "confusion": confusion(scores),
+        "schema_version": VALIDATION_SCHEMA_VERSION,
+        "summary": jsonable(summary),
+        "trials": [t.to_json() for t in trials],
     }
 
 
@@ -96,46 +36,27 @@ def _camera_text(bins: dict[str, str]) -> str:
     return "; ".join(f"{k}: {v}" for k, v in bins.items() if v != "none") or "-"
 
 
-def confusion(scores: list[dict]) -> dict[str, dict[str, int]]:
-    """Counts of (hidden effect -> answer), one count per hidden effect of each trial.
+def _percent(share: float | None) -> str:
+    """A share as a whole percentage (``n/a`` for None)."""
+    return "n/a" if share is None else f"{share:.0%}"
 
-    The answer is the hidden effect itself when the diagnosis selected it (a hit, on the
-    diagonal), else the diagnosis' top-1 (or ``none``). For an effect-free trial the answer is
-    ``none`` unless something the capture does not have was named (then the first of those);
-    for an effect outside the catalogue it is ``unexplained`` when reported so.
+
+def _percent_1(value: float | None) -> str:
+    """A fraction as a percentage with one decimal (``n/a`` for None)."""
+    return "n/a" if value is None else f"{value:.1%}"
+
+
+def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord]) -> str:
+    """``validation.md``: the scores, per nuisance bin, per effect, the confusion table, trials.
+
+    ``trials`` are the finished trials the summary is over, in the table's order.
     """
-    table: dict[str, dict[str, int]] = {}
-    for s in scores:
-        for h in s["hidden"] or ["none"]:
-            if h == "none":
-                wrong = s.get("spurious", s["geometric_selected"])
-                answer = wrong[0] if wrong else "none"
-            elif h in OUTSIDE:
-                answer = "unexplained" if s["correct"] else s["top1"]
-            else:
-                answer = h if found(h, s["selected"]) else s["top1"]
-            row = table.setdefault(h, {})
-            row[answer] = row.get(answer, 0) + 1
-    return table
-
-
-def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) -> str:
-    """The validation report with its confusion table.
-
-    ``records`` are the trials as ``validation.json`` keeps them: each trial's score with its
-    ``index``, ``result`` and ``seconds``.
-    """
-
-    def pct(v):
-        return "n/a" if v is None else f"{v:.0%}"
-
-    def num(v):
-        return "n/a" if v is None else f"{v:.1%}"
+    pct, num = _percent, _percent_1
 
     lines = [
         "# Blind validation of the gap diagnosis",
         "",
-        f"{summary['trials']} trials. Each pseudo-real capture is rendered through its own "
+        f"{summary.trials} trials. Each pseudo-real capture is rendered through its own "
         "other camera, drawn per trial (simgap.diagnosis.nuisance: key light type, place, power "
         "and colour; ambient; total exposure -1.5 to +1.5 EV; box, tent or Gaussian pixel "
         "filter; 49-81 spp; nearest or bilinear texture filtering; full well 1000-20000 e-, read "
@@ -152,45 +73,42 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "",
         "| score | value |",
         "|---|---|",
-        f"| top-1 accuracy (trials with a catalogue effect) | {pct(summary['top1_accuracy'])} |",
+        f"| top-1 accuracy (trials with a catalogue effect) | {pct(summary.top1_accuracy)} |",
         "| every hidden effect named, nothing spurious (strict; trials with a catalogue effect) | "
-        f"{pct(summary['every_effect_accuracy'])} |",
-        f"| top-1 accuracy (single effect) | {pct(summary['top1_accuracy_single'])} |",
+        f"{pct(summary.every_effect_accuracy)} |",
+        f"| top-1 accuracy (single effect) | {pct(summary.top1_accuracy_single)} |",
         "| top-1 accuracy (single appearance effect) | "
-        f"{pct(summary['top1_accuracy_appearance_single'])} |",
-        f"| recall for pairs | {pct(summary['pair_recall'])} |",
+        f"{pct(summary.top1_accuracy_appearance_single)} |",
+        f"| recall for pairs | {pct(summary.pair_recall)} |",
         "| no-effect trials correct (nothing named but the camera's own effects) | "
-        f"{pct(summary['no_effect_correct'])} |",
+        f"{pct(summary.no_effect_correct)} |",
         "| no-effect trials free of geometric and calibration effects | "
-        f"{pct(summary['no_effect_free_of_geometry'])} |",
+        f"{pct(summary.no_effect_free_of_geometry)} |",
         "| blur-only trials free of geometric and calibration effects | "
-        f"{pct(summary.get('blur_only_free_of_geometry'))} |",
+        f"{pct(summary.blur_only_free_of_geometry)} |",
         f"| JPEG named where the capture's blacks are crushed (>= "
-        f"{CRUSHED_BLACK_SHARE:.0%} of a tag at 0 DN; {summary.get('jpeg_crushed_trials', 0)} "
-        f"trials) | {pct(summary.get('jpeg_crushed_recall'))} |",
+        f"{CRUSHED_BLACK_SHARE:.0%} of a tag at 0 DN; {summary.jpeg_crushed_trials} "
+        f"trials) | {pct(summary.jpeg_crushed_recall)} |",
         f"| effect outside the catalogue reported unexplained | "
-        f"{pct(summary['outside_unexplained'])} |",
-        f"| fitted magnitude within 25 % | {pct(summary['magnitude_within_25pct'])} |",
-        f"| magnitude error, median / 90th percentile | {num(summary['magnitude_error_median'])} / "
-        f"{num(summary['magnitude_error_p90'])} |",
+        f"{pct(summary.outside_unexplained)} |",
+        f"| fitted magnitude within 25 % | {pct(summary.magnitude_within_25pct)} |",
+        f"| magnitude error, median / 90th percentile | {num(summary.magnitude_error_median)} / "
+        f"{num(summary.magnitude_error_p90)} |",
         "| pose-gap reduction on the report split, median (correct trials) | "
-        f"{pct(summary['reduction_median'])} |",
-        f"| reduced >= 70 % | {pct(summary['reduction_at_least_70pct'])} |",
-        f"| trials naming something the capture does not have | "
-        f"{pct(summary.get('spurious_trials'))} |",
+        f"{pct(summary.pose_gap_reduction_median)} |",
+        f"| reduced >= 70 % | {pct(summary.pose_gap_reduction_at_least_70pct)} |",
+        f"| trials naming something the capture does not have | {pct(summary.spurious_share)} |",
         "| trials with a selected parameter on the end of its searched range | "
-        f"{pct(summary.get('on_bound_trials'))} |",
+        f"{pct(summary.on_bound_share)} |",
         "",
         "## Per nuisance bin (share of trials correct)",
         "",
         "| nuisance | bin | trials | correct |",
         "|---|---|---|---|",
     ]
-    for dimension, cells in summary.get("per_nuisance_bin", {}).items():
+    for dimension, cells in summary.per_nuisance_bin.items():
         for label, cell in sorted(cells.items()):
-            lines.append(
-                f"| {dimension} | {label} | {cell['trials']} | {pct(cell['share_correct'])} |"
-            )
+            lines.append(f"| {dimension} | {label} | {cell.trials} | {pct(cell.share_correct)} |")
     lines += [
         "",
         "## Per effect",
@@ -200,10 +118,9 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "|---|---|---|---|---|---|",
     ]
     lines += [
-        f"| {name} | {e['single_trials']} | {pct(e['top1_single'])} | {e['trials']} | "
-        f"{pct(e['recall'])} | {num(e['magnitude_error_median'])} / "
-        f"{num(e.get('magnitude_error_p90'))} |"
-        for name, e in summary["per_effect"].items()
+        f"| {name} | {e.single_trials} | {pct(e.top1_accuracy_single)} | {e.trials} | "
+        f"{pct(e.recall)} | {num(e.magnitude_error_median)} / {num(e.magnitude_error_p90)} |"
+        for name, e in summary.per_effect.items()
     ]
     lines += [
         "",
@@ -214,10 +131,10 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "the catalogue reported as unexplained).",
         "",
     ]
-    answers = sorted({a for row in summary["confusion"].values() for a in row})
+    answers = sorted({a for row in summary.confusion.values() for a in row})
     lines.append("| hidden \\ answer | " + " | ".join(answers) + " |")
     lines.append("|---|" + "---|" * len(answers))
-    for hidden, row in sorted(summary["confusion"].items()):
+    for hidden, row in sorted(summary.confusion.items()):
         lines.append(f"| {hidden} | " + " | ".join(str(row.get(a, "")) for a in answers) + " |")
     lines += [
         "",
@@ -226,14 +143,13 @@ def validation_markdown(summary: dict[str, Any], records: list[dict[str, Any]]) 
         "| # | hidden | selected | unexplained | correct | magnitude error | camera | seconds |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for r in records:
-        mags = ", ".join(f"{k} {v:.1%}" for k, v in r.get("magnitude_error", {}).items())
-        answer = DiagnosisResult.from_json(r["result"], f"trial {r['index']}'s result")
-        left = ", ".join(answer.unexplained_evidence) or "-"
+    for t in trials:
+        score = t.score
+        mags = ", ".join(f"{k} {v:.1%}" for k, v in score.magnitude_error.items())
+        left = ", ".join(t.result.unexplained_evidence) or "-"
         lines.append(
-            f"| {r['index']} | {', '.join(r['hidden']) or 'none'} | "
-            f"{', '.join(r['selected']) or '-'} | {left} | {'yes' if r['correct'] else 'no'} | "
-            f"{mags or '-'} | {_camera_text(r.get('bins', {}))} | "
-            f"{r['seconds']:.0f} |"
+            f"| {t.index} | {', '.join(score.hidden) or 'none'} | "
+            f"{', '.join(score.selected) or '-'} | {left} | {'yes' if score.correct else 'no'} | "
+            f"{mags or '-'} | {_camera_text(score.nuisance_bins)} | {t.seconds:.0f} |"
         )
     return "\n".join(lines) + "\n"

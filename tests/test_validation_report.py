@@ -1,0 +1,153 @@
+"""The blind validation's report from a fixed set of trials: the same scores, the same markdown.
+
+The data files were written once by the code before the trial scores were typed (commit
+081b3d4), from 26 trials on seed 58's drawn other cameras with hand-written diagnoses: pairs
+(found, half found, missed), no-effect trials (clean, the camera's own effects, a spurious
+laminate, a spurious print scale), motion blur (unexplained, and answered with geometry),
+blur-only trials, JPEG behind crushed blacks, a parameter on its bound, a capture whose blacks
+were not measured and a trial without a drawn camera.
+
+- ``validation_trials_v1.json``: the trials as ``OUTPUT/trials/trial_NNN.json`` kept them
+  (trial schema 1);
+- ``validation_summary_v1.json``: their summary as ``validation.json`` kept it (schema 1);
+- ``validation_golden.md``: their ``validation.md``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from simgap.core.rig import load_rig
+from simgap.diagnosis.result_json import jsonable
+from simgap.diagnosis.trial import Trial
+from simgap.diagnosis.trial_score import TRIAL_SCHEMA_VERSION, TrialRecord
+from simgap.diagnosis.validation_report import validation_json, validation_markdown
+from simgap.diagnosis.validation_summary import summarize_scores
+
+DATA = Path(__file__).parent / "data"
+TRIALS_V1 = DATA / "validation_trials_v1.json"
+SUMMARY_V1 = DATA / "validation_summary_v1.json"
+GOLDEN_MD = DATA / "validation_golden.md"
+#: trials planned in the run the golden report is the summary of
+TRIALS_PLANNED = 30
+#: schema-1 trial keys (the score's and the record's) under their schema-2 names
+TRIAL_V1_NAMES = {
+    "reduction": "pose_gap_reduction",
+    "reduction_interval_90": "pose_gap_reduction_interval_90",
+    "bins": "nuisance_bins",
+    "crushed_black": "crushed_black_share",
+}
+#: schema-1 keys of a trial file that are the record's, not the score's
+RECORD_V1 = ("index", "params", "camera", "result", "seconds")
+#: schema-1 summary keys under their schema-2 names (docs/validation.md)
+SUMMARY_V1_NAMES = {
+    "reduction_median": "pose_gap_reduction_median",
+    "reduction_at_least_70pct": "pose_gap_reduction_at_least_70pct",
+    "spurious_trials": "spurious_share",
+    "on_bound_trials": "on_bound_share",
+    "top1_single": "top1_accuracy_single",  # per effect
+    "correct": "correct_trials",  # per nuisance bin
+}
+
+
+def _v1_trials() -> list[dict]:
+    return json.loads(TRIALS_V1.read_text())
+
+
+def _renamed(tree, names: dict[str, str]):
+    """A JSON tree with its mapping keys renamed by ``names``."""
+    if isinstance(tree, dict):
+        return {names.get(k, k): _renamed(v, names) for k, v in tree.items()}
+    return tree
+
+
+def test_schema_1_trial_files_read_as_the_current_code_scores_them():
+    """A kept trial file of schema 1 gives the score it holds, under the new names, and that
+    score is the one the current code gives the trial it keeps (its draws, camera, diagnosis)."""
+    rig = load_rig()
+    for raw in _v1_trials():
+        kept = TrialRecord.from_json(raw, f"trial_{raw['index']:03d}.json")
+        assert kept.schema_version == TRIAL_SCHEMA_VERSION == 2
+        # every number and name of the old file, read through the new names
+        score = jsonable(kept.score)
+        for key, value in raw.items():
+            if key not in RECORD_V1:
+                assert score[TRIAL_V1_NAMES.get(key, key)] == value, key
+        assert set(score) - {TRIAL_V1_NAMES.get(k, k) for k in raw} <= {
+            "recall", "magnitude_error", "pose_gap_reduction", "pose_gap_reduction_interval_90",
+        }  # fmt: skip
+        if not kept.score.catalogue:  # schema 1 left these out: the defaults say "none"
+            assert kept.score.recall is None and kept.score.magnitude_error == {}
+        assert (kept.index, kept.seconds) == (raw["index"], raw["seconds"])
+        assert jsonable(kept.hidden_params) == raw["params"]
+        assert jsonable(kept.camera) == raw["camera"]
+        assert kept.result.to_json() == raw["result"]
+        trial = Trial(
+            kept.index, kept.hidden_params, kept.camera, kept.result, kept.seconds,
+            rig if kept.camera else None, kept.score.crushed_black_share,
+        )  # fmt: skip
+        assert trial.score() == kept.score
+        assert json.dumps(trial.record().to_json()) == json.dumps(kept.to_json())
+
+
+def test_schema_2_trial_files_round_trip():
+    for raw in _v1_trials():
+        kept = TrialRecord.from_json(raw)
+        data = json.loads(json.dumps(kept.to_json()))
+        assert data["schema_version"] == 2 and "score" in data and "params" not in data
+        again = TrialRecord.from_json(data)
+        assert again.score == kept.score
+        assert json.dumps(again.to_json()) == json.dumps(data)
+
+
+def test_the_markdown_is_the_golden_one_and_the_summary_keeps_its_numbers():
+    """validation.md stays byte for byte what the code before the typed summary wrote, from
+    trial files of either schema; validation.json's summary keeps every value (schema 2 renames
+    six keys)."""
+    trials = [TrialRecord.from_json(raw) for raw in _v1_trials()]
+    summary = summarize_scores([t.score for t in trials], TRIALS_PLANNED)
+    assert validation_markdown(summary, trials) == GOLDEN_MD.read_text()
+    again = [TrialRecord.from_json(json.loads(json.dumps(t.to_json()))) for t in trials]
+    assert validation_markdown(summary, again) == GOLDEN_MD.read_text()
+    written = json.loads(json.dumps(validation_json(summary, trials)))
+    assert written["schema_version"] == 2
+    assert written["summary"] == _renamed(json.loads(SUMMARY_V1.read_text()), SUMMARY_V1_NAMES)
+    assert written["trials"] == [t.to_json() for t in trials]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda d: d.update(schema_version=3), r"schema_version: expected 1 or 2, got 3"),
+        (lambda d: d["score"].update(correct="yes"), r"trial_007\.json\.score\.correct"),
+        (lambda d: d.pop("seconds"), r"trial_007\.json: missing key 'seconds'"),
+        (lambda d: d["score"].update(reduction=0.5), r"score: unexpected key\(s\) reduction"),
+        (lambda d: d["result"].update(schema_version=9), r"json\.result: schema_version"),
+    ],
+)
+def test_a_trial_file_that_does_not_fit_the_schema_names_the_key(change, message):
+    data = TrialRecord.from_json(_v1_trials()[7]).to_json()
+    change(data)
+    with pytest.raises(ValueError, match=message):
+        TrialRecord.from_json(data, "trials/trial_007.json")
+
+
+def test_a_run_resumes_from_a_schema_1_trial_file(tmp_path):
+    """A trial file kept by a run before the typed scores is this run's trial, if its draws are
+    the ones this run makes and it was diagnosed with the same simulation."""
+    from simgap.diagnosis.validate import _kept_trial
+
+    raw = _v1_trials()[3]
+    path = tmp_path / "trials" / "trial_003.json"
+    path.parent.mkdir()
+    path.write_text(json.dumps(raw, indent=2))
+    kept = TrialRecord.from_json(raw)
+    assert kept.camera is not None
+    assert _kept_trial(path, raw["params"], kept.camera, "converged") == kept
+    with pytest.raises(ValueError, match="other hidden effects or another camera"):
+        _kept_trial(path, {"blur": {"sigma_px": 1.0}}, kept.camera, "converged")
+    with pytest.raises(ValueError, match="diagnosed with a converged simulation"):
+        _kept_trial(path, raw["params"], kept.camera, "path")
