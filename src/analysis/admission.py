@@ -108,14 +108,11 @@ def seen_in_centres(scored: Scored, reference: Scored | None) -> bool:
     Why the pose does not decide here: a single tag's depth comes from its apparent size, and
     a camera whose edges differ from the simulation's (exposure, softness) moves every side of
     the tag in or out and so the depth; the centre is the mean of the four corners and stays
-    where the geometry put it. Blind seed 45 (development since): three carriage pitches
-    fitted right (-1.82 % for -1.90 %, -1.21 % for -1.24 %, -2.27 % for -2.29 %) raised the
-    pose gap over all axes 0.74 -> 1.08, 0.61 -> 0.81, 0.77 -> 0.88 (in trial 19 all of it in
-    the depth axis: that overexposed camera's far tags read no closer although the pitch had
-    brought them 6.6 mm closer) while the median centre residual fell by 99 %, 75 % and 99 %
-    (p <= 1e-4). A print scale moves a centre only by its perspective (a hair), so it does
-    not enter this way; beside motion blur (seed 44 trials 17, 19, 25) or on a capture with no
-    effect (seed 44 trials 4, 33, 57) no geometric candidate lowered the centres (p >= 0.09).
+    where the geometry put it. Measured on development captures: true carriage pitches, fitted
+    right, lowered the median centre residual by 75-99 % (p <= 1e-4) while raising the pose
+    gap; beside motion blur or on a capture with no effect no geometric candidate lowered the
+    centres (p >= 0.09). A print scale moves a centre only by its perspective (a hair), so it
+    does not enter this way (docs/results/design_evidence.md#admission).
     """
     new = new_effects(scored, reference)
     if len(new) != 1 or not isinstance(new[0], ProjectionCandidate):
@@ -153,11 +150,10 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     distinguishably larger, by the tolerance of every channel
     (:func:`~simgap.analysis.scoring.distinguishably_lower` on the pose channel: a quarter unit
     and 10 %). Within its noise the pose gap tells nothing either way: a lens distortion whose
-    poses lie within their noise on both sides scored 0.649 -> 0.664, pure noise ~0.67; on
-    blind seed 34 trial 42 a D435-like lens (k1 0.126) fitted to k1 0.110 lowered the corner gap
-    0.316 -> 0.218 px and was rejected because the pose gap of seven tags rose 0.373 -> 0.418
-    under a 10 % rule. Such an effect is a finding even when it moves no pose beyond the floor:
-    it is then reported as minor.
+    poses lie within their noise on both sides scored 0.649 -> 0.664, pure noise ~0.67; a true
+    lens that lowered the corner gap by a third was rejected under a 10 % pose rule on a blind
+    capture (docs/results/design_evidence.md#admission). Such an effect is a finding even when
+    it moves no pose beyond the floor: it is then reported as minor.
     """
     new = new_effects(scored, reference)
     if len(new) != 1 or not has_corner_signature(new[0]):

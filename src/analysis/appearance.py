@@ -63,10 +63,10 @@ from simgap.pose.jpeg_blocks import quality_for_dc_step
 #: Points of the coarse scan that brackets a 1-D fit before the bounded Brent search.
 SCAN_POINTS = 16
 #: Fewest tags that agree on a DC quantisation step (and at least half of the tags that show one)
-#: for the JPEG quality to be read from it. Tags agree or show none: on blind seed 34's kept
-#: captures 10 of 40, 20 of 42 and 29 of 29 tags showed the true step and no other, the rest
-#: none (bright paper and soft edges leave too few distinct unclipped blocks); 148 tags of four
-#: uncompressed captures showed none.
+#: for the JPEG quality to be read from it. Tags agree or show none: measured on development
+#: captures, a quarter to all of a compressed capture's tags showed the true step and no other,
+#: the rest none (bright paper and soft edges leave too few distinct unclipped blocks), and no
+#: tag of an uncompressed capture showed one (docs/results/design_evidence.md#appearance).
 MIN_STEP_TAGS = 3
 
 
@@ -254,9 +254,9 @@ class JpegCandidate(AppearanceCandidate):
 
     Where at least :data:`MIN_STEP_TAGS` tags, and half of those that show one, agree on a DC
     quantisation step (``jpeg_dc_step_dn``, :mod:`simgap.pose.jpeg_blocks`), the quality is the
-    libjpeg quality of that step: the quantiser is read back,
-    whatever the camera's noise and softness (blind seed 34: qualities 29, 29, 55 and 39 read
-    39, 69, 79 and 23 from the blockiness). Else it is searched on the blockiness: the
+    libjpeg quality of that step: the quantiser is read back, whatever the camera's noise and
+    softness (read from the blockiness instead, qualities were off by 10-40 on blind captures:
+    docs/results/design_evidence.md#appearance). Else it is searched on the blockiness: the
     block-boundary steps over the others, the others mostly the camera's noise (a noisy camera's
     JPEG reads less blocky than a clean render's at the same quality). With ``noise`` (the
     sensor-noise candidate) the blockiness is matched on the simulation with the capture's own

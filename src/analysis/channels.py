@@ -124,7 +124,7 @@ def evidence_channels(
     each image statistic is: on a choose split of 8-12 tags one tag is 2-2.5 units, and a fitted
     blur or defocus that lost one or two tags the other camera's detector kept (its own tone
     curve and pixel filter) scored 5 units and was outweighed by a print scale that explained
-    no image evidence (blind seed 30, trials 2 and 13).
+    no image evidence (measured on blind captures: docs/results/design_evidence.md#channels).
     """
     detection = np.minimum(detection, RESIDUAL_CAP)
     parts = [finite_or_zero(corner_px) / corner_unit_px, finite_or_zero(pose_all_axes), detection]
@@ -220,11 +220,12 @@ def detection_unit(n_items: int | np.ndarray) -> float | np.ndarray:
     items are fewer than twenty: the smallest rate difference the items can show. A tag near the
     detector's limit is kept or lost by a hair (one render of it, one frame), and on a choose
     split of 7 configurations one such tag lost by a correct JPEG model was 2.9 units, more than
-    its blockiness explained (blind seed 44 trial 40: the JPEG was answered with nothing). The
-    unit follows the items compared: two splits of 7 and 8 items, or bootstrap resamples with
-    missing detections, are each in their own; so is the laminate's choice of intensity
+    its blockiness explained, and the JPEG went unnamed. The unit follows the items compared:
+    two splits of 7 and 8 items, or bootstrap resamples with missing detections, are each in
+    their own; so is the laminate's choice of intensity
     (:meth:`simgap.analysis.gloss.GlossCandidate.intensity`), where detections weigh up to 3x
-    less on fewer than twenty items (on development seed 44 no magnitude changed).
+    less on fewer than twenty items (no fitted magnitude of the development captures changed;
+    docs/results/design_evidence.md#channels).
     """
     return np.maximum(DETECTION_UNIT, 1.0 / np.maximum(n_items, 1))
 

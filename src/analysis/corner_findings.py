@@ -5,12 +5,12 @@ exposure or softness change makes) is a finding wherever the held-out corners si
 (:func:`~simgap.analysis.admission.seen_in_corners`), even when it moves no pose beyond the floor
 (it is then minor, never silently dropped). The greedy search of
 :meth:`simgap.analysis.selection.ModelSearch.select` adds the effect that lowers the combined
-misfit most, so a distortion that lowers only the corners was crowded out by appearance effects
-that lowered the image statistics more and were then pruned (blind seed 37 trials 40 and 69: a
-calibration file's distortion answered by exposure alone, although exposure + lens distortion was
-admissible and lowered the corner gap 0.244 -> 0.213 and 0.156 -> 0.098 px). And where no
-evidence family differs significantly, a wrong distortion in the calibration file that moves no
-pose significantly was never looked for (trial 45: corner gap 0.336 -> 0.172 px with the lens).
+misfit most, so a distortion that lowers only the corners can be crowded out by appearance
+effects that lower the image statistics more and are then pruned (a calibration file's
+distortion answered by exposure alone, although exposure + lens distortion was admissible and
+lowered the corner gap). And where no evidence family differs significantly, a wrong distortion
+in the calibration file that moves no pose significantly would never be looked for. Both seen on
+blind captures: docs/results/design_evidence.md#corner_findings.
 """
 
 from __future__ import annotations
@@ -62,12 +62,12 @@ def without_displaced(
     """``scored`` without the projection effects that ``added`` has displaced.
 
     A projection effect of the model other than ``added`` that may no longer enter beside the
-    rest (:func:`admissible` against the model without it) stood in for what ``added`` explains:
-    blind seed 45 trial 69, a calibration file's wrong distortion, the search let a focal length
-    of -0.01 % in beside exposure on the tag centres the distortion had moved; with the lens
-    distortion beside it, its centres were no better than the lens's alone (p = 0.67) and its
-    pose no closer, and it was still named. Effects are questioned in the model's order (the
-    projection effects by name); each one that leaves is questioned no further.
+    rest (:func:`admissible` against the model without it) stood in for what ``added`` explains
+    (a focal length let in on the tag centres a calibration file's wrong distortion had moved:
+    beside the lens distortion its centres were no better than the lens's alone and its pose no
+    closer, and it was still named; docs/results/design_evidence.md#corner_findings). Effects
+    are questioned in the model's order (the projection effects by name); each one that leaves
+    is questioned no further.
     """
     for c, _ in scored.fits:
         if c is added or not isinstance(c, ProjectionCandidate):
@@ -85,9 +85,9 @@ def corner_effect_alone(ranking: Sequence[Scored]) -> Scored | None:
     ``ranking``: single-effect models (:meth:`~simgap.analysis.selection.ModelSearch.rank`).
     For a capture where no evidence family differs significantly, or where the model search
     finds no effect to start from: only an effect with a corner signature of its own,
-    admissible alone and seen in the held-out corners, is a finding (blind seed 46 trial 33: a
-    D435-like lens, k1 fitted 0.074 for 0.082, seen at p = 0.0004 on 27 held-out items, lowered
-    the evidence 1.80 -> 1.71 on a 9-item choose split: too little to start the search).
+    admissible alone and seen in the held-out corners, is a finding: a true lens can be seen
+    clearly in the held-out corners yet lower the evidence of a small choose split too little to
+    start the search (docs/results/design_evidence.md#corner_findings).
     """
     seen = [
         s

@@ -27,9 +27,8 @@ DISK_10_90_PER_RADIUS = 2 * 0.68705
 #: Searched ranges of the thin lens: aperture radius (mm) and focus (dioptres, 1/m; a focus
 #: distance of 0.1 m to 100 m). The far end is no bound: a lens focused at infinity is a lens
 #: as it is (a fixed-focus module), and at the fixture's depths (at most about 2 m, 0.5
-#: dioptres) 100 m differs from infinity by 2 % of the nearest term. Until blind seed 31 the
-#: far end was 5 m (0.2 dioptres), where a 1.0 mm aperture focused at 1.9 m was fitted and left
-#: out as on its bound (trial 17).
+#: dioptres) 100 m differs from infinity by 2 % of the nearest term. A far end of 5 m left a lens
+#: fitted on a blind capture out as on its bound (docs/results/design_evidence.md#defocus).
 APERTURE_MM: tuple[float, float] = (0.0, 5.0)
 FOCUS_DIOPTRES: tuple[float, float] = (0.01, 10.0)
 
@@ -49,12 +48,12 @@ class DefocusCandidate(AppearanceCandidate):
     n_params = 2
     #: Samples per pixel of its renders: the thin lens adds Monte Carlo noise that a 16-spp
     #: render turns into corner noise the real camera does not have (a square, 8 x 8, as the
-    #: multijitter sampler takes it). At 36 spp that noise decided against the lens in two of
-    #: three defocus trials of development seed 23 (choose-split corners 0.36-0.52 px against the
-    #: blur's 0.27-0.36 px, while the lens fitted the aperture within 5-9 % and lowered the
-    #: pose gap more). Path tracing only: a converged render's thin-lens stickers carry no such
-    #: noise (their footprints are clipped per aperture point, docs/results/
-    #: converged_render_step5.md), so it keeps the simulation's samples.
+    #: multijitter sampler takes it). At 36 spp that noise decided against a correctly fitted lens
+    #: on development captures: its choose-split corners were worse than a blur's although it
+    #: lowered the pose gap more (docs/results/design_evidence.md#defocus). Path tracing only:
+    #: a converged render's thin-lens stickers carry no such noise (their footprints are clipped
+    #: per aperture point, docs/results/converged_render_step5.md), so it keeps the simulation's
+    #: samples.
     SPP = 64
 
     def __init__(self) -> None:
@@ -127,15 +126,16 @@ class DefocusCandidate(AppearanceCandidate):
                 # render noise of its 36-spp renders (the pose scatter), not for defocus; and
                 # the widening must change with depth, the lens's own signature: one widening
                 # at every depth is softness, which the blur names more simply (a far focus
-                # otherwise fits a soft camera: seed 31 trial 22, no hidden effect)
+                # otherwise fits a soft camera with no hidden effect:
+                # docs/results/design_evidence.md#defocus)
                 "supported": signature_supported(rms_before, rms_after) and depth_dependent,
                 "edge_width_rms_constant": rms_constant,
                 "edge_width_rms_lens": rms_after,
                 # a lens's signature is a widening that changes with depth: where it does,
                 # beyond what one widening at every depth explains, a depth-independent blur
-                # is not the explanation (measured: seed-23 trial 7, a 0.87 mm aperture
-                # focused at 2 m, tied with a 1 px blur on the choose split's evidence and parsimony
-                # chose the blur)
+                # is not the explanation (measured on a development capture: a true lens tied
+                # with a blur on the choose split's evidence and parsimony chose the blur;
+                # docs/results/design_evidence.md#defocus)
                 "excludes": ("blur",) if depth_dependent else (),
                 "at_bound": at_bound,
             },

@@ -205,10 +205,10 @@ class ProjectionCandidate:
         by item (:func:`simgap.analysis.paired.clearly_lower`: by at least 5 % of the median
         residual and at p < 0.01; an in-sample test, so on fewer than 7 items nothing is
         released). A lens's k2 beside k1 on tags that span a small part of the image radius is
-        nearly degenerate with it: fitted always, it traded k1 for k2 (blind seed 44 trial 39:
-        k1 0.017, k2 -0.25 for a lens without distortion; k1 alone 0.006) and its corners on
-        held-out items were worse. :attr:`n_params` still counts every parameter (parsimony
-        charges a lens for k2 whether or not it was released).
+        nearly degenerate with it: fitted always, it traded k1 for k2 on a lens without
+        distortion and its corners on held-out items were worse (measured on a development
+        capture: docs/results/design_evidence.md#fitting). :attr:`n_params` still counts every
+        parameter (parsimony charges a lens for k2 whether or not it was released).
     """
 
     kind = "projection"

@@ -46,10 +46,10 @@ MIN_TAGS = 8
 #: directions tell apart.
 STARTS: tuple[tuple[float, ...], tuple[float, ...]] = ((0.05, 0.12, 0.3), (-0.05, 0.05))
 #: The light's height above the lens is not fitted (m): the turntable turns about a vertical
-#: axis, so a height only widens the lobe, as roughness does. On the 10 laminate captures of
-#: development (blind seeds 44-47) with enough unclipped papers, the misfit at height 0 was
-#: within 0.02 floors of the best over +-0.15 m (a tenth of the equivalence tolerance), and the
-#: free height ran to its bound on one (blind seed 47 trial 51, refused there).
+#: axis, so a height only widens the lobe, as roughness does. Measured on the development
+#: captures with a laminate and enough unclipped papers: the misfit at height 0 was within 0.02
+#: floors of the best over +-0.15 m (a tenth of the equivalence tolerance), and a free height
+#: ran to its bound (docs/results/design_evidence.md#glint_ratio).
 HEIGHT_M = 0.0
 
 

@@ -77,8 +77,8 @@ from simgap.pose.image_stats import STAT_INDEX
 #: Searched ranges: laminate roughness (dimensionless; below 0.01 a glint is a mirror image of
 #: the LED a few pixels wide, above 0.6 the coating's reflection is spread like paper's) and the
 #: light's horizontal and vertical offsets from the lens (m; a light on the camera body: a fit
-#: that runs to 15 cm is mimicking a lab light's glint, as every spurious fit did on the 24
-#: captures without a laminate of development seed 33).
+#: that runs to 15 cm is mimicking a lab light's glint, as every spurious fit did on development
+#: captures without a laminate; docs/results/design_evidence.md#gloss).
 ALPHA: tuple[float, float] = (0.01, 0.6)
 OFFSET_M: tuple[float, float] = (-0.15, 0.15)
 #: Intensity of the light of the calibration render (W sr^-1; the camera light's default: a tag
@@ -300,9 +300,9 @@ class GlossCandidate(AppearanceCandidate):
         paper and contrast
         (:func:`~simgap.analysis.appearance.evidence_misfit`) and detections
         (:func:`~simgap.analysis.channels.detection_score`, one more statistic in the mean of
-        squares, capped like them) match the real best is kept: a glint too bright loses tags
-        the capture kept (blind seed 34 trial 71: 0.76 W/sr for 0.40, levels matched by an
-        exposure 0.7 EV too low, and the tags it lost outweighed the levels in the ranking).
+        squares, capped like them) match the real best is kept: a glint too bright, its levels
+        matched by an exposure too low, loses tags the capture kept (measured on a blind
+        capture: docs/results/design_evidence.md#gloss).
         """
         stats = ("ink_linear", "paper_linear", "contrast")
         groups = detection_groups(items)

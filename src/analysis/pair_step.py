@@ -2,20 +2,15 @@
 
 :meth:`simgap.analysis.selection.ModelSearch.select` adds effects one at a time. Two geometric
 effects that are in the capture together can hide each other from that search: each one alone
-fails its admission test because the other one's share of the gap stays in the corners. Blind
-seed 42 (80 trials, code a77e9e0), both pairs with a print scale:
-
-- trial 51, print scale -1.5 % beside a carriage pitch of -1.3 %: the print scale alone was refused
-  because the carriage's depth change, not in the model, left an edge offset against its size
-  change (zero at 0.58 of the smallest tag's size, :data:`~simgap.analysis.thresholds.
-  SIZE_ZERO_SHARE` 0.5); the carriage pitch alone moved the poses away. With both, the size
-  change stood 11.7 standard errors out and crossed zero at 0.26; the diagnosis named only the
-  camera's exposure and left a pose gap of 3.8 units.
-- trial 70, print scale -2.1 % beside a turntable offset of -21 mrad: the turntable offset alone
-  moved the pose gap (dominated by the print's ty) by 2 %; the print scale's size change was 2.8
-  standard errors out beside the rotation. A carriage pitch, a look-alike of the print, entered
-  instead; its model left the corners 1.25 px off and was refused. Both together: 9.8 standard
-  errors, pose gap 3.71 -> 0.47, corners 0.29 px.
+fails its admission test because the other one's share of the gap stays in the corners. A print
+scale beside a carriage pitch: the print scale alone is refused because the carriage's depth
+change, not in the model, leaves an edge offset against its size change
+(:data:`~simgap.analysis.thresholds.SIZE_ZERO_SHARE`), and the carriage pitch alone moves the
+poses away; with both, the size change stands out and the pose gap closes. A print scale beside a
+turntable offset: the offset alone barely moves the pose gap, the print scale's size change does
+not stand out beside the rotation, and a look-alike enters instead (its model then refused).
+Measured on blind captures where both pairs went unnamed
+(docs/results/design_evidence.md#pair_step).
 
 So where the greedy step finds nothing and the model leaves the geometry unexplained
 (:func:`geometry_unexplained`), pairs of projection effects are tried as one step, under the same

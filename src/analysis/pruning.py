@@ -30,15 +30,13 @@ def pruned(
     other channels do not keep it:
     such a change moves the tag rigidly against the camera, and a consistent corner improvement
     of a few hundredths of a pixel beside an appearance effect is what the modelled appearance
-    leaves of another camera's image formation. Blind seeds 33-39: all four such minor findings
-    were not in the capture (camera mounts of 0.24 and 0.39 mm beside a laminate and a JPEG, a
-    tag offset beside a defocus, a carriage pitch of -0.09 % beside a JPEG: corners 0.482 ->
-    0.447 px and 0.284 -> 0.280 px where measured); on blind seed 40 (stopped for this, since
-    development) true carriage pitches of 1.1 % and 2.1 % beside the camera's blur were minor
-    (the poses of a one-frame capture noisy) and lowered the corners 0.44 -> 0.20 and 0.91 ->
-    0.23 px alone. The camera's intrinsics are not questioned so: a focal length the capture's
-    calibration file knows moves the corners and no pose (blind seed 38 trial 24: a true +1.7 %
-    beside a camera mount, pose contribution 0.01, corners 0.54 -> 0.40 px).
+    leaves of another camera's image formation. Measured on validation captures: every such
+    minor finding was an effect not in the capture (its corners, where measured, a few hundredths
+    of a pixel better), while true carriage pitches that were minor beside the camera's blur (the
+    poses of a one-frame capture noisy) lowered the corners by half or more alone. The camera's
+    intrinsics are not questioned so: a focal length the capture's calibration file knows moves
+    the corners and no pose (a true one beside a camera mount: pose contribution 0.01, corners a
+    quarter lower). Measurements: docs/results/design_evidence.md#pruning.
 
     Any other effect below :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` is dropped only
     when the model without it still explains the evidence as well (:func:`as_good`); otherwise

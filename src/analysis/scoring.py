@@ -58,13 +58,13 @@ def corner_residuals(
     scored ones (:attr:`~simgap.analysis.scored.Scored.cross_fit_difference`; a ValueError for a
     model that was not cross-fitted): every item is then held out once (two-fold cross-fitting).
     A choose split of 6-10 configurations alone could not show a lens distortion that moves the
-    corners by a tenth of a pixel (blind seed 42: the paired test gave p = 0.02-0.23 on three
-    calibration files whose lens fit was right). Only the admission of a geometric effect
+    corners by a tenth of a pixel (the paired test missed correctly fitted lenses on blind
+    captures: docs/results/design_evidence.md#scoring). Only the admission of a geometric effect
     (:func:`~simgap.analysis.admission.seen_in_corners`,
     :func:`~simgap.analysis.admission.seen_in_centres`) and ties between other geometries
     (:func:`generalises_better`) use the cross-fitted residuals: the model search's other
-    comparisons keep the choose split (pooled, a focal length of -0.04 % joined a principal point
-    on seed 44 trial 61 at p = 0.009, its corners on the choose split worse).
+    comparisons keep the choose split (pooled, a tiny focal length joined a principal point on a
+    development capture, its corners on the choose split worse; same page).
 
     With ``centres``, the squared distance of the tag centres (the mean of the four corners,
     :func:`~simgap.analysis.paired.item_centre_residuals_px2`) instead.
@@ -117,7 +117,7 @@ def as_good_held_out(a: Scored, b: Scored) -> bool:
     What a simpler model must be to replace ``b``
     (:meth:`~simgap.analysis.selection.ModelSearch.simplify`): a tag offset that explained a
     choose split of six configurations as well as a camera mount replaced it by parsimony
-    (blind seed 46 trial 38).
+    (measured on a blind capture: docs/results/design_evidence.md#scoring).
     """
     return as_good(a, b) and not generalises_better(b, a)
 
@@ -170,10 +170,9 @@ def generalises_better(a: Scored, b: Scored) -> bool:
     Two models with the same appearance effects and other projection effects, both
     cross-fitted: ``a``'s cross-fitted corner residuals are clearly lower item by item
     (:func:`corners_clearly_lower`). A choose split of a few configurations cannot tell a
-    camera mount from a tag offset (blind seed 46 trial 38, 6 configurations: evidence 4.51
-    against 4.50, and parsimony named the 3-parameter offset); the offset refitted on those
-    few items did not predict the others (median 0.60 px^2 against the mount's 0.08, p = 0.0003
-    on 18 items).
+    camera mount from a tag offset (their evidence tied and parsimony named the offset); the
+    offset refitted on those few items did not predict the others, where the mount's did
+    (measured on a blind capture: docs/results/design_evidence.md#scoring).
     """
     if _geometry(a) == _geometry(b) or _appearance(a) != _appearance(b):
         return False

@@ -231,9 +231,10 @@ class ModelSearch:
         Where nothing simpler is as good, a projection effect is swapped for one with as many
         parameters that explains the evidence distinguishably better (:func:`improves`): the
         greedy search keeps the effect it started with, and a look-alike that led alone stays
-        in the model once the effect beside it is found (blind seed 31 trial 5: a print scale led a
-        focal length's capture alone, defocus joined it, and the focal length with the defocus
-        explained the evidence better, 4.12 against 4.67).
+        in the model once the effect beside it is found (measured on a blind capture: a print
+        scale led a focal length's capture alone and stayed beside the defocus that joined it,
+        where the focal length with the defocus explained the evidence better;
+        docs/results/design_evidence.md#selection).
         """
         reference = scored
         while True:
@@ -282,10 +283,10 @@ class ModelSearch:
         when the held-out tag centres show it (:func:`~simgap.analysis.admission.admissible`;
         a lens that moved no pose beyond the floor, or carriage pitches whose depth another
         camera's edges hid, were left out). One that follows the corners without moving the poses
-        closer or the centres is a look-alike of an image effect (measured: a tag print scale
-        following the corners of a motion blur, pose gap 1-5 % larger on seed 23 and 6 % smaller
-        on seed 25, 42 % larger on that trial's report split; every true geometric effect that
-        started a model on seeds 22, 23 and 25 lowered it by 19 % or more).
+        closer or the centres is a look-alike of an image effect (measured on development
+        captures: a tag print scale following the corners of a motion blur moved the pose gap by
+        6 % or less either way, every true geometric effect that started a model lowered it by
+        19 % or more; docs/results/design_evidence.md#selection).
 
         An effect is added while the combined misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); where no single one does (or none starts
@@ -307,10 +308,10 @@ class ModelSearch:
         if not geometry:
             ranking = [s for s in ranking if not isinstance(s.fits[0][0], ProjectionCandidate)]
         # a projection effect whose fit alone ran onto a bound may still join a model: alone it
-        # stood in for another effect too (seed 32: a calibration file's distortion beside a
-        # focal-length change fitted k2 on its bound alone and was never tried beside the focal
-        # length); refitted jointly, every parameter must then be off its bound
-        # (:func:`admissible`).
+        # stood in for another effect too (a calibration file's distortion beside a focal-length
+        # change fitted k2 on its bound alone and was never tried beside the focal length;
+        # docs/results/design_evidence.md#selection); refitted jointly, every parameter must
+        # then be off its bound (:func:`admissible`).
         # An appearance effect on a bound alone stays out: it named no value of its own
         # (refitted beside others it must be off its bound too, :func:`admissible`).
         pool = self._pool(ranking, geometry)
@@ -322,7 +323,7 @@ class ModelSearch:
             # nothing alone: perhaps two geometric effects that hide each other (pair_step)
             starts = pair_start(ranking, pool, self, max_effects)
             if not starts or not improves_on_nothing(starts[0]):
-                # as where nothing differs: a lens on a 9-item choose split (blind seed 46 t. 33)
+                # as where nothing differs: a lens seen only in the held-out corners
                 return corner_effect_alone(ranking)
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}

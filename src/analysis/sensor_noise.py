@@ -50,9 +50,9 @@ TEMPORAL_NOISE_PAIRS = (
 #: Highest level (share of the white level, linear) of a cell the photon transfer is fitted on:
 #: EMVA 1288 fits the photon transfer up to 70 % of saturation, where no channel clips yet. Above
 #: it a channel clips before the grey frame does (a warm light's red), and the variance falls with
-#: the level (blind seed 37 trial 50: temporal variance 1.0e-3 at 0.59, 1.0e-4 at 0.92; the fit
-#: ran to the 10^6 e- bound). On the 54 development captures of seeds 34, 35 and 37 the full
-#: wells read a median 13 % -> 12 % off, 90th percentile 141 % -> 51 %.
+#: the level (tenfold from 0.59 to 0.92 on a development capture, where the fit ran to its
+#: 10^6 e- bound). Measured on development captures, fitting below this share brought the full
+#: wells' 90th-percentile error from 141 % to 51 % (docs/results/design_evidence.md#sensor_noise).
 SATURATION_FIT_SHARE = 0.7
 #: Fixed-point steps that recover the level before clipping at black from a measured median.
 CLIP_STEPS = 12
@@ -77,16 +77,16 @@ class SensorNoiseCandidate(AppearanceCandidate):
     fitted by bounded robust least squares on ``(1 / full_well, (read / full_well)^2, c)``. The
     simulation's variance is not subtracted: it is the renderer's Monte Carlo noise, which a
     camera does not have, and it is measured at the simulation's level, not the capture's (a
-    capture a stop darker than the simulation had its paper's shot noise cancelled). Subtracting
-    it sent six of 16 one-frame development captures (blind seeds 34, 35, 37) to the 10^6 e-
-    bound, and the hidden sensors' full wells read a median 59 % off; fitted on the capture's
-    own variance, 25 % (a renderer's own noise in a pseudo-real capture still reads as shot
-    noise: full wells up to 0.3-0.5x on the noisiest). Where the capture has two frames of a
-    pose, shot and read noise are fitted on the temporal noise instead (the frames' difference:
-    no fixed pattern, so no ``c``; the simulation's own sensor noise, if it models one,
-    subtracted), and ``c`` alone on the spatial variance: over the narrow range of paper levels
-    of one capture the spatial noise cannot tell shot noise from ``c`` (seed 25: full wells
-    1.4-2.2x too large from one frame).
+    capture a stop darker than the simulation had its paper's shot noise cancelled). Subtracting it
+    sent a third of the one-frame development captures to the 10^6 e- bound, and the hidden sensors'
+    full wells read a median 59 % off; fitted on the capture's own variance, 25 % (a renderer's own
+    noise in a pseudo-real capture still reads as shot noise: full wells up to 0.3-0.5x on the
+    noisiest; docs/results/design_evidence.md#sensor_noise). Where the capture has two frames of a
+    pose, shot and read noise are fitted on the temporal noise instead (the frames' difference: no
+    fixed pattern, so no ``c``; the simulation's own sensor noise, if it models one, subtracted),
+    and ``c`` alone on the spatial variance: over the narrow range of paper levels of one capture
+    the spatial noise cannot tell shot noise from ``c`` (full wells read 1.4-2.2x too large from one
+    frame of development captures).
 
     A compressed capture's noise is not its sensor's: the quantiser rounds most of the sensor's
     noise away, and the blocks' steps read as spatial noise. On eight synthetic tags through the
@@ -94,14 +94,15 @@ class SensorNoiseCandidate(AppearanceCandidate):
     fit read full wells 1.9-15x the sensor's (1500 e- read 22 735; 2000 e- at quality 80 read
     8464; tests/test_appearance_fit.py), and on rendered captures the other way: a converged
     simulation compressed at quality 69 alone had more paper noise than the capture (0.0085
-    against 0.0075; dev seed 904 trial 0). A fit through the compression (the simulation's
+    against 0.0075 on a development capture). A fit through the compression (the simulation's
     noise compressed and matched) did not converge: the quantiser kept 5-56 % of the noise
     variance between two noise levels of the same tags. Where the capture shows a JPEG
     quantiser (its tags agree on a DC step,
     :func:`~simgap.analysis.appearance.capture_jpeg_quality`) the fit is therefore not
     supported: the noise is explained by the JPEG candidate, whose prediction compresses the
-    simulation, or left unexplained (blind seed 49: three of six JPEG captures were answered
-    with a sensor noise that took the compression's noise, and the JPEG was left out).
+    simulation, or left unexplained (where it was supported, a sensor noise took the
+    compression's noise of blind JPEG captures and the JPEG was left out;
+    docs/results/design_evidence.md#sensor_noise).
     """
 
     n_params = 2

@@ -2,9 +2,9 @@
 
 The simulation (appearance) effects of a model are not independent: a capture exposed a stop
 brighter clips the paper, and a clipped edge reads narrower, so a blur fitted on the nominal
-simulation's edge widths comes out too small (blind seed 35 trial 47: a 1.48 px blur behind
-+1.1 EV read 0.97 px alone and 1.35 px fitted on the exposed simulation; the pose gap its
-softness leaves was then filled by a camera mount, a tag offset and a carriage pitch).
+simulation's edge widths comes out too small, and the pose gap its softness leaves is then filled
+by geometric effects (measured on a development capture: a blur a third too small alone, within
+10 % on the exposed simulation; docs/results/design_evidence.md#simulation_chain).
 Each effect is therefore fitted on the simulation that already holds the effects before it in
 :data:`FIT_ORDER`, the order in which their evidence is least confounded by the others: the
 paper level first (exposure; a blur or a noise barely moves a level measured over a tag's
@@ -13,9 +13,8 @@ exposure), then the edge widths (blur, defocus; clipping narrows them, a glint b
 the glint of a laminate (ink and paper levels against view angle; a soft edge bleeds paper into
 small tags' ink cells), the noise (sensor noise, whose excess over the simulation depends on its
 levels and softness) and last the compression (JPEG, whose blockiness depends on everything
-before it). With the laminate before the softness, a defocus fitted on the glinting simulation
-moved its focus from 23 m to 3.9 m and the poses from the real ones (blind seed 35 trial 38:
-pose gap 0.50 with the defocus alone, 1.27 beside the laminate, which then left the model).
+before it). With the laminate before the softness, a defocus fitted on the glinting simulation moved
+its focus and the poses away from the real ones (measured on a development capture, same page).
 A model's prediction is the simulation with all its effects at once, as a camera forms its image.
 
 A single effect is fitted on the nominal simulation, as before, so the ranking of single effects
@@ -143,10 +142,10 @@ class SimulationChain:
         converged simulation has next to no render noise to smooth (0.13-0.28 DN between two
         seeds; a sticker that fell back to path tracing keeps that of 4x the samples, and only
         there does a smoothing effect read as less noise): every change of its noise statistics
-        counts as the effect's own (a JPEG's blocks read as spatial noise: on dev seed 904 trial 0 a
-        quality-69 compression raised the converged simulation's paper noise from 0.0006 to
-        0.0085, the capture's 0.0075, which the path-traced rule dropped, so a sensor noise took
-        the compression's noise and the JPEG was left out).
+        counts as the effect's own (a JPEG's blocks read as spatial noise: on a development
+        capture the path-traced rule dropped a compression's rise of the converged simulation's
+        paper noise to the capture's level, so a sensor noise took the compression's noise and
+        the JPEG was left out; docs/results/design_evidence.md#simulation_chain).
         """
         base = self.base
         corners = np.zeros((len(items), 4, 2))

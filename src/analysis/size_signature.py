@@ -11,12 +11,13 @@ slope that stands out of its standard error, and for an offset that does not can
 smallest tags (a defocus, whose edge offset changes with depth and so with size, gives a
 significant slope with a large offset of the other sign).
 
-Measured on the fit and choose splits of blind seeds 31 and 32 (residual of the model without the
-print scale): true print scales of 1.5-4 % gave slopes 10.6-34.2 standard errors from zero and
-reached zero change at most at 0.30 of the smallest tag's size; the spurious ones gave 0.6-2.6
-standard errors (motion blur read as blur + print scale, a JPEG + exposure capture, sensor noise
-with a calibration file's distortion, a principal point) or crossed zero at 0.93 and 1.19 of the
-smallest size (two defocused captures read as blur or defocus + print scale).
+Measured on development captures: true print scales give slopes many standard errors out that
+reach zero change well inside the smallest tag's size; look-alikes (a motion blur, a JPEG, sensor
+noise beside a distortion, a principal point) give slopes within a few standard errors, and a
+defocus crosses zero near or inside the sizes measured (the thresholds:
+:data:`~simgap.analysis.thresholds.SIZE_SLOPE_Z`,
+:data:`~simgap.analysis.thresholds.SIZE_ZERO_SHARE`; the measurements:
+docs/results/design_evidence.md#size_signature).
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@ Every evidence channel of the diagnosis is measured in *units* of the smallest d
 matters (corners, pose, detection, each image statistic); the thresholds below are stated in
 those units or in the quantity's own (m, rad, px, share). Every value was fixed before the blind
 validation runs that report on it (``docs/results/validation_*.md``); the source of each is given
-where it is defined. Modules import them from here, never retype them.
+where it is defined, the measurements behind it in docs/results/design_evidence.md#thresholds.
+Modules import them from here, never retype them.
 
 Sections: the practical floor of the pose gap and its significance (where), the evidence tests
 (where), the channel units and when two models are told apart (which), the model search (which)
@@ -33,15 +34,15 @@ PRACTICAL_FLOOR: Final = MappingProxyType(
 #: A pose gap (its median, its trend with distance, a region's median) is significant beyond
 #: this many standard errors, and only when it also exceeds :data:`PRACTICAL_FLOOR`. Four
 #: Gaussian standard errors: a two-sided false-alarm rate of 6.3e-5 per test, 7.6e-4 over the
-#: 12 tests of a capture's axes (median and trend of six axes). Set with the first diagnosis
-#: (commit b36b9b2) and unchanged through every blind validation since (seeds 0 to 26).
+#: 12 tests of a capture's axes (median and trend of six axes). Source: set a priori with the
+#: first diagnosis, before any blind validation (docs/results/design_evidence.md#thresholds).
 Z_SIGNIFICANT: Final[float] = 4.0
 #: Pose noise of one gap value assumed per axis unit (m, rad) where a dataset is too short to
 #: measure its own (fewer than 8 second differences along the carriage; without repeats). Set
-#: with the first diagnosis (b36b9b2); measured since on the public sample-focal's 9
-#: configurations simulated at 4 render seeds, one frame's pose noise (median over
-#: configurations) is 0.014-0.36 mm per translation axis (depth, ty, the largest) and 1.0-4.9
-#: mrad per rotation axis: 0.2 mm and 4 mrad lie within those ranges.
+#: with the first diagnosis (docs/results/design_evidence.md#thresholds); measured since on the
+#: public sample-focal's 9 configurations simulated at 4 render seeds, one frame's pose noise
+#: (median over configurations) is 0.014-0.36 mm per translation axis (depth, ty, the largest)
+#: and 1.0-4.9 mrad per rotation axis: 0.2 mm and 4 mrad lie within those ranges.
 DEFAULT_NOISE: Final = MappingProxyType({"m": 2e-4, "rad": 4e-3})
 #: A rotation error beyond this (rad, 8.6 deg) is the other branch of a square marker's planar
 #: pose ambiguity, not a gap an effect explains: catalogue effects move rotations by mrad, and
@@ -134,13 +135,12 @@ UNEXPLAINED_MISFIT: Final[float] = 1.0
 
 #: Share by which a geometric effect must bring the pose gap (all axes, choose split) closer to the
 #: real one to enter a model (:meth:`simgap.analysis.selection.ModelSearch.select`): between
-#: the look-alikes (at most 6 % closer) and the true effects (at least 19 %) of seeds 22, 23
-#: and 25.
+#: the look-alikes (at most 6 % closer) and the true effects (at least 19 %) measured on
+#: development captures (docs/results/design_evidence.md#thresholds).
 MIN_POSE_REDUCTION: Final[float] = 0.10
 #: A significant pose gap is *unexplained* when the chosen model lowers it (choose split) by less
-#: than this share. Set with the first diagnosis (commit b36b9b2), before any blind run, and
-#: unchanged since; the correct trials of blind seed 26 lowered it by 87 % (median, report
-#: split).
+#: than this share. Source: set a priori with the first diagnosis, before any blind run; correct
+#: answers on blind captures lower it by far more (docs/results/design_evidence.md#thresholds).
 EXPLAINED_REDUCTION: Final[float] = 0.3
 #: An effect whose pose contribution (median change of the choose split's poses over their noise or
 #: the practical floor, :meth:`simgap.analysis.selection.ModelSearch.contributions`) is below
@@ -156,34 +156,31 @@ MINOR_CONTRIBUTION: Final[float] = 1.0
 AT_BOUND_SHARE: Final[float] = 0.02
 #: Most effects a model may hold (:meth:`simgap.analysis.selection.ModelSearch.select`). A real
 #: camera brings up to three of its own (exposure, softness and sensor noise) beside the one or
-#: two effects that make the gap. Three until blind seed 32, where the camera's blur and exposure
-#: filled a print scale's model and the calibration file's distortion, which lowered the corner
-#: gap 0.49 -> 0.35 px beside them, was never tried (trial 19); four until blind seed 34, where
-#: a camera mount, exposure, blur and sensor noise filled the model of a mount and lens pair and
-#: the lens, which lowered the corner gap 0.339 -> 0.200 px beside them (k1 -0.166 for -0.144),
-#: was never tried (trial 9).
+#: two effects that make the gap. Source: blind captures where a full model of the camera's
+#: own effects left no room for a lens distortion that lowered the corner gap beside them, so
+#: it was never tried (raised from three to four to five;
+#: docs/results/design_evidence.md#thresholds).
 MAX_EFFECTS: Final[int] = 5
 #: Largest corner gap (px, RMS over the choose split's configurations) a model with a geometric or
 #: calibration effect may leave: geometry is fitted on the corners and, once the image formation
 #: is modelled, explains them to the detector's bias. A model that leaves more has fitted the
 #: geometry to corners that something else moved (a motion smear, an unmodelled defocus), and the
-#: search is repeated without geometry. Four corner units (:data:`CORNER_UNIT_PX`): on the 400
-#: trials of blind seeds 31-35 every correct geometric model left at most 0.64 px (0.63 and 0.64
-#: beside a JPEG and a defocus), and six of the ten models with a spurious geometric effect
-#: 0.97-2.11 px (three motion blurs, two defocus captures, a focal length beside a defocus).
+#: search is repeated without geometry. Four corner units (:data:`CORNER_UNIT_PX`): measured on
+#: blind captures, every correct geometric model left at most 0.64 px, and most models with a
+#: spurious geometric effect 0.97-2.11 px (docs/results/design_evidence.md#thresholds).
 GEOMETRY_CORNER_GAP_PX: Final[float] = 4.0 * CORNER_UNIT_PX
 #: A print scale (a size signature) enters a model only where the size change it explains grows
 #: with the tag's image size by this many standard errors (:mod:`simgap.analysis.size_signature`):
-#: the significance of :data:`Z_SIGNIFICANT`. On the fit and choose splits of seeds 31 and 32
-#: the true print scales stood 10.6-34.2 standard errors out, the look-alikes 0.6-2.6 (and two
-#: defocused captures 6.0 and 8.9: :data:`SIZE_ZERO_SHARE`).
+#: the significance of :data:`Z_SIGNIFICANT`. Measured on development captures, true print
+#: scales stand 10.6-34.2 standard errors out, look-alikes 0.6-2.6, two defocused ones 6.0 and
+#: 8.9, which :data:`SIZE_ZERO_SHARE` catches (docs/results/design_evidence.md#thresholds).
 SIZE_SLOPE_Z: Final[float] = Z_SIGNIFICANT
 #: ... and only where an edge offset against the slope does not cancel the size change before
 #: this share of the smallest tag's size (:attr:`simgap.analysis.size_signature.SizeChange.
-#: zero_share`). A print scale changes no size at zero size (share 0; the true ones of seeds 31
-#: and 32 at most 0.30); the two defocused look-alikes of seed 31 crossed zero at 0.93 and 1.19,
-#: near and inside the sizes measured. Half: the offset is at most half the print's change on
-#: the smallest tag.
+#: zero_share`). A print scale changes no size at zero size (share 0; measured true ones at most
+#: 0.30); defocused look-alikes cross zero near or inside the sizes measured (0.93 and 1.19;
+#: docs/results/design_evidence.md#thresholds). Half: the offset is at most half the print's
+#: change on the smallest tag.
 SIZE_ZERO_SHARE: Final[float] = 0.5
 
 # -- which: the appearance gates ---------------------------------------------------------------

@@ -110,7 +110,8 @@ def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
 
 #: Paper level (linear) of the simulation's default scene at a mid-range frontal tag, at which
 #: :func:`transfer_ev` is evaluated (measured: the median over tags of the baseline simulation's
-#: linearised paper level is 0.34-0.35 in the blind trials of seed 28).
+#: linearised paper level is 0.34-0.35 over blind validation trials;
+#: docs/results/design_evidence.md#camera_truth).
 PAPER_LEVEL = 0.34
 
 

@@ -76,8 +76,8 @@ PIN_COUNT = (4, 6)
 STOP_COUNT = (6, 8)
 TWO_FRAMES_SHARE = 0.5
 #: Stops (deg) where tag 0 and tag 1 face the camera head-on: always among a capture's stops, as
-#: in the paper's grid (a glint of a laminate under a light beside the lens shows only there;
-#: until blind seed 33 half the captures had neither).
+#: in the paper's grid (a glint of a laminate under a light beside the lens shows only there:
+#: docs/results/design_evidence.md#nuisance).
 FRONTAL_STOPS_DEG = (0, 180)
 #: Turntable stops (deg) where one of the default rig's tags faces the camera well.
 FACING_STOPS_DEG = tuple(range(0, 61, 10)) + tuple(range(300, 360, 10)) + tuple(range(120, 241, 10))

@@ -48,13 +48,13 @@ class DiagnoseSettings:
     #: Most render seeds per configuration.
     max_render_seeds: int = 4
     #: Simulate an experiment that renders converged (the baseline's) converged too; off: path
-    #: traced at :data:`PATH_SIMULATION_SPP` (every blind seed up to 48 ran so). A noise-free
-    #: simulation would compare a noisy capture's far, oblique tags with poses the capture
-    #: cannot have (PnP shifts their depth under corner noise: +10 mm at 16 spp,
-    #: benchmarks/far_tag_noise_bias.py), so each converged simulated pose is moved by the
-    #: shift the capture's corner noise gives it (:func:`simgap.diagnosis.items.
-    #: with_noise_shift`; the public sample-focal's ty gap: 3.7 standard errors without it,
-    #: 4.7 with it, 5.3 path traced). Blind seeds: docs/validation.md.
+    #: traced at :data:`PATH_SIMULATION_SPP` (how the earlier blind seeds ran:
+    #: docs/results/design_evidence.md#settings). A noise-free simulation would compare a noisy
+    #: capture's far, oblique tags with poses the capture cannot have (PnP shifts their depth
+    #: under corner noise: +10 mm at 16 spp, benchmarks/far_tag_noise_bias.py), so each converged
+    #: simulated pose is moved by the shift the capture's corner noise gives it
+    #: (:func:`simgap.diagnosis.items.with_noise_shift`; the public sample-focal's ty gap: 3.7
+    #: standard errors without it, 4.7 with it, 5.3 path traced). Blind seeds: docs/validation.md.
     converged_simulation: bool = True
 
     def simulation(self, exp: Experiment) -> Experiment:

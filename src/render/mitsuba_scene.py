@@ -88,11 +88,11 @@ def sampling_weight(light: LightSpec) -> float:
     with a key light and a dim ambient environment every other sample looked at the ambient
     and the key's contribution doubled in the others. A pixel's mean then depends on how many
     of its samples chose the key: on flat paper two levels 7.8 % apart at 25 spp, 8 % relative
-    noise once a Gaussian pixel filter mixes neighbouring pixels' samples (measured
-    2026-11-22). Picking lights in proportion to the light they give removes most of it
-    (Mitsuba's ``sampling_weight``). Constant environment: ``pi L``; area light:
-    ``L A / d^2``; point and spot: ``I / d^2`` (``d``: distance to the aim point); directional:
-    ``E``.
+    noise once a Gaussian pixel filter mixes neighbouring pixels' samples (measured:
+    docs/results/design_evidence.md#mitsuba_scene). Picking lights in proportion to the light
+    they give removes most of it (Mitsuba's ``sampling_weight``). Constant environment:
+    ``pi L``; area light: ``L A / d^2``; point and spot: ``I / d^2`` (``d``: distance to the aim
+    point); directional: ``E``.
     """
     tint = float(np.mean(light.rgb))
     if light.type == "constant":
