@@ -5,7 +5,7 @@ most oblique of the public sample-focal's), the pose error of the simulated tag 
 converged at 4 spp, path traced at 16 spp and path traced at ``--ref-spp`` (the reference),
 each at several render seeds. Where the 16-spp errors sit on one side of the reference's, the
 render's noise biases the pose there rather than only spreading it (docs/results/
-converged_render_step6.md: ty +10 mm at 16 spp, converged within the reference's spread).
+converged_render_step8.md#step-6: ty +10 mm at 16 spp, converged within the reference's spread).
 
 Usage: ``python benchmarks/far_tag_noise_bias.py [--p 14] [--theta 200] [--tag 1]
 [--ref-spp 1024]``

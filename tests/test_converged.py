@@ -153,8 +153,8 @@ def test_a_glossy_sticker_from_4_spp_is_within_the_noise_of_256_spp():
     theta 40 deg: demodulated as albedo x diffuse + specular. Measured against 256 spp on the
     fully covered pixels: 0.85 DN RMS (exact footprint; 0.90-0.93 with 64 footprint rays; path
     16 spp: 3.7 DN; the reference carries about 1 DN of its own). Against 1024 spp at four
-    poses: 0.50-0.89 DN interior, 1.2-1.5 DN on print edges (docs/results/converged_render_step3
-    .md). Bound: about twice the measured."""
+    poses: 0.50-0.89 DN interior, 1.2-1.5 DN on print edges (docs/results/
+    converged_render_step8.md#step-3). Bound: about twice the measured."""
     scene, pixels = _baseline_region(12, 40.0, Coating(alpha=0.08))
     converged = converged_pixels(scene, pixels, seed=5)
     assert converged.treatments == {0: "smooth (coated print)"}

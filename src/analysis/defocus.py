@@ -52,8 +52,8 @@ class DefocusCandidate(AppearanceCandidate):
     #: on development captures: its choose-split corners were worse than a blur's although it
     #: lowered the pose gap more (docs/results/design_evidence.md#defocus). Path tracing only:
     #: a converged render's thin-lens stickers carry no such noise (their footprints are clipped
-    #: per aperture point, docs/results/converged_render_step5.md), so it keeps the simulation's
-    #: samples.
+    #: per aperture point, docs/results/converged_render_step8.md#step-5), so it keeps the
+    #: simulation's samples.
     SPP = 64
 
     def __init__(self) -> None:

@@ -6,10 +6,10 @@ do not. A simulation rendered at several render seeds measures it by its repeats
 (:func:`simgap.analysis.gap.configuration_noise`): their spread is the pose's response to the
 render's Monte Carlo noise. A converged render (``render.mode: converged``) has almost none
 (two render seeds of the baseline differ by 0.09 mm in ty, docs/results/
-converged_render_step4.md), so its repeats measure next to nothing, and the far, oblique tags
+converged_render_step8.md#step-4), so its repeats measure next to nothing, and the far, oblique tags
 of a small capture weighed as much as the near ones and decided the choice between effects (the
 public ``sample-focal`` simulated converged: camera_mount chosen over focal_length,
-docs/results/converged_render_step5.md). Here the response is propagated instead: the pose is
+docs/results/converged_render_step8.md#step-5). Here the response is propagated instead: the pose is
 solved again from the corners plus :data:`DRAWS` Gaussian draws of the capture's corner noise
 (the same solver and calibration as the pipeline's), and the spread of the poses is that
 configuration's noise.

@@ -71,7 +71,7 @@ class DiagnoseSettings:
 
         The same rule for a converged simulation (:attr:`converged_simulation`), although its
         seeds differ little (0.09 mm in ty over the baseline,
-        docs/results/converged_render_step4.md): a capture's frames are compared with as many
+        docs/results/converged_render_step8.md#step-4): a capture's frames are compared with as many
         simulated repeats only (:func:`simgap.diagnosis.items.repeats_of_simulation`), and one
         seed would keep only the first of the public sample-focal's 4 frames a pose. Its
         per-configuration pose noise comes from the corners instead

@@ -22,8 +22,8 @@ class Configurations:
 
 
 #: Samples per pixel where an experiment names none, per render mode: converged, 4 (two render
-#: seeds of the baseline differ by 0.09 mm in ty, docs/results/converged_render_step4.md); path
-#: traced, 16 (the study's setting before converged rendering).
+#: seeds of the baseline differ by 0.09 mm in ty, docs/results/converged_render_step8.md#step-4);
+#: path traced, 16 (the study's setting before converged rendering).
 DEFAULT_SPP: Final[dict[str, int]] = {"converged": 4, "path": 16}
 
 

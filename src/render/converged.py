@@ -10,7 +10,8 @@ lens's averaged over its aperture) or else integrated with :data:`FOOTPRINT_POIN
 rays of one fixed pattern (:func:`simgap.render.pixel_samples.footprint_samples`); either is the
 same for every render seed, and which one is used is decided by the first pass's samples
 (:func:`edge_footprint`: near an occluder one seed may see it and another not; on the baseline
-both seeds took the exact one at every configuration, docs/results/converged_render_step4.md).
+both seeds took the exact one at every configuration,
+docs/results/converged_render_step8.md#step-4).
 Per sticker, the radiance is divided by the albedo of its own samples, a smooth irradiance is
 fitted and multiplied by the footprint's albedo (:func:`simgap.render.demodulate.demodulate`), which
 removes most of the Monte Carlo noise of a flat diffuse print; a print under a laminate is
@@ -71,9 +72,9 @@ FALLBACK_SPP_FACTOR = 4
 #: stratified in 1/64 px along each pixel axis, so under a box filter an edge along an axis is
 #: placed to within 1/64 px (0.0064 px RMS over the edge's sub-pixel position). 256 points took
 #: 2.3x the time of 64 on a baseline configuration (p 2, 4.7 k edge pixels: 0.16 s against
-#: 0.07 s) and the whole render 1.5x (docs/results/converged_render_step3.md). Before the pattern
-#: was fixed (random rays per render seed), 64 rays moved the detected corners by 0.12 px RMS
-#: between two render seeds (docs/results/converged_render_step2.md).
+#: 0.07 s) and the whole render 1.5x (docs/results/converged_render_step8.md#step-3). Before the
+#: pattern was fixed (random rays per render seed), 64 rays moved the detected corners by 0.12 px
+#: RMS between two render seeds (docs/results/converged_render_step8.md#step-2).
 FOOTPRINT_POINTS = 64
 #: Treatment of a coated print's sticker whose diffuse and specular fields were both smooth.
 COATED = "smooth (coated print)"
@@ -263,7 +264,7 @@ def pooled_background(pixels: np.ndarray, samples: PixelSamples, reach_px: float
     all four samples on the sticker about two times in three, and under a thin lens a band of
     pixels several wide), so their mean alone keeps the noise of one sample, or is missing and the
     pixel kept its raw value (the defocused sticker's render noise: 0.93 DN, three times the
-    others', docs/results/converged_render_step5.md). The background around a sticker is the
+    others', docs/results/converged_render_step8.md#step-5). The background around a sticker is the
     face it is stuck on, smooth over a few pixels: every background sample within
     ``ceil(reach_px) + 1`` px along each axis (a square of side twice that plus one: the pixel's
     8-neighbours; under a thin lens, the spread of its aperture's disc and one more) is pooled,

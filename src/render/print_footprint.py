@@ -8,7 +8,7 @@ quadrilateral in the image (a homography), and the share of a pixel that a cell 
 area of that quadrilateral clipped to the pixel's square (:mod:`simgap.render.clipping`). The
 albedo and the sticker's coverage are then exact, with no rays and none of a point pattern's
 quadrature error (1/64 px along an edge at 64 points,
-docs/results/converged_render_step3.md).
+docs/results/converged_render_step8.md#step-3).
 
 A **thin lens** keeps it exact per point of the aperture: the ray from lens point ``L`` through
 a print point ``X`` (camera frame) meets the focus plane ``z = focus`` where the pinhole ray of
@@ -17,7 +17,7 @@ normalised coordinates ``(X_xy + L (X_z / focus - 1)) / X_z`` does (:meth:`simga
 the mean of the clipped footprints over :data:`LENS_POINTS` fixed points of the aperture disc
 (:func:`lens_points`): the pixel's square is integrated exactly and only the aperture with a
 quadrature, against the 4-D point pattern's quadrature of both (docs/results/
-converged_render_step5.md).
+converged_render_step8.md#step-5).
 
 Two things this geometry does not hold, and how they are handled:
 
@@ -51,7 +51,7 @@ if TYPE_CHECKING:
 WHOLE_TOLERANCE = 1e-9
 #: Points of the aperture disc a thin lens's footprint is averaged over (a power of two: the
 #: first points of an Owen-scrambled Sobol' sequence, mapped to the disc as Mitsuba maps its
-#: aperture samples). Chosen against 1024 points (docs/results/converged_render_step5.md).
+#: aperture samples). Chosen against 1024 points (docs/results/converged_render_step8.md#step-5).
 LENS_POINTS = 64
 #: Points on the aperture's rim that tell a thin lens's whole and empty pixels (:func:`agrees`):
 #: the mean over :data:`LENS_POINTS` calls a pixel whole that a sample through the rim may see
@@ -62,7 +62,7 @@ LENS_PATTERN_SEED = 28
 #: Largest blur radius (px) of a thin lens whose footprint is clipped: the pixels it is
 #: computed on grow with the blur (a band of its radius around every print edge) and each
 #: costs :data:`LENS_POINTS` clippings (1.2-3.0 s a configuration of the defocus variant at
-#: 1.1-2.0 px, docs/results/converged_render_step5.md); beyond it the 64 rays decide.
+#: 1.1-2.0 px, docs/results/converged_render_step8.md#step-5); beyond it the 64 rays decide.
 LENS_REACH_MAX_PX = 4.0
 
 
