@@ -151,8 +151,13 @@ def test_public_null_sample_has_no_geometric_effect(tmp_path, session_cache, sam
     assert tests["edge_width_y_px"].median_difference > 0.2
 
 
+@pytest.mark.slow
 def test_public_sample_with_a_path_traced_simulation(session_cache, sample):
     """sample-focal against a path-traced simulation (``--path-simulation``, 16 spp).
+
+    Marked slow (60 s on 2 cores): the default run diagnoses the sample against the converged
+    simulation (the same code but the renderer); ``benchmarks/render_seed_stability.py``
+    diagnoses both public samples path traced. Run it with ``pytest -m slow``.
 
     Every blind seed up to 48 diagnosed so. Its render noise is measured by its 4 render seeds
     (docs/results/sample_focal_render_seeds.md) and shifts its far tags' poses as the capture's

@@ -61,9 +61,15 @@ def test_the_laminate_is_recovered_and_a_matte_light_is_no_laminate():
     assert matte.rms_light - matte.rms_laminate < gloss.GLINT_MIN_GAIN
 
 
+@pytest.mark.slow
 def test_a_rendered_laminate_under_a_lens_side_light_is_named_with_its_roughness(tmp_path):
     """Real Mitsuba renders: a laminate of roughness 0.1 under a 0.3 W/sr light 4 cm beside the
-    lens against the matte simulation, on 24 configurations with both tags' frontal stops."""
+    lens against the matte simulation, on 24 configurations with both tags' frontal stops.
+
+    Marked slow (125 s on 2 cores): ``simgap validate --effects tag_gloss`` renders and fits
+    the same candidate on every drawn camera; the ratio and level models are tested by default
+    on synthetic levels above. Run it with ``pytest -m slow tests/test_gloss.py``.
+    """
     from simgap.diagnosis.sim_runner import SimRunner
     from simgap.pipeline.simulator import Simulator
 

@@ -38,8 +38,16 @@ def _score(
     )
 
 
+@pytest.mark.slow
 def test_blind_validation_runs_and_scores(tmp_path, session_cache):
-    """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table."""
+    """Two small trials through render -> capture -> ingest -> diagnose, scored, confusion table.
+
+    Marked slow (150 s on 2 cores): every blind seed runs this code through
+    ``scripts/validate_parallel.sh`` (two shards side by side, resumed where a trial is kept);
+    the scoring, the summary and a resumed run are tested by default on recorded trials (the
+    tests below and ``tests/test_validation_report.py``). Run it with
+    ``pytest -m slow tests/test_validate.py``.
+    """
     from simgap.diagnosis.trial import camera_named
     from simgap.diagnosis.trial_score import TrialRecord
     from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
