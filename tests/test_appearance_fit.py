@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.analysis.fitting import Fit, Items
+from simgap.analysis.fitting import Fit
+from simgap.analysis.gap import Items
 from simgap.analysis.sensor_noise import SensorNoiseCandidate
 from simgap.effects.image import ImageContext, SensorNoise
 from simgap.effects.state import VariantState
@@ -196,7 +197,7 @@ def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path
 
 def _blockiness_test(real_stops: np.ndarray) -> list:
     """The where step's test of a real blockiness ``real_stops`` above the simulation's."""
-    from simgap.analysis.evidence import paired_test
+    from simgap.analysis.gap import paired_test
 
     return [paired_test("blockiness", 2.0**real_stops, np.ones_like(real_stops))]
 

@@ -12,7 +12,7 @@ from simgap.analysis.admission import seen_in_centres, seen_in_corners
 from simgap.analysis.candidates import CANDIDATES
 from simgap.analysis.corner_findings import with_corner_effects, without_displaced
 from simgap.analysis.fitting import ProjectionCandidate
-from simgap.analysis.paired import (
+from simgap.analysis.gap import (
     MIN_PAIRED_ITEMS,
     clearly_lower,
     item_centre_residuals_px2,
@@ -112,7 +112,7 @@ def test_a_lens_fit_frees_k2_only_where_the_corners_need_it(
     """Issue 25, blind seed 44 trial 39: a lens without distortion (a calibration file that
     claims k1 0.062) fitted k1 0.017, k2 -0.25 on central tags; with k1 alone, 0.006. The
     nested fit keeps k2 at zero unless it lowers the items' corners consistently
-    (:func:`simgap.analysis.paired.clearly_lower`). Tolerances from the measured values (in the
+    (:func:`simgap.analysis.gap.clearly_lower`). Tolerances from the measured values (in the
     comments). Under 0.2 px of corner noise the D435-like lens keeps k1 alone on these items
     (measured k1 0.115): k2 lowers the median item by 1.9 %, at p = 0.025 (the gain is at the
     outer tags); on development seed 44 every lens but two read k1 within 10 %

@@ -9,16 +9,13 @@ import pytest
 
 from simgap.analysis import gap as gapmod
 from simgap.analysis.candidates import CANDIDATES
-from simgap.analysis.fitting import (
-    Fit,
-    Items,
-    ProjectionCandidate,
-    project_items,
-)
+from simgap.analysis.fitting import Fit, ProjectionCandidate, project_items
+from simgap.analysis.gap import Items
 from simgap.analysis.projection_set import ProjectionSet
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import parsimonious
 from simgap.analysis.selection import ModelSearch
+from simgap.core.axes import AXES
 from simgap.core.rig import load_rig
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
@@ -234,12 +231,12 @@ def _field(gap: np.ndarray, sigma: float = 2e-4) -> gapmod.GapField:
     tags, ps, thetas = [0], np.arange(15), np.deg2rad(np.arange(0, 60, 10))
     da = xr.DataArray(
         gap,
-        coords={"tag": tags, "p": ps, "theta": thetas, "axis": list(gapmod.AXES)},
+        coords={"tag": tags, "p": ps, "theta": thetas, "axis": list(AXES)},
         dims=("tag", "p", "theta", "axis"),
     )
     ones = xr.ones_like(da.isel(axis=0))
     sig = xr.DataArray(
-        [sigma, sigma, sigma, 4e-3, 4e-3, 4e-3], coords={"axis": list(gapmod.AXES)}, dims="axis"
+        [sigma, sigma, sigma, 4e-3, 4e-3, 4e-3], coords={"axis": list(AXES)}, dims="axis"
     )
     return gapmod.GapField(da, sig, ones.astype(bool), ones, ones)
 
@@ -263,7 +260,7 @@ def test_gap_significance_noise_versus_trend():
 
 def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
     """Losing as many tags as the capture in the same group matches, whichever ones they are."""
-    from simgap.analysis.channels import detection_score
+    from simgap.analysis.gap import detection_score
     from simgap.analysis.thresholds import DETECTION_UNIT
 
     real = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 1.0])
@@ -405,7 +402,7 @@ def test_a_focal_length_and_a_camera_offset_are_found_together(translation_m, of
 def test_the_detection_channel_is_capped_like_an_image_statistic():
     """Two of eight tags lost more than the capture (25 %, 5 units) count as the cap, 3 units:
     the blur of blind seed 30's trial 13 lost them and a print scale won on 5 units."""
-    from simgap.analysis.channels import evidence_channels
+    from simgap.analysis.gap import evidence_channels
     from simgap.analysis.thresholds import RESIDUAL_CAP
 
     channels = evidence_channels(0.4, 0.7, 5.0, np.array([1.0, 4.0]), 0.2)

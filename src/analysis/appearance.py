@@ -47,8 +47,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from simgap.analysis.evidence import ImageTest, compare_stat
-from simgap.analysis.fitting import Fit, Items, SimulationCandidate, on_bound
+from simgap.analysis.fitting import Fit, SimulationCandidate, on_bound
+from simgap.analysis.gap import ImageTest, Items, compare_stat
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import (
     IMAGE_FLOORS,
@@ -136,7 +136,7 @@ def signature_significant(candidate: Any, image_tests: list[ImageTest]) -> bool:
     """Whether one of the candidate's own statistics (``fit_stats``) differs significantly.
 
     ``image_tests`` are the where-step's paired tests over every comparable tag
-    (:func:`simgap.analysis.evidence.image_tests`). Candidates without own statistics (the
+    (:func:`simgap.analysis.gap.image_tests`). Candidates without own statistics (the
     geometric and calibration ones) always pass.
     """
     own = candidate.fit_stats

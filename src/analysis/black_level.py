@@ -21,7 +21,8 @@ import time
 import numpy as np
 
 from simgap.analysis.appearance import SCAN_POINTS, AppearanceCandidate
-from simgap.analysis.fitting import Fit, Items
+from simgap.analysis.fitting import Fit
+from simgap.analysis.gap import Items
 from simgap.analysis.runner import Runner
 from simgap.effects.state import VariantState
 

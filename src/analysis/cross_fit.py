@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simgap.analysis.fitting import Items, ProjectionCandidate
+from simgap.analysis.fitting import ProjectionCandidate
+from simgap.analysis.gap import Items
 from simgap.analysis.scored import Scored
 from simgap.core.rig import Rig
 from simgap.effects.state import VariantState

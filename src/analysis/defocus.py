@@ -15,7 +15,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from simgap.analysis.appearance import AppearanceCandidate, capped_rms, signature_supported
-from simgap.analysis.fitting import Fit, Items, on_bound
+from simgap.analysis.fitting import Fit, on_bound
+from simgap.analysis.gap import Items
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import IMAGE_FLOORS, SIGNATURE_MIN_GAIN
 from simgap.effects.state import VariantState

@@ -45,7 +45,8 @@ import numpy as np
 from scipy import stats
 
 from simgap.analysis.appearance import AppearanceCandidate, measuring_only
-from simgap.analysis.fitting import Fit, Items
+from simgap.analysis.fitting import Fit
+from simgap.analysis.gap import Items
 from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import image_floor
 from simgap.effects.state import VariantState

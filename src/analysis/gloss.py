@@ -63,8 +63,8 @@ from simgap.analysis.appearance import (
     evidence_misfit,
     measuring_only,
 )
-from simgap.analysis.channels import detection_groups, detection_score
-from simgap.analysis.fitting import Fit, Items, on_bound
+from simgap.analysis.fitting import Fit, on_bound
+from simgap.analysis.gap import Items, detection_groups, detection_score
 from simgap.analysis.glint_ratio import STARTS, RatioFit, fit_ratios
 from simgap.analysis.lobe import LAMINATE_IOR, MIN_COS, beckmann, lobe_geometry
 from simgap.analysis.runner import Runner
@@ -299,7 +299,7 @@ class GlossCandidate(AppearanceCandidate):
         their geometric mean and a factor 2 beyond either are rendered, and the one whose ink,
         paper and contrast
         (:func:`~simgap.analysis.appearance.evidence_misfit`) and detections
-        (:func:`~simgap.analysis.channels.detection_score`, one more statistic in the mean of
+        (:func:`~simgap.analysis.gap.detection_score`, one more statistic in the mean of
         squares, capped like them) match the real best is kept: a glint too bright, its levels
         matched by an exposure too low, loses tags the capture kept (measured on a blind
         capture: docs/results/design_evidence.md#gloss).

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from simgap.analysis.fitting import Items
+    from simgap.analysis.gap import Items
     from simgap.effects.state import VariantState
 
 

@@ -14,14 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from simgap.analysis.channels import (
+from simgap.analysis.fitting import Candidate, Fit
+from simgap.analysis.gap import (
+    Items,
     Prediction,
     channel_misfits,
     detection_groups,
     evidence_channels,
+    gap_score,
+    median_abs_gap,
 )
-from simgap.analysis.fitting import Candidate, Fit, Items
-from simgap.analysis.gap_size import gap_score, median_abs_gap
 from simgap.analysis.thresholds import CORNER_UNIT_PX
 
 
@@ -48,7 +50,7 @@ class Scored:
     detection_mismatch_before, detection_mismatch_after : float
         Mismatch of detection rates (in units of the detection channel).
     corner_unit_px : float
-        Unit of the corner channel (px, :func:`simgap.analysis.channels.corner_unit`).
+        Unit of the corner channel (px, :func:`simgap.analysis.gap.corner_unit`).
     items : Items or None
         The scored items.
     prediction : Prediction or None
@@ -213,7 +215,7 @@ def bootstrap_reductions(
 
     The scored items are resampled with replacement ``resamples`` times; each time the pose gap
     (:func:`gap_score` on ``significant_axes``) and the combined evidence misfit (the channels of
-    :class:`Scored`, :func:`simgap.analysis.channels.channel_misfits`) are recomputed before and
+    :class:`Scored`, :func:`simgap.analysis.gap.channel_misfits`) are recomputed before and
     after. Returns the central ``level`` interval of each relative reduction.
     """
     h, after = scored.items_and_prediction()

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from simgap.analysis.fitting import ProjectionCandidate
-from simgap.analysis.paired import clearly_lower, item_centre_residuals_px2, item_residuals_px2
+from simgap.analysis.gap import clearly_lower, item_centre_residuals_px2, item_residuals_px2
 from simgap.analysis.scored import Scored
 from simgap.analysis.thresholds import EQUIVALENT_REL, EQUIVALENT_UNITS
 
@@ -67,7 +67,7 @@ def corner_residuals(
     development capture, its corners on the choose split worse; same page).
 
     With ``centres``, the squared distance of the tag centres (the mean of the four corners,
-    :func:`~simgap.analysis.paired.item_centre_residuals_px2`) instead.
+    :func:`~simgap.analysis.gap.item_centre_residuals_px2`) instead.
     """
     h = scored.items
     if h is None or scored.prediction is None:
@@ -86,7 +86,7 @@ def corner_residuals(
 def corners_clearly_lower(a: np.ndarray | None, b: np.ndarray | None) -> bool:
     """Whether per-item corner residuals ``a`` are lower than ``b`` on the same items.
 
-    :func:`simgap.analysis.paired.clearly_lower`: a consistent improvement over the items is
+    :func:`simgap.analysis.gap.clearly_lower`: a consistent improvement over the items is
     evidence even when it is smaller than the fixed tolerance (a lens distortion moves the
     central tags' corners by tenths of a pixel).
     """

@@ -2,7 +2,7 @@
 
 A *model* is a set of catalogue effects. Simulation (appearance) effects are fitted one by one on
 the image evidence of the fit split, projection effects jointly on its corners on top. Every
-model is scored on the choose split on all evidence channels (:mod:`simgap.analysis.channels`),
+model is scored on the choose split on all evidence channels (:mod:`simgap.analysis.gap._channels`),
 its corners also cross-fitted (:mod:`simgap.analysis.cross_fit`). The search ranks single effects,
 then adds effects greedily while the combined misfit falls and some channel improves
 distinguishably (:mod:`simgap.analysis.scoring`), and after every step simplifies the model:
@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simgap.analysis.admission import admissible, at_bound
-from simgap.analysis.channels import Prediction
 from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.corner_findings import corner_effect_alone, with_corner_effects
 from simgap.analysis.cross_fit import cross_fitted
-from simgap.analysis.fitting import Candidate, Fit, Items, ProjectionCandidate
+from simgap.analysis.fitting import Candidate, Fit, ProjectionCandidate
+from simgap.analysis.gap import Items, Prediction
 from simgap.analysis.pair_step import pair_start, pair_step
 from simgap.analysis.projection_set import ProjectionSet
 from simgap.analysis.pruning import pruned
@@ -71,7 +71,7 @@ class ModelSearch:
     corner_unit_px : float
         Unit of the corner channel (px): :data:`~simgap.analysis.thresholds.CORNER_UNIT_PX` or
         the capture's own corner noise when larger
-        (:func:`simgap.analysis.channels.corner_unit`).
+        (:func:`simgap.analysis.gap.corner_unit`).
     steps : Steps
         Where fits are counted: one unit of work per model fitted (not per memoised one), in
         the steps ``fitting candidates`` (:meth:`rank`) and ``model search`` (:meth:`select`);

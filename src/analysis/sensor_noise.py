@@ -22,7 +22,8 @@ from simgap.analysis.appearance import (
     misfit_rms,
     signature_supported,
 )
-from simgap.analysis.fitting import Fit, Items, on_bound
+from simgap.analysis.fitting import Fit, on_bound
+from simgap.analysis.gap import Items
 from simgap.analysis.runner import Runner
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX, linearise

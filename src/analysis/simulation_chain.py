@@ -28,8 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simgap.analysis.channels import NOISE_STATS
-from simgap.analysis.fitting import Fit, Items, SimulationCandidate
+from simgap.analysis.fitting import Fit, SimulationCandidate
+from simgap.analysis.gap import NOISE_STATS, Items
 from simgap.analysis.runner import Runner
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState

@@ -54,7 +54,7 @@ FLIP_RAD: Final[float] = 0.15
 
 #: Family-wise false-alarm rate of each family of evidence tests (scatter and image:
 #: Bonferroni over the tests of a family; detection: the overall test is the planned one, the
-#: six regional ones Holm's step-down, :mod:`simgap.analysis.evidence`).
+#: six regional ones Holm's step-down, :mod:`simgap.analysis.gap._evidence`).
 ALPHA: Final[float] = 0.01
 #: Largest number of attempts (the smaller side of a 2 x 2 detection table) for which Boschloo's
 #: exact test is run; beyond it Fisher's, whose power is then the same and which is far cheaper
@@ -103,7 +103,7 @@ def image_floor(stat: str) -> float:
 
 #: Unit of the corner channel (px): the ArUco detector's own corner bias on ideal renders
 #: (~0.2 px, measured on them); a capture whose corner noise is larger uses that instead
-#: (:func:`simgap.analysis.channels.corner_unit`).
+#: (:func:`simgap.analysis.gap.corner_unit`).
 CORNER_UNIT_PX: Final[float] = 0.2
 #: Smallest difference of detection rates that matters (share of tags): the unit of the
 #: detection channel and the practical floor of the detection tests.
@@ -117,7 +117,7 @@ EQUIVALENT_REL: Final[float] = 0.1
 #: channel's tolerance in its unit, a quarter unit, applied to every channel.
 EQUIVALENT_UNITS: Final[float] = EQUIVALENT_PX / CORNER_UNIT_PX
 #: Paired one-sided signed-rank test of per-item corner residuals
-#: (:func:`simgap.analysis.paired.clearly_lower`): its false-alarm rate, and the
+#: (:func:`simgap.analysis.gap.clearly_lower`): its false-alarm rate, and the
 #: smallest median improvement as a share of the other model's median residual (a lens
 #: distortion moves the central tags' corners by tenths of a pixel, consistently).
 PAIRED_ALPHA: Final[float] = 0.01
@@ -125,7 +125,7 @@ PAIRED_MIN_SHARE: Final[float] = 0.05
 #: Image-statistic misfits beyond this many floors count as this many (a robust, Huber-like
 #: cap): a difference nothing in the catalogue explains (a print whose ink is blacker than the
 #: simulation's) is neither credited to nor blamed on an effect. The detection channel is
-#: capped the same way (:func:`simgap.analysis.channels.evidence_channels`).
+#: capped the same way (:func:`simgap.analysis.gap.evidence_channels`).
 RESIDUAL_CAP: Final[float] = 3.0
 #: A significant piece of evidence whose misfit (choose split) with the chosen model is at or above
 #: this many channel units (one: the smallest difference that matters) is *unexplained*.

@@ -34,10 +34,9 @@ import xarray as xr
 from simgap.analysis import gap as gapmod
 from simgap.analysis.appearance import signature_significant
 from simgap.analysis.candidates import CANDIDATES
-from simgap.analysis.channels import corner_unit
 from simgap.analysis.corner_findings import corner_effect_alone
 from simgap.analysis.fitting import Candidate
-from simgap.analysis.gap_size import gap_score, median_abs_gap
+from simgap.analysis.gap import corner_unit, gap_score, median_abs_gap
 from simgap.analysis.scored import Scored, bootstrap_reductions
 from simgap.analysis.scoring import equivalent_models
 from simgap.analysis.selection import ModelSearch

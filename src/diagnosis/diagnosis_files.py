@@ -36,8 +36,7 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from simgap.analysis.gap import align
-from simgap.analysis.image_evidence import image_stat_view
+from simgap.analysis.gap import align, image_stat_view
 from simgap.analysis.report.comparisons import compare_variants
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES
@@ -422,7 +421,7 @@ class GapEvidence(_GridRecord):
 class ImageStatEvidence(_GridRecord):
     """The image statistics of the capture and its simulation, as its figures draw them.
 
-    Each side's :func:`~simgap.analysis.image_evidence.image_stat_view`, on the capture's grid.
+    Each side's :func:`~simgap.analysis.gap.image_stat_view`, on the capture's grid.
 
     Attributes
     ----------
@@ -483,7 +482,7 @@ class ImageStatEvidence(_GridRecord):
         }
 
     def views(self) -> dict[str, xr.Dataset]:
-        """Per source, its :func:`~simgap.analysis.image_evidence.image_stat_view`."""
+        """Per source, its :func:`~simgap.analysis.gap.image_stat_view`."""
         ds = self.to_dataset().reset_coords(drop=True)
         return {source: ds.sel(source=source, drop=True) for source in SOURCES}
 

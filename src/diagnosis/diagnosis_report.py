@@ -20,7 +20,7 @@ from typing import Any
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from simgap.analysis.image_evidence import plot_image_stats
+from simgap.analysis.gap import plot_image_stats
 from simgap.analysis.report.figures import plot_comparison_heatmap
 from simgap.analysis.report.output import save_figure, save_text
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL, GEOMETRY_CORNER_GAP_PX

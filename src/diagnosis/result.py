@@ -18,9 +18,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
-from simgap.analysis.channels import root_sum_square
-from simgap.analysis.evidence import DetectionTest, ImageTest, ScatterTest
-from simgap.analysis.gap import AxisGap, DetectionRates, RegionGap
+from simgap.analysis.gap import (
+    AxisGap,
+    DetectionRates,
+    DetectionTest,
+    ImageTest,
+    RegionGap,
+    ScatterTest,
+    root_sum_square,
+)
 from simgap.analysis.scored import Scored
 from simgap.core.axes import AXES
 from simgap.diagnosis.result_json import VersionedRecord

@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from simgap.analysis.fitting import Items
+from simgap.analysis.gap import Items
 from simgap.effects.state import VariantState
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.simulator import Simulator

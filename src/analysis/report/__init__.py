@@ -40,7 +40,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from simgap.analysis.image_evidence import plot_image_stats
+from simgap.analysis.gap import plot_image_stats
 from simgap.analysis.report.figures import plot_error_heatmap, plot_error_vs_distance
 from simgap.analysis.report.markdown import summary_markdown, table2_markdown
 from simgap.analysis.report.output import save_figure, save_text

@@ -42,8 +42,8 @@ import numpy as np
 import xarray as xr
 from scipy import stats as sps
 
-from simgap.analysis.gap import align
-from simgap.analysis.image_evidence import repeat_median_stats, tag_distance_and_view_angle
+from simgap.analysis.gap._gap import align
+from simgap.analysis.gap._image_evidence import repeat_median_stats, tag_distance_and_view_angle
 from simgap.analysis.thresholds import (
     ALPHA,
     BOSCHLOO_MAX_ATTEMPTS,

@@ -3,7 +3,7 @@
 A model's predictions for a set of items (:class:`Prediction`: pose errors, detected corners,
 image statistics, detection rates) are compared with the real evidence channel by channel
 (:func:`channel_misfits`): detected corners (px, in units of the capture's corner noise,
-:func:`corner_unit`), the pose over all axes (:func:`simgap.analysis.gap_size.gap_score`: in units
+:func:`corner_unit`), the pose over all axes (:func:`simgap.analysis.gap.gap_score`: in units
 of each item's noise or the practical floor), detection (:func:`detection_score`, in units of
 :func:`detection_unit`) and each image statistic with a floor
 (:func:`image_misfits`, in floors). :func:`evidence_channels` puts them in one vector; its root
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simgap.analysis.evidence import compare_stat
-from simgap.analysis.fitting import Items
-from simgap.analysis.gap_size import corner_score, gap_score
+from simgap.analysis.gap._evidence import compare_stat
+from simgap.analysis.gap._gap_size import corner_score, gap_score
+from simgap.analysis.gap._items import Items
 from simgap.analysis.thresholds import CORNER_UNIT_PX, DETECTION_UNIT, IMAGE_FLOORS, RESIDUAL_CAP
 from simgap.pose.image_stats import STAT_INDEX
 
@@ -151,8 +151,8 @@ def channel_misfits(
     Returns
     -------
     tuple
-        Corner residual (px, :func:`simgap.analysis.gap_size.corner_score`), pose gap over all
-        axes (:func:`simgap.analysis.gap_size.gap_score`), detection mismatch
+        Corner residual (px, :func:`simgap.analysis.gap._gap_size.corner_score`), pose gap over all
+        axes (:func:`simgap.analysis.gap.gap_score`), detection mismatch
         (:func:`detection_score`) and image misfits (:func:`image_misfits`, (K,) or (R, K)).
         Without image evidence (``pred.stats`` or the items' real statistics None) detection
         and image misfits are 0.
