@@ -9,9 +9,8 @@ import pytest
 from test_diagnose import _items, _search, _select
 
 from simgap.analysis.admission import seen_in_centres, seen_in_corners
-from simgap.analysis.candidates import CANDIDATES
+from simgap.analysis.candidates import CANDIDATES, ProjectionCandidate
 from simgap.analysis.corner_findings import with_corner_effects, without_displaced
-from simgap.analysis.fitting import ProjectionCandidate
 from simgap.analysis.gap import (
     MIN_PAIRED_ITEMS,
     clearly_lower,

@@ -8,10 +8,14 @@ import numpy as np
 import pytest
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.candidates import CANDIDATES
-from simgap.analysis.fitting import Fit, ProjectionCandidate, project_items
+from simgap.analysis.candidates import (
+    CANDIDATES,
+    Fit,
+    ProjectionCandidate,
+    ProjectionSet,
+    project_items,
+)
 from simgap.analysis.gap import Items
-from simgap.analysis.projection_set import ProjectionSet
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import parsimonious
 from simgap.analysis.selection import ModelSearch
@@ -204,8 +208,8 @@ def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():
     relevance rule refitted the model without focal_length, let tag_scale absorb its pose change,
     judged focal_length irrelevant and reported tag_scale alone (held-out corners 4.26 px
     instead of 0.19 px). Since seed 32 a print scale must change the sizes in proportion
-    (:mod:`simgap.analysis.size_signature`): the edge offset (measured -0.593 px on every tag,
-    slope 0.1 standard errors) is left unexplained, not read as a -1 % print."""
+    (:mod:`simgap.analysis.candidates._size_signature`): the edge offset (measured -0.593 px on
+    every tag, slope 0.1 standard errors) is left unexplained, not read as a -1 % print."""
     rig = load_rig()
     items, base = _items(
         rig, {"focal_length": {"scale": -0.03}}, noise_px=0.1, seed=1, shrink_px=0.6
@@ -364,7 +368,7 @@ def test_a_model_with_a_parameter_on_its_search_bound_is_no_finding():
     """Issue 25: a fit that runs into the end of its searched range stands in for something
     else (a 28 % print scale, beyond tag_scale's 25 % range): listed, never selected."""
     from simgap.analysis.admission import at_bound
-    from simgap.analysis.fitting import on_bound
+    from simgap.analysis.candidates import on_bound
 
     assert on_bound(4.95, 0.1, 5.0) and on_bound(0.1, 0.1, 5.0) and not on_bound(2.5, 0.1, 5.0)
     assert on_bound(-0.246, -0.25, 0.25) and not on_bound(0.2, -0.25, 0.25)
@@ -506,7 +510,7 @@ def test_a_size_change_tells_a_print_scale_from_an_edge_offset():
     """A print scale changes every tag's size by the same share; an edge offset by the same
     pixels; a defocus by an offset that changes with depth (so with size). 0.05 px of corner
     noise (seed 0), 30 tags of 25-95 px (the sizes of the blind captures)."""
-    from simgap.analysis.size_signature import size_change
+    from simgap.analysis.candidates import size_change
 
     rng = np.random.default_rng(0)
     sizes = np.linspace(25.0, 95.0, 30)

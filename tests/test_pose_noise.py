@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from simgap.analysis.fitting import project_items
+from simgap.analysis.candidates import project_items
 from simgap.analysis.gap import SHIFT_DRAWS, Items, noise_shift, propagated_pose_noise
 from simgap.core.axes import AXES
 from simgap.diagnosis.items import with_noise_shift, with_propagated_noise

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.fitting import Candidate, Fit, ProjectionCandidate
+from simgap.analysis.candidates import Candidate, Fit, ProjectionCandidate
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
     corner_gap_lower,
@@ -50,12 +50,12 @@ def grows_with_size(fit: Fit) -> bool:
     """Whether a print-scale-like effect's corners change in size in proportion to the tag size.
 
     For a candidate with a size signature (``Fit.extra["size_changes"]``, set by
-    :meth:`simgap.analysis.fitting.ProjectionCandidate.fit` on the fit split): the size change it
+    :meth:`simgap.analysis.candidates.ProjectionCandidate.fit` on the fit split): the size change it
     has to explain grows with the tag's image size by at least
     :data:`~simgap.analysis.thresholds.SIZE_SLOPE_Z` standard errors, and an edge offset of the
     other sign does not cancel it before :data:`~simgap.analysis.thresholds.SIZE_ZERO_SHARE` of
-    the smallest tag's size (:mod:`simgap.analysis.size_signature`). Other effects, and fits on
-    too few tags to test, pass.
+    the smallest tag's size (:mod:`simgap.analysis.candidates._size_signature`). Other effects, and
+    fits on too few tags to test, pass.
     """
     change = fit.extra.get("size_changes", {}).get(fit.effect)
     if change is None or not np.isfinite(change.slope_z):
@@ -66,7 +66,7 @@ def grows_with_size(fit: Fit) -> bool:
 def at_bound(scored: Scored) -> bool:
     """Whether some fitted parameter of a model lies on the end of its searched range.
 
-    (``Fit.extra["at_bound"]``, :func:`simgap.analysis.fitting.on_bound`.) The fit wanted to
+    (``Fit.extra["at_bound"]``, :func:`simgap.analysis.candidates.on_bound`.) The fit wanted to
     go further than the effect's plausible range: the model stands in for something it cannot
     express, so it is not offered as a finding.
     """
@@ -140,7 +140,7 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     """Whether a model's newest effect has a corner signature of its own and the corners show it.
 
     The effect of ``scored`` that ``reference`` lacks (its only one without a reference) has a
-    corner signature (:attr:`~simgap.analysis.fitting.ProjectionCandidate.corner_signature`);
+    corner signature (:attr:`~simgap.analysis.candidates.ProjectionCandidate.corner_signature`);
     its corners are distinguishably better than ``reference``'s (or than no effect): the corner
     channel beyond its tolerance (:func:`~simgap.analysis.scoring.distinguishably_lower`) or
     item by item over both folds of a cross-fit

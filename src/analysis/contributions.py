@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.fitting import Fit
-from simgap.analysis.projection_set import ProjectionSet
+from simgap.analysis.candidates import Fit, ProjectionSet
 from simgap.analysis.scored import Scored
 from simgap.core.rig import Rig
 from simgap.effects.state import VariantState

@@ -23,7 +23,7 @@ from simgap.analysis.admission import (
     has_corner_signature,
     seen_in_corners,
 )
-from simgap.analysis.fitting import Candidate, ProjectionCandidate
+from simgap.analysis.candidates import Candidate, ProjectionCandidate
 from simgap.analysis.scored import Scored
 
 

@@ -17,14 +17,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simgap.analysis.fitting import ProjectionCandidate
+from simgap.analysis.candidates import ProjectionCandidate
 from simgap.analysis.gap import Items
 from simgap.analysis.scored import Scored
 from simgap.core.rig import Rig
 from simgap.effects.state import VariantState
 
 if TYPE_CHECKING:
-    from simgap.analysis.simulation_chain import SimulationChain
+    from simgap.analysis.candidates import SimulationChain
 
 
 def cross_fit_difference(

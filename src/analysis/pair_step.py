@@ -26,7 +26,7 @@ from typing import Protocol
 import numpy as np
 
 from simgap.analysis.admission import admissible
-from simgap.analysis.fitting import Candidate, ProjectionCandidate
+from simgap.analysis.candidates import Candidate, ProjectionCandidate
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import parsimonious
 from simgap.analysis.thresholds import EXPLAINED_REDUCTION, GEOMETRY_CORNER_GAP_PX

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from simgap.analysis.fitting import Candidate
+from simgap.analysis.candidates import Candidate
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import as_good, corner_gap_lower
 from simgap.analysis.thresholds import MINOR_CONTRIBUTION

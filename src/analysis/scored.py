@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from simgap.analysis.fitting import Candidate, Fit
+from simgap.analysis.candidates import Candidate, Fit
 from simgap.analysis.gap import (
     Items,
     Prediction,

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.fitting import ProjectionCandidate
+from simgap.analysis.candidates import ProjectionCandidate
 from simgap.analysis.gap import clearly_lower, item_centre_residuals_px2, item_residuals_px2
 from simgap.analysis.scored import Scored
 from simgap.analysis.thresholds import EQUIVALENT_REL, EQUIVALENT_UNITS

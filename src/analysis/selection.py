@@ -20,15 +20,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simgap.analysis.admission import admissible, at_bound
+from simgap.analysis.candidates import (
+    Candidate,
+    Fit,
+    ProjectionCandidate,
+    ProjectionSet,
+    Runner,
+    SimulationChain,
+)
 from simgap.analysis.contributions import pose_contributions
 from simgap.analysis.corner_findings import corner_effect_alone, with_corner_effects
 from simgap.analysis.cross_fit import cross_fitted
-from simgap.analysis.fitting import Candidate, Fit, ProjectionCandidate
 from simgap.analysis.gap import Items, Prediction
 from simgap.analysis.pair_step import pair_start, pair_step
-from simgap.analysis.projection_set import ProjectionSet
 from simgap.analysis.pruning import pruned
-from simgap.analysis.runner import Runner
 from simgap.analysis.scored import Scored
 from simgap.analysis.scoring import (
     as_good_held_out,
@@ -36,7 +41,6 @@ from simgap.analysis.scoring import (
     improves_on_nothing,
     parsimonious,
 )
-from simgap.analysis.simulation_chain import SimulationChain
 from simgap.analysis.thresholds import (
     CORNER_UNIT_PX,
     GEOMETRY_CORNER_GAP_PX,
@@ -115,7 +119,7 @@ class ModelSearch:
 
         Simulation (appearance) effects are fitted first on the image evidence of the fit
         split's subsample, each on the simulation with the ones before it
-        (:class:`~simgap.analysis.simulation_chain.SimulationChain`); their change of the
+        (:class:`~simgap.analysis.candidates.SimulationChain`); their change of the
         detected corners is then added to the simulated corners, and the projection effects are
         fitted jointly on the fit split's corners on top
         (geometry is what the corners show once the image formation is modelled; fitting it

@@ -170,17 +170,19 @@ MAX_EFFECTS: Final[int] = 5
 #: spurious geometric effect 0.97-2.11 px (docs/results/design_evidence.md#thresholds).
 GEOMETRY_CORNER_GAP_PX: Final[float] = 4.0 * CORNER_UNIT_PX
 #: A print scale (a size signature) enters a model only where the size change it explains grows
-#: with the tag's image size by this many standard errors (:mod:`simgap.analysis.size_signature`):
-#: the significance of :data:`Z_SIGNIFICANT`. Measured on development captures, true print
-#: scales stand 10.6-34.2 standard errors out, look-alikes 0.6-2.6, two defocused ones 6.0 and
-#: 8.9, which :data:`SIZE_ZERO_SHARE` catches (docs/results/design_evidence.md#thresholds).
+#: with the tag's image size by this many standard errors
+#: (:mod:`simgap.analysis.candidates._size_signature`): the significance of :data:`Z_SIGNIFICANT`.
+#: Measured on development captures, true print scales stand 10.6-34.2 standard errors out,
+#: look-alikes 0.6-2.6, two defocused ones 6.0 and 8.9, which :data:`SIZE_ZERO_SHARE` catches
+#: (docs/results/design_evidence.md#thresholds).
 SIZE_SLOPE_Z: Final[float] = Z_SIGNIFICANT
 #: ... and only where an edge offset against the slope does not cancel the size change before
-#: this share of the smallest tag's size (:attr:`simgap.analysis.size_signature.SizeChange.
-#: zero_share`). A print scale changes no size at zero size (share 0; measured true ones at most
-#: 0.30); defocused look-alikes cross zero near or inside the sizes measured (0.93 and 1.19;
-#: docs/results/design_evidence.md#thresholds). Half: the offset is at most half the print's
-#: change on the smallest tag.
+#: this share of the smallest tag's size
+#: (:attr:`simgap.analysis.candidates._size_signature.SizeChange.zero_share`). A print scale
+#: changes no size at zero size (share 0; measured true ones at most 0.30); defocused look-alikes
+#: cross zero near or inside the sizes measured (0.93 and 1.19;
+#: docs/results/design_evidence.md#thresholds). Half: the offset is at most half the print's change
+#: on the smallest tag.
 SIZE_ZERO_SHARE: Final[float] = 0.5
 
 # -- which: the appearance gates ---------------------------------------------------------------

@@ -32,10 +32,8 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.appearance import signature_significant
-from simgap.analysis.candidates import CANDIDATES
+from simgap.analysis.candidates import CANDIDATES, Candidate, signature_significant
 from simgap.analysis.corner_findings import corner_effect_alone
-from simgap.analysis.fitting import Candidate
 from simgap.analysis.gap import corner_unit, gap_score, median_abs_gap
 from simgap.analysis.scored import Scored, bootstrap_reductions
 from simgap.analysis.scoring import equivalent_models
@@ -304,7 +302,7 @@ def diagnose(
         Candidate effects, projection or appearance (default: the whole catalogue,
         :data:`simgap.analysis.candidates.CANDIDATES`). An appearance effect is kept only where
         one of its own image statistics differs significantly
-        (:func:`simgap.analysis.appearance.signature_significant`).
+        (:func:`simgap.analysis.candidates.signature_significant`).
     progress : ProgressCallback, optional
         Told the progress of every step after the simulation (whose progress is the
         simulator's): ``fitting candidates`` (one unit per candidate), ``model search`` (one per

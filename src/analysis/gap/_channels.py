@@ -25,7 +25,7 @@ from simgap.analysis.thresholds import CORNER_UNIT_PX, DETECTION_UNIT, IMAGE_FLO
 from simgap.pose.image_stats import STAT_INDEX
 
 #: Noise statistics: on a path-traced simulation only stochastic effects change them (see
-#: :meth:`simgap.analysis.simulation_chain.SimulationChain.changes`).
+#: :meth:`simgap.analysis.candidates.SimulationChain.changes`).
 NOISE_STATS = [
     STAT_INDEX[s]
     for s in ("noise_ink_dn", "noise_paper_dn", "noise_ink_linear", "noise_paper_linear")
@@ -223,7 +223,7 @@ def detection_unit(n_items: int | np.ndarray) -> float | np.ndarray:
     its blockiness explained, and the JPEG went unnamed. The unit follows the items compared:
     two splits of 7 and 8 items, or bootstrap resamples with missing detections, are each in
     their own; so is the laminate's choice of intensity
-    (:meth:`simgap.analysis.gloss.GlossCandidate.intensity`), where detections weigh up to 3x
+    (:meth:`simgap.analysis.candidates.GlossCandidate.intensity`), where detections weigh up to 3x
     less on fewer than twenty items (no fitted magnitude of the development captures changed;
     docs/results/design_evidence.md#channels).
     """

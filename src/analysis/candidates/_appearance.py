@@ -17,17 +17,17 @@ effect              parameters (bounds)                    fitted on
                     scale)                                 (the camera's crushed shadows)
 ``sensor_noise``    ``full_well_e``, ``read_noise_e``      photon transfer of the excess noise
                                                            variance (EMVA 1288), least squares
-                                                           (:mod:`simgap.analysis.sensor_noise`)
+                                                           (:mod:`simgap.analysis.candidates._sensor_noise`)
 ``defocus``         ``aperture_radius_m``,                 edge width against tag depth, thin-
                     ``focus_distance_m``                   lens blur circle, least squares
-                                                           (:mod:`simgap.analysis.defocus`)
+                                                           (:mod:`simgap.analysis.candidates._defocus`)
 ``jpeg``            ``quality`` (5 - 100, integer)         the DC quantisation step of the 8 px
                                                            blocks, else their blockiness;
                                                            pipeline re-run per value
 ``tag_gloss``       ``alpha`` (0.01 - 0.6), the light's    ink and paper levels against the
                     ``light_intensity_w_sr`` and offsets   half-angle of lens and light (glint
                     (+-0.15 m)                             of a laminate), least squares
-                                                           (:mod:`simgap.analysis.gloss`)
+                                                           (:mod:`simgap.analysis.candidates._gloss`)
 ==================  =====================================  =====================================
 
 Image-stage effects (blur, exposure, black level, noise, JPEG) re-process the cached renders;
@@ -47,9 +47,9 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from simgap.analysis.fitting import Fit, SimulationCandidate, on_bound
+from simgap.analysis.candidates._fitting import Fit, SimulationCandidate, on_bound
+from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.gap import ImageTest, Items, compare_stat
-from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import (
     IMAGE_FLOORS,
     RESIDUAL_CAP,
@@ -274,7 +274,7 @@ class JpegCandidate(AppearanceCandidate):
         step, tags = agreed_dc_step(items.required("real_stats")[:, STAT_INDEX["jpeg_dc_step_dn"]])
         if tags:
             # the quantiser read back; the capture's noise is then no sensor's to add
-            # (simgap.analysis.sensor_noise: not supported under a JPEG quantiser)
+            # (simgap.analysis.candidates._sensor_noise: not supported under a JPEG quantiser)
             quality = quality_for_dc_step(step)
             fun = self.misfit(runner, base, items, quality)
             return self.fitted(items, quality, fun, t0, dc_step_dn=step, tags=tags)

@@ -1,15 +1,15 @@
 """The diagnosis catalogue: every candidate effect, keyed by effect name, in one table.
 
 Geometric and calibration effects are projection candidates
-(:class:`~simgap.analysis.fitting.ProjectionCandidate`): fitted on the detected corners, with per
+(:class:`~simgap.analysis.candidates.ProjectionCandidate`): fitted on the detected corners, with per
 parameter its typical magnitude (for conditioning) and the largest magnitude searched (inside the
 effect's valid range). Appearance effects are fitted on
-the image statistics named with them (:mod:`simgap.analysis.appearance`,
-:mod:`simgap.analysis.exposure`, :mod:`simgap.analysis.black_level`,
-:mod:`simgap.analysis.sensor_noise`, :mod:`simgap.analysis.defocus`,
-:mod:`simgap.analysis.gloss`); those statistics are also
+the image statistics named with them (:mod:`simgap.analysis.candidates._appearance`,
+:mod:`simgap.analysis.candidates._exposure`, :mod:`simgap.analysis.candidates._black_level`,
+:mod:`simgap.analysis.candidates._sensor_noise`, :mod:`simgap.analysis.candidates._defocus`,
+:mod:`simgap.analysis.candidates._gloss`); those statistics are also
 their signature: an appearance effect is a candidate only where one of them differs
-significantly (:func:`simgap.analysis.appearance.signature_significant`).
+significantly (:func:`simgap.analysis.candidates.signature_significant`).
 
 A new candidate is one entry here. The order of the table is the order in which candidates are
 fitted and, among equally good ones, ranked.
@@ -20,13 +20,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-from simgap.analysis.appearance import AppearanceCandidate, JpegCandidate
-from simgap.analysis.black_level import BlackLevelCandidate
-from simgap.analysis.defocus import DefocusCandidate
-from simgap.analysis.exposure import ExposureCandidate
-from simgap.analysis.fitting import Candidate, ProjectionCandidate
-from simgap.analysis.gloss import GlossCandidate
-from simgap.analysis.sensor_noise import SensorNoiseCandidate
+from simgap.analysis.candidates._appearance import AppearanceCandidate, JpegCandidate
+from simgap.analysis.candidates._black_level import BlackLevelCandidate
+from simgap.analysis.candidates._defocus import DefocusCandidate
+from simgap.analysis.candidates._exposure import ExposureCandidate
+from simgap.analysis.candidates._fitting import Candidate, ProjectionCandidate
+from simgap.analysis.candidates._gloss import GlossCandidate
+from simgap.analysis.candidates._sensor_noise import SensorNoiseCandidate
 
 #: Edge widths along x and y (the all-sides width is reported only).
 EDGE_WIDTHS = ("edge_width_x_px", "edge_width_y_px")

@@ -1,8 +1,9 @@
 """A bounded robust least-squares fit of some entries of a parameter vector.
 
-The glint's two models (:mod:`simgap.analysis.gloss`, :mod:`simgap.analysis.glint_ratio`) fit
-nested subsets of one parameter vector from several starts: exposure alone, then a light, then
-the laminate; the entries not fitted keep their start values.
+The glint's two models (:mod:`simgap.analysis.candidates._gloss`,
+:mod:`simgap.analysis.candidates._glint_ratio`) fit nested subsets of one parameter vector from
+several starts: exposure alone, then a light, then the laminate; the entries not fitted keep their
+start values.
 """
 
 from __future__ import annotations

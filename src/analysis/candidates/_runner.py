@@ -1,9 +1,10 @@
 """What the diagnosis needs of the pipeline: the simulated evidence of items under a state.
 
 The model search (:class:`simgap.analysis.selection.ModelSearch`) and the simulation-fitted
-candidates (:mod:`simgap.analysis.appearance`) run variant states of the simulation through the
-pipeline, which sits below analysis in the layers only as data: the pipeline itself is reached
-through a :class:`Runner` the caller injects (:class:`simgap.diagnosis.sim_runner.SimRunner`).
+candidates (:mod:`simgap.analysis.candidates._appearance`) run variant states of the simulation
+through the pipeline, which sits below analysis in the layers only as data: the pipeline itself is
+reached through a :class:`Runner` the caller injects
+(:class:`simgap.diagnosis.sim_runner.SimRunner`).
 """
 
 from __future__ import annotations

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simgap.analysis.fitting import Fit, SimulationCandidate
+from simgap.analysis.candidates._fitting import Fit, SimulationCandidate
+from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.gap import NOISE_STATS, Items
-from simgap.analysis.runner import Runner
 from simgap.effects import EFFECTS
 from simgap.effects.state import VariantState
 

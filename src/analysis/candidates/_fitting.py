@@ -9,11 +9,11 @@ Two kinds of candidate:
     detected corners are moved by the exact change of the projected corners and the pose is solved
     again, so the simulated detector's own bias is kept. Parameters are fitted by robust least
     squares on the *real* detected corners (px). Several are fitted jointly
-    (:class:`simgap.analysis.projection_set.ProjectionSet`).
+    (:class:`simgap.analysis.candidates.ProjectionSet`).
 :class:`SimulationCandidate`
     Effects whose change of the evidence comes from running the pipeline with them (cached renders
     are reused; only the stages the effect touches are recomputed): the appearance effects of
-    :mod:`simgap.analysis.appearance`, fitted continuously on the image evidence.
+    :mod:`simgap.analysis.candidates._appearance`, fitted continuously on the image evidence.
 
 The candidates of the diagnosis, keyed by effect name, are
 :data:`simgap.analysis.candidates.CANDIDATES`.
@@ -27,11 +27,13 @@ from __future__ import annotations
 import abc
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from simgap.analysis.candidates._runner import Runner
+from simgap.analysis.candidates._size_signature import size_change
 from simgap.analysis.gap import Items, clearly_lower, item_residuals_px2
 from simgap.analysis.thresholds import AT_BOUND_SHARE
 from simgap.core import transforms as tf
@@ -39,10 +41,6 @@ from simgap.core.rig import Rig
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
 from simgap.pose.estimate import estimate_pose, marker_object_points, pose_error
-
-if TYPE_CHECKING:
-    from simgap.analysis.runner import Runner
-from simgap.analysis.size_signature import size_change
 
 
 @dataclass
@@ -61,7 +59,7 @@ class Fit:
         Solver by-products: ``x`` (the solver's parameter vector, for joint fits and
         projections), ``corner_rms_px`` (corner residual on the fit split, px), ``train_misfit``,
         ``size_changes`` (per print-scale-like effect of a projection fit, the size change it has
-        to explain, :func:`simgap.analysis.size_signature.size_change`).
+        to explain, :func:`simgap.analysis.candidates.size_change`).
     """
 
     effect: str
@@ -133,7 +131,8 @@ class ProjectionCandidate:
     size_signature : bool
         The effect changes every tag's image size by the same share (a print scale): it may enter
         a model only where the corners' size change grows with the tag's size
-        (:mod:`simgap.analysis.size_signature`), not where it is an edge offset of an image effect.
+        (:mod:`simgap.analysis.candidates._size_signature`), not where it is an edge offset of an
+        image effect.
     nested : int
         Fit the first ``nested`` parameters alone first (0: all at once); the others are
         released only where they lower the fitted items' own corner residuals consistently, item
@@ -297,7 +296,7 @@ class ProjectionCandidate:
 class SimulationCandidate(abc.ABC):
     """An effect whose change of the evidence comes from running the pipeline with it.
 
-    Subclasses fit the parameters (:class:`simgap.analysis.appearance.AppearanceCandidate` on
+    Subclasses fit the parameters (:class:`simgap.analysis.candidates.AppearanceCandidate` on
     the image evidence); this class turns fitted parameters into a variant state and the change
     of the simulated errors.
 

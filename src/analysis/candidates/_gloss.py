@@ -9,7 +9,7 @@ views, so near frontal tags glint, lose contrast or clip and are lost to the det
 oblique ones look as simulated. A laminate seldom sends a lab light into the
 lens; a light on the camera over matte prints only brightens near tags (no glint).
 
-How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.defocus`):
+How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.candidates._defocus`):
 
 1. **Levels.** Per tag of the fit split, the real and the simulated (matte, the simulation's
    lights) linear ink and paper levels (:class:`TagLevels`). A clipped real paper is a lower
@@ -26,9 +26,9 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.def
    squares fit exposure alone, then a matte light (``a``), then the laminate (``b``,
    ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`).
 3. **Geometry from the ink-to-paper ratios** where at least
-   :data:`~simgap.analysis.glint_ratio.MIN_TAGS` tags have unclipped ink and paper
-   (:mod:`simgap.analysis.glint_ratio`: the capture's own lights cancel in a ratio, a glint
-   does not): roughness and the light's horizontal offset, its height not fitted; the level
+   :data:`~simgap.analysis.candidates.MIN_TAGS` tags have unclipped ink and paper
+   (:mod:`simgap.analysis.candidates._glint_ratio`: the capture's own lights cancel in a ratio, a
+   glint does not): roughness and the light's horizontal offset, its height not fitted; the level
    model then fits only its scales at that geometry. With fewer (an overexposed capture), the
    level model's own geometry.
 4. **Supported** where the glint explains the ratios better than flare and a constant ratio
@@ -57,22 +57,22 @@ from typing import Any
 
 import numpy as np
 
-from simgap.analysis.appearance import (
+from simgap.analysis.candidates._appearance import (
     AppearanceCandidate,
     capped_rms,
     evidence_misfit,
     measuring_only,
 )
-from simgap.analysis.fitting import Fit, on_bound
+from simgap.analysis.candidates._fitting import Fit, on_bound
+from simgap.analysis.candidates._glint_ratio import STARTS, RatioFit, fit_ratios
+from simgap.analysis.candidates._lobe import LAMINATE_IOR, MIN_COS, beckmann, lobe_geometry
+from simgap.analysis.candidates._runner import Runner
+from simgap.analysis.candidates._subset_fit import fit_subset
+from simgap.analysis.candidates._tag_levels import TagLevels
 from simgap.analysis.gap import Items, detection_groups, detection_score
-from simgap.analysis.glint_ratio import STARTS, RatioFit, fit_ratios
-from simgap.analysis.lobe import LAMINATE_IOR, MIN_COS, beckmann, lobe_geometry
-from simgap.analysis.runner import Runner
-from simgap.analysis.subset_fit import fit_subset
 from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
-from simgap.pose.image_stats import STAT_INDEX
 
 #: Searched ranges: laminate roughness (dimensionless; below 0.01 a glint is a mirror image of
 #: the LED a few pixels wide, above 0.6 the coating's reflection is spread like paper's) and the
@@ -87,8 +87,6 @@ REFERENCE_INTENSITY_W_SR = 0.24
 INTENSITY_W_SR: tuple[float, float] = (0.0, 5.0)
 #: Smallest gain (floors) of the laminate over a matte light for a supported fit.
 GLINT_MIN_GAIN = SIGNATURE_MIN_GAIN
-#: 8-bit levels at or beyond which a real tag's paper or ink is clipped (no ratio).
-CLIPPED_DN: tuple[float, float] = (2.0, 253.0)
 
 
 def laminate_effects(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -102,54 +100,6 @@ def laminate_effects(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
         "tag_gloss": {"alpha": float(params["alpha"]), "int_ior": LAMINATE_IOR},
         "camera_light": {"offset_m": offset, "intensity": float(params["light_intensity_w_sr"])},
     }
-
-
-@dataclass(frozen=True)
-class TagLevels:
-    """What the level model reads of each tag (module docstring, step 1).
-
-    Attributes
-    ----------
-    real_ink, real_paper : ndarray (N,)
-        Real linear levels (sRGB-linearised medians; fraction of full scale).
-    sim_ink, sim_paper : ndarray (N,)
-        Simulated (matte, the simulation's lights) linear levels.
-    clipped, ink_clipped : ndarray of bool (N,)
-        Real paper, real ink at or beyond :data:`CLIPPED_DN` (a lower bound of its level, no
-        more: a glint can saturate the ink too).
-    eye_from_tag : ndarray (N, 4, 4)
-        Each tag's pose in the eyepoint frame (m).
-    """
-
-    real_ink: np.ndarray
-    real_paper: np.ndarray
-    sim_ink: np.ndarray
-    sim_paper: np.ndarray
-    clipped: np.ndarray
-    ink_clipped: np.ndarray
-    eye_from_tag: np.ndarray
-
-    @classmethod
-    def of(cls, real: np.ndarray, sim: np.ndarray, eye_from_tag: np.ndarray) -> TagLevels:
-        """From real and simulated image statistics (N, S); tags missing a level left out."""
-        col = {k: STAT_INDEX[k] for k in ("ink_linear", "paper_linear", "paper_dn", "ink_dn")}
-        ok = np.isfinite(real[:, [col["ink_linear"], col["paper_linear"]]]).all(1) & np.isfinite(
-            sim[:, [col["ink_linear"], col["paper_linear"]]]
-        ).all(1)
-        ok &= (sim[:, col["paper_linear"]] > 0) & (sim[:, col["ink_linear"]] > 0)
-        ok &= real[:, col["ink_dn"]] > CLIPPED_DN[0]
-        return cls(
-            real[ok, col["ink_linear"]],
-            real[ok, col["paper_linear"]],
-            sim[ok, col["ink_linear"]],
-            sim[ok, col["paper_linear"]],
-            real[ok, col["paper_dn"]] >= CLIPPED_DN[1],
-            real[ok, col["ink_dn"]] >= CLIPPED_DN[1],
-            eye_from_tag[ok],
-        )
-
-    def __len__(self) -> int:
-        return len(self.real_ink)
 
 
 def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -295,10 +245,10 @@ class GlossCandidate(AppearanceCandidate):
         matte light and of the glint; the real ones over them give two estimates (the level
         model's nuisance lights bias them differently: on development captures each was off
         by up to 3x, in opposite directions), and with a ``ratio`` fit the glint's scale in
-        the ink-to-paper ratios a third (:mod:`simgap.analysis.glint_ratio`). The estimates,
-        their geometric mean and a factor 2 beyond either are rendered, and the one whose ink,
-        paper and contrast
-        (:func:`~simgap.analysis.appearance.evidence_misfit`) and detections
+        the ink-to-paper ratios a third (:mod:`simgap.analysis.candidates._glint_ratio`). The
+        estimates, their geometric mean and a factor 2 beyond either are rendered, and the one whose
+        ink, paper and contrast
+        (:func:`~simgap.analysis.candidates.evidence_misfit`) and detections
         (:func:`~simgap.analysis.gap.detection_score`, one more statistic in the mean of
         squares, capped like them) match the real best is kept: a glint too bright, its levels
         matched by an exposure too low, loses tags the capture kept (measured on a blind

@@ -14,10 +14,14 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from simgap.analysis.appearance import AppearanceCandidate, capped_rms, signature_supported
-from simgap.analysis.fitting import Fit, on_bound
+from simgap.analysis.candidates._appearance import (
+    AppearanceCandidate,
+    capped_rms,
+    signature_supported,
+)
+from simgap.analysis.candidates._fitting import Fit, on_bound
+from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.gap import Items
-from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import IMAGE_FLOORS, SIGNATURE_MIN_GAIN
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX
@@ -38,7 +42,7 @@ class DefocusCandidate(AppearanceCandidate):
     """Thin-lens defocus: aperture radius and focus distance from edge width against depth.
 
     A point at depth ``z`` is imaged as a disk of radius ``R = f A |1/z - 1/z_f|`` (px; ``f`` the
-    simulated camera's focal length in px, :attr:`simgap.analysis.runner.Runner.focal_px`; ``A``
+    simulated camera's focal length in px, :attr:`simgap.analysis.candidates.Runner.focal_px`; ``A``
     the aperture radius; ``z_f`` the focus distance; the model of
     :class:`simgap.render.camera.OpenCVCamera`). The real edge width is modelled as the
     simulation's combined in quadrature with the disk's edge-spread width

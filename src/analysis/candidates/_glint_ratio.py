@@ -10,9 +10,9 @@ ink to paper of a tag whose paper is not clipped is
 with ``r_sim`` the simulation's ratio (matte print, its lights), ``h`` a constant (a transfer
 curve's or the print's darker ink), ``P`` the real paper level, ``F`` a flare level (the same on
 every tag), ``S = c D(theta_h; alpha) / (d^2 cos(theta_o))`` the glint of
-:mod:`simgap.analysis.gloss` (its level model, step 2) and ``V R(theta_o)`` the veil: the
-surroundings' radiance ``V`` times the coating's Fresnel reflectance relative to its normal one
-(:func:`simgap.analysis.lobe.fresnel_veil`), which grows towards grazing views where flare
+:mod:`simgap.analysis.candidates._gloss` (its level model, step 2) and ``V R(theta_o)`` the veil:
+the surroundings' radiance ``V`` times the coating's Fresnel reflectance relative to its normal one
+(:func:`simgap.analysis.candidates.fresnel_veil`), which grows towards grazing views where flare
 does not. The capture's own lights cancel: the level model of ink and paper must absorb them
 with its exposure and a matte light beside the lens. The model without a laminate has ``h``
 and ``F``; the laminate adds the glint and the veil. A laminate under a room's ambient light
@@ -26,24 +26,21 @@ The model needs tags whose paper is not clipped (``P`` is known): at least :data
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simgap.analysis.appearance import capped_rms
-from simgap.analysis.lobe import MIN_COS, beckmann, fresnel_veil, lobe_geometry
-from simgap.analysis.subset_fit import fit_subset
+from simgap.analysis.candidates._appearance import capped_rms
+from simgap.analysis.candidates._lobe import MIN_COS, beckmann, fresnel_veil, lobe_geometry
+from simgap.analysis.candidates._subset_fit import fit_subset
+from simgap.analysis.candidates._tag_levels import TagLevels
 from simgap.analysis.thresholds import IMAGE_FLOORS
-
-if TYPE_CHECKING:
-    from simgap.analysis.gloss import TagLevels
 
 #: Fewest tags with unclipped ink and paper for the ratio model: its five fitted parameters and
 #: three more. Below it (an overexposed capture whose papers clip) the level model decides.
 MIN_TAGS = 8
-#: Starts of the glint's search, here and in the level model (:func:`simgap.analysis.gloss.
-#: fit_levels`): roughness x horizontal offset (m); the light's side is what the turntable's two
-#: directions tell apart.
+#: Starts of the glint's search, here and in the level model
+#: (:func:`simgap.analysis.candidates.fit_levels`): roughness x horizontal offset (m); the
+#: light's side is what the turntable's two directions tell apart.
 STARTS: tuple[tuple[float, ...], tuple[float, ...]] = ((0.05, 0.12, 0.3), (-0.05, 0.05))
 #: The light's height above the lens is not fitted (m): the turntable turns about a vertical
 #: axis, so a height only widens the lobe, as roughness does. Measured on the development
@@ -118,8 +115,8 @@ def fit_ratios(
     """Robust least squares of the ratio model; None with fewer than :data:`MIN_TAGS` tags.
 
     With ``fixed`` ``(alpha, offset_x_m, offset_z_m)`` only ``h``, the flare, the glint's scale
-    and the veil are fitted (the calibration render of :meth:`simgap.analysis.gloss.GlossCandidate.
-    intensity`).
+    and the veil are fitted (the calibration render of
+    :meth:`simgap.analysis.candidates.GlossCandidate.intensity`).
     """
     tags = int(np.count_nonzero(~levels.clipped & ~levels.ink_clipped))
     if tags < MIN_TAGS:

@@ -1,7 +1,7 @@
 """Geometry of a glint: a rough coating's microfacet lobe between a light and the lens.
 
-Used by the laminate candidate (:mod:`simgap.analysis.gloss`): the Beckmann distribution of
-Mitsuba's ``roughplastic``, per tag the half-angle between the directions to the lens and to a
+Used by the laminate candidate (:mod:`simgap.analysis.candidates._gloss`): the Beckmann distribution
+of Mitsuba's ``roughplastic``, per tag the half-angle between the directions to the lens and to a
 light beside it, and the coating's Fresnel reflectance towards the lens (its veil).
 """
 

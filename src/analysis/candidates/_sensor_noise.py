@@ -16,15 +16,15 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import least_squares
 
-from simgap.analysis.appearance import (
+from simgap.analysis.candidates._appearance import (
     AppearanceCandidate,
     capture_jpeg_quality,
     misfit_rms,
     signature_supported,
 )
-from simgap.analysis.fitting import Fit, on_bound
+from simgap.analysis.candidates._fitting import Fit, on_bound
+from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.gap import Items
-from simgap.analysis.runner import Runner
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX, linearise
 from simgap.render import imaging
@@ -99,7 +99,7 @@ class SensorNoiseCandidate(AppearanceCandidate):
     noise compressed and matched) did not converge: the quantiser kept 5-56 % of the noise
     variance between two noise levels of the same tags. Where the capture shows a JPEG
     quantiser (its tags agree on a DC step,
-    :func:`~simgap.analysis.appearance.capture_jpeg_quality`) the fit is therefore not
+    :func:`~simgap.analysis.candidates._appearance.capture_jpeg_quality`) the fit is therefore not
     supported: the noise is explained by the JPEG candidate, whose prediction compresses the
     simulation, or left unexplained (where it was supported, a sensor noise took the
     compression's noise of blind JPEG captures and the JPEG was left out;

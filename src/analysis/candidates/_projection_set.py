@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from simgap.analysis.fitting import Fit, ProjectionCandidate, on_bound
+from simgap.analysis.candidates._fitting import Fit, ProjectionCandidate, on_bound
 from simgap.effects.state import VariantState
 
 

@@ -7,7 +7,7 @@ median of its paper pixels, :mod:`simgap.pose.image_stats`) becomes
 ``log2(real paper / simulated paper)``, and where the real paper is clipped only a lower bound.
 
 The fit is the least-squares scan of the other one-parameter candidates
-(:class:`~simgap.analysis.appearance.AppearanceCandidate`) wherever its minimum is one value.
+(:class:`~simgap.analysis.candidates.AppearanceCandidate`) wherever its minimum is one value.
 Where the capped misfit is flat over several scanned exposures (:data:`PLATEAU_REL`), clipped
 tags have made every exposure beyond some value look alike and the search would return an
 arbitrary point of the plateau. The fit is then the median over the tags of their own exposure
@@ -44,10 +44,10 @@ import time
 import numpy as np
 from scipy import stats
 
-from simgap.analysis.appearance import AppearanceCandidate, measuring_only
-from simgap.analysis.fitting import Fit
+from simgap.analysis.candidates._appearance import AppearanceCandidate, measuring_only
+from simgap.analysis.candidates._fitting import Fit
+from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.gap import Items
-from simgap.analysis.runner import Runner
 from simgap.analysis.thresholds import image_floor
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX, linearise

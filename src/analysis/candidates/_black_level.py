@@ -11,7 +11,7 @@ simulation every ink pixel of a tag has one level, so its share at 0 DN jumps fr
 of the ink as the level passes it, while a capture's noise spreads it. The level is therefore
 matched on the simulation with the capture's own exposure and sensor noise, each fitted first
 where its own statistics call for it (the nuisance fitted jointly, as JPEG's quality is matched
-under the capture's noise, :class:`simgap.analysis.appearance.JpegCandidate`).
+under the capture's noise, :class:`simgap.analysis.candidates._appearance.JpegCandidate`).
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ import time
 
 import numpy as np
 
-from simgap.analysis.appearance import SCAN_POINTS, AppearanceCandidate
-from simgap.analysis.fitting import Fit
+from simgap.analysis.candidates._appearance import SCAN_POINTS, AppearanceCandidate
+from simgap.analysis.candidates._fitting import Fit
+from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.gap import Items
-from simgap.analysis.runner import Runner
 from simgap.effects.state import VariantState
 
 #: Levels searched (fraction of full scale): from none to a level that crushes the ink of a
@@ -61,7 +61,7 @@ class BlackLevelCandidate(AppearanceCandidate):
     def scan(
         self, runner: Runner, base: VariantState, items: Items
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The misfit at :data:`~simgap.analysis.appearance.SCAN_POINTS` log-spaced levels.
+        """The misfit at :data:`SCAN_POINTS` log-spaced levels.
 
         A level's share at 0 DN changes most where it nears the ink's level: a few thousandths
         of full scale for dark ink, hundredths for bright.
