@@ -16,9 +16,7 @@ from simgap.analysis.candidates import (
     project_items,
 )
 from simgap.analysis.gap import Items
-from simgap.analysis.scored import Scored
-from simgap.analysis.scoring import parsimonious
-from simgap.analysis.selection import ModelSearch
+from simgap.analysis.search import ModelSearch, Scored, parsimonious
 from simgap.core.axes import AXES
 from simgap.core.rig import load_rig
 from simgap.effects import make_effect
@@ -323,7 +321,7 @@ def test_a_distortion_the_corners_show_is_not_refused_for_pose_noise():
     channel's quarter-unit tolerance): refused under a 10 % rule, it is seen now. A pose gap
     larger by more than the tolerance still refuses it.
     """
-    from simgap.analysis.admission import seen_in_corners
+    from simgap.analysis.search import seen_in_corners
     from simgap.analysis.thresholds import EQUIVALENT_REL, EQUIVALENT_UNITS
 
     rig = load_rig()
@@ -367,8 +365,8 @@ def test_geometry_fitted_to_corners_something_else_moved_is_refused(smear_px):
 def test_a_model_with_a_parameter_on_its_search_bound_is_no_finding():
     """Issue 25: a fit that runs into the end of its searched range stands in for something
     else (a 28 % print scale, beyond tag_scale's 25 % range): listed, never selected."""
-    from simgap.analysis.admission import at_bound
     from simgap.analysis.candidates import on_bound
+    from simgap.analysis.search import at_bound
 
     assert on_bound(4.95, 0.1, 5.0) and on_bound(0.1, 0.1, 5.0) and not on_bound(2.5, 0.1, 5.0)
     assert on_bound(-0.246, -0.25, 0.25) and not on_bound(0.2, -0.25, 0.25)
@@ -534,7 +532,7 @@ def test_a_print_scale_does_not_follow_an_edge_offset(shrink_px):
     the same pixels; a print scale fitted to it (-0.6 % for 0.3 px here) is no finding, while a
     true print scale of 2.5 % still is (its size change stood 20.8 standard errors out,
     measured)."""
-    from simgap.analysis.admission import grows_with_size
+    from simgap.analysis.search import grows_with_size
 
     rig = load_rig()
     items, base = _items(rig, {}, noise_px=0.2, seed=1, shrink_px=shrink_px)
@@ -578,7 +576,7 @@ def test_a_distortion_the_corners_single_out_joins_a_model_and_stands_alone():
     (measured k1 -0.055, k2 -0.020); without a lens nothing joins; pure corner noise has no
     corner finding.
     """
-    from simgap.analysis.corner_findings import corner_effect_alone, with_corner_effects
+    from simgap.analysis.search import corner_effect_alone, with_corner_effects
 
     rig = load_rig()
     focal, lens = CANDIDATES["focal_length"], CANDIDATES["lens_distortion"]
@@ -605,7 +603,7 @@ def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_i
     capture; the corners had singled them out only item by item (seed 38 trial 26: a 0.24 mm mount
     beside a laminate, corners 0.482 -> 0.447 px). Blind seed 40: true carriage pitches of 1.1 and
     2.1 % beside the camera's blur were minor on a noisy one-frame capture and lowered the corners
-    0.44 -> 0.20 and 0.91 -> 0.23 px (:func:`simgap.analysis.pruning.pruned`). Here the evidence
+    0.44 -> 0.20 and 0.91 -> 0.23 px (:func:`simgap.analysis.search.pruned`). Here the evidence
     keeps every effect (``as_good`` false): a mount that moves no pose and lowers the corners
     0.48 -> 0.45 px leaves; one that lowers them 0.44 -> 0.20 px stays, and so does one that
     moves the pose; a principal point that moves no pose stays (a calibration file may know the
@@ -613,7 +611,7 @@ def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_i
     """
     from dataclasses import dataclass as _dataclass
 
-    from simgap.analysis import pruning
+    from simgap.analysis.search import pruned
 
     @_dataclass
     class Model:
@@ -636,8 +634,8 @@ def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_i
     def weights(mount: float, pp: float):
         return lambda m: {"blur": 5.0, "camera_mount": mount, "principal_point": pp}
 
-    monkeypatch.setattr(pruning, "as_good", lambda a, b: False)  # the evidence keeps them all
-    pruned = pruning.pruned
+    # the evidence keeps them all: the rule pruned() reads, in its private module
+    monkeypatch.setattr("simgap.analysis.search._pruning.as_good", lambda a, b: False)
     model, evaluate = case(0.45, 0.48)
     assert pruned(model("blur", "camera_mount"), evaluate, weights(0.2, 0.0)).effects == ["blur"]
     kept = pruned(model("blur", "principal_point"), evaluate, weights(0.0, 0.2))

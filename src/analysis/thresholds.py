@@ -134,7 +134,7 @@ UNEXPLAINED_MISFIT: Final[float] = 1.0
 # -- which: the model search -------------------------------------------------------------------
 
 #: Share by which a geometric effect must bring the pose gap (all axes, choose split) closer to the
-#: real one to enter a model (:meth:`simgap.analysis.selection.ModelSearch.select`): between
+#: real one to enter a model (:meth:`simgap.analysis.search.ModelSearch.select`): between
 #: the look-alikes (at most 6 % closer) and the true effects (at least 19 %) measured on
 #: development captures (docs/results/design_evidence.md#thresholds).
 MIN_POSE_REDUCTION: Final[float] = 0.10
@@ -143,7 +143,7 @@ MIN_POSE_REDUCTION: Final[float] = 0.10
 #: answers on blind captures lower it by far more (docs/results/design_evidence.md#thresholds).
 EXPLAINED_REDUCTION: Final[float] = 0.3
 #: An effect whose pose contribution (median change of the choose split's poses over their noise or
-#: the practical floor, :meth:`simgap.analysis.selection.ModelSearch.contributions`) is below
+#: the practical floor, :meth:`simgap.analysis.search.ModelSearch.contributions`) is below
 #: this moves no pose by a relevant amount: it is *minor* (one unit: the floor itself).
 MINOR_CONTRIBUTION: Final[float] = 1.0
 
@@ -154,7 +154,7 @@ MINOR_CONTRIBUTION: Final[float] = 1.0
 #: in 6 of 28 captures of another generator; every true effect of the hidden tables lies inside
 #: its range by a margin). 2 %: far below the ranges' margins over the hidden magnitudes.
 AT_BOUND_SHARE: Final[float] = 0.02
-#: Most effects a model may hold (:meth:`simgap.analysis.selection.ModelSearch.select`). A real
+#: Most effects a model may hold (:meth:`simgap.analysis.search.ModelSearch.select`). A real
 #: camera brings up to three of its own (exposure, softness and sensor noise) beside the one or
 #: two effects that make the gap. Source: blind captures where a full model of the camera's
 #: own effects left no room for a lens distortion that lowered the corner gap beside them, so

@@ -9,7 +9,7 @@ Steps (docs/conventions.md §5):
 3. **which**: the comparable configurations are split into fit, choose and report splits; every
    candidate effect is fitted on the fit split and scored on the choose split on all evidence;
    a ranking; a greedy combination while some evidence channel improves distinguishably, with
-   the model simplified and pruned after every step (:class:`simgap.analysis.selection.
+   the model simplified and pruned after every step (:class:`simgap.analysis.search._selection.
    ModelSearch`); ``unexplained`` evidence when the chosen model leaves it;
 4. **how far**: the chosen model's gap before and after on the report split, per axis, with a
    bootstrap interval, confirmed by re-running the full pipeline (re-render) with the fitted
@@ -33,11 +33,14 @@ import xarray as xr
 
 from simgap.analysis import gap as gapmod
 from simgap.analysis.candidates import CANDIDATES, Candidate, signature_significant
-from simgap.analysis.corner_findings import corner_effect_alone
 from simgap.analysis.gap import corner_unit, gap_score, median_abs_gap
-from simgap.analysis.scored import Scored, bootstrap_reductions
-from simgap.analysis.scoring import equivalent_models
-from simgap.analysis.selection import ModelSearch
+from simgap.analysis.search import (
+    ModelSearch,
+    Scored,
+    bootstrap_reductions,
+    corner_effect_alone,
+    equivalent_models,
+)
 from simgap.core.axes import AXES
 from simgap.core.progress import ProgressCallback, Steps
 from simgap.diagnosis.camera_signatures import pipeline_signatures

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from simgap.analysis.gap import Items
-from simgap.analysis.scored import Scored
+from simgap.analysis.search import Scored
 from simgap.core.distance import camera_to_tag_distance
 from simgap.core.rig import Rig
 from simgap.diagnosis.result import TellingPose

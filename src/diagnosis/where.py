@@ -7,7 +7,7 @@ import xarray as xr
 
 from simgap.analysis import gap as gapmod
 from simgap.analysis.gap import SCORED_STATS
-from simgap.analysis.scored import Scored
+from simgap.analysis.search import Scored
 from simgap.analysis.thresholds import UNEXPLAINED_MISFIT
 from simgap.diagnosis.result import Where
 from simgap.diagnosis.settings import DiagnoseSettings

@@ -19,7 +19,7 @@ The candidates of the diagnosis, keyed by effect name, are
 :data:`simgap.analysis.candidates.CANDIDATES`.
 
 Every candidate predicts the simulated error *with* the effect as the baseline simulated error
-plus the effect's change; model choice is ``simgap.analysis.selection``.
+plus the effect's change; model choice is ``simgap.analysis.search._selection``.
 """
 
 from __future__ import annotations
@@ -126,8 +126,8 @@ class ProjectionCandidate:
         The effect's pattern in the corners is its own (a lens distortion: a radial shift that
         grows with the image radius, which no pose, print or mount change makes): it may enter
         a model on corner evidence that is clearly better item by item
-        (:func:`simgap.analysis.scoring.corners_clearly_lower`) without bringing the pose
-        closer (:meth:`simgap.analysis.selection.ModelSearch.select`).
+        (:func:`simgap.analysis.search._scoring.corners_clearly_lower`) without bringing the pose
+        closer (:meth:`simgap.analysis.search.ModelSearch.select`).
     size_signature : bool
         The effect changes every tag's image size by the same share (a print scale): it may enter
         a model only where the corners' size change grows with the tag's size

@@ -1,6 +1,6 @@
 """What the diagnosis needs of the pipeline: the simulated evidence of items under a state.
 
-The model search (:class:`simgap.analysis.selection.ModelSearch`) and the simulation-fitted
+The model search (:class:`simgap.analysis.search.ModelSearch`) and the simulation-fitted
 candidates (:mod:`simgap.analysis.candidates._appearance`) run variant states of the simulation
 through the pipeline, which sits below analysis in the layers only as data: the pipeline itself is
 reached through a :class:`Runner` the caller injects

@@ -2,7 +2,7 @@
 
 The one test the diagnosis uses wherever a model's corners must be *consistently* better item by
 item, even by less than the fixed corner tolerance: the model search
-(:func:`simgap.analysis.scoring.corners_clearly_lower`) and the order of a nested fit
+(:func:`simgap.analysis.search._scoring.corners_clearly_lower`) and the order of a nested fit
 (:meth:`simgap.analysis.candidates.ProjectionCandidate.fit`); and the per-item residuals they
 compare (:func:`item_residuals_px2`, :func:`item_centre_residuals_px2`).
 """

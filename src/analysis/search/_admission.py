@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from simgap.analysis.candidates import Candidate, Fit, ProjectionCandidate
-from simgap.analysis.scored import Scored
-from simgap.analysis.scoring import (
+from simgap.analysis.search._scored import Scored
+from simgap.analysis.search._scoring import (
     corner_gap_lower,
     corner_residuals,
     corners_clearly_lower,
@@ -28,7 +28,7 @@ def admissible(scored: Scored, reference: Scored | None) -> bool:
     a proxy too); a new print-scale-like effect changes the tags' size in proportion to it
     (:func:`grows_with_size`); and a geometric effect must bring the pose
     :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one
-    (:func:`~simgap.analysis.scoring.worsens_pose`), have its own pattern in the corners
+    (:func:`~simgap.analysis.search.worsens_pose`), have its own pattern in the corners
     (:func:`seen_in_corners`) or move the tag centres as they moved (:func:`seen_in_centres`).
     Appearance effects are judged on their evidence alone.
     """
@@ -89,7 +89,7 @@ def residuals_without(
     """Cross-fitted residuals (px^2) of the model ``scored`` is compared with.
 
     ``reference``'s with its effects, or, without a reference, the simulation's alone on
-    ``scored``'s items (:func:`~simgap.analysis.scoring.corner_residuals`; of the tag centres
+    ``scored``'s items (:func:`~simgap.analysis.search.corner_residuals`; of the tag centres
     with ``centres``).
     """
     if reference is None:
@@ -101,9 +101,9 @@ def seen_in_centres(scored: Scored, reference: Scored | None) -> bool:
     """Whether a model's one new geometric effect moves the tag centres as they moved.
 
     The cross-fitted centre residuals (the mean of each tag's four corners, every searched item
-    held out once: :func:`~simgap.analysis.scoring.corner_residuals` with ``centres``) of
+    held out once: :func:`~simgap.analysis.search.corner_residuals` with ``centres``) of
     ``scored`` are consistently lower item by item than ``reference``'s (or the simulation's)
-    (:func:`~simgap.analysis.scoring.corners_clearly_lower`).
+    (:func:`~simgap.analysis.search._scoring.corners_clearly_lower`).
 
     Why the pose does not decide here: a single tag's depth comes from its apparent size, and
     a camera whose edges differ from the simulation's (exposure, softness) moves every side of
@@ -142,14 +142,14 @@ def seen_in_corners(scored: Scored, reference: Scored | None) -> bool:
     The effect of ``scored`` that ``reference`` lacks (its only one without a reference) has a
     corner signature (:attr:`~simgap.analysis.candidates.ProjectionCandidate.corner_signature`);
     its corners are distinguishably better than ``reference``'s (or than no effect): the corner
-    channel beyond its tolerance (:func:`~simgap.analysis.scoring.distinguishably_lower`) or
+    channel beyond its tolerance (:func:`~simgap.analysis.search._scoring.distinguishably_lower`) or
     item by item over both folds of a cross-fit
-    (:func:`~simgap.analysis.scoring.corners_clearly_lower`,
-    :func:`~simgap.analysis.scoring.corner_residuals`) by at least the channel's relative
+    (:func:`~simgap.analysis.search._scoring.corners_clearly_lower`,
+    :func:`~simgap.analysis.search.corner_residuals`) by at least the channel's relative
     tolerance (:func:`clearly_smaller`); and the pose gap is not
     distinguishably larger, by the tolerance of every channel
-    (:func:`~simgap.analysis.scoring.distinguishably_lower` on the pose channel: a quarter unit
-    and 10 %). Within its noise the pose gap tells nothing either way: a lens distortion whose
+    (:func:`~simgap.analysis.search._scoring.distinguishably_lower` on the pose channel: a quarter
+    unit and 10 %). Within its noise the pose gap tells nothing either way: a lens distortion whose
     poses lie within their noise on both sides scored 0.649 -> 0.664, pure noise ~0.67; a true
     lens that lowered the corner gap by a third was rejected under a 10 % pose rule on a blind
     capture (docs/results/design_evidence.md#admission). Such an effect is a finding even when

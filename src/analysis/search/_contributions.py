@@ -3,7 +3,7 @@
 An effect of a model whose contribution is below
 :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` moves no pose by a relevant amount: the
 search prunes it when the model without it explains the evidence as well, and otherwise reports it
-as *minor* (:class:`simgap.analysis.selection.ModelSearch`).
+as *minor* (:class:`simgap.analysis.search.ModelSearch`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from simgap.analysis.candidates import Fit, ProjectionSet
-from simgap.analysis.scored import Scored
+from simgap.analysis.search._scored import Scored
 from simgap.core.rig import Rig
 from simgap.effects.state import VariantState
 

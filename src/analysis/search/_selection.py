@@ -3,13 +3,13 @@
 A *model* is a set of catalogue effects. Simulation (appearance) effects are fitted one by one on
 the image evidence of the fit split, projection effects jointly on its corners on top. Every
 model is scored on the choose split on all evidence channels (:mod:`simgap.analysis.gap._channels`),
-its corners also cross-fitted (:mod:`simgap.analysis.cross_fit`). The search ranks single effects,
-then adds effects greedily while the combined misfit falls and some channel improves
-distinguishably (:mod:`simgap.analysis.scoring`), and after every step simplifies the model:
+its corners also cross-fitted (:mod:`simgap.analysis.search._cross_fit`). The search ranks single
+effects, then adds effects greedily while the combined misfit falls and some channel improves
+distinguishably (:mod:`simgap.analysis.search._scoring`), and after every step simplifies the model:
 effects are dropped or swapped for ones with fewer parameters while the model stays *as good*
 (the data cannot tell the models apart, so the simpler explanation is reported and the others are
 listed). The report split is scored only for the chosen model. Whether an effect may enter a
-model at all is :mod:`simgap.analysis.admission`.
+model at all is :mod:`simgap.analysis.search._admission`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simgap.analysis.admission import admissible, at_bound
 from simgap.analysis.candidates import (
     Candidate,
     Fit,
@@ -28,14 +27,15 @@ from simgap.analysis.candidates import (
     Runner,
     SimulationChain,
 )
-from simgap.analysis.contributions import pose_contributions
-from simgap.analysis.corner_findings import corner_effect_alone, with_corner_effects
-from simgap.analysis.cross_fit import cross_fitted
 from simgap.analysis.gap import Items, Prediction
-from simgap.analysis.pair_step import pair_start, pair_step
-from simgap.analysis.pruning import pruned
-from simgap.analysis.scored import Scored
-from simgap.analysis.scoring import (
+from simgap.analysis.search._admission import admissible, at_bound
+from simgap.analysis.search._contributions import pose_contributions
+from simgap.analysis.search._corner_findings import corner_effect_alone, with_corner_effects
+from simgap.analysis.search._cross_fit import cross_fitted
+from simgap.analysis.search._pair_step import pair_start, pair_step
+from simgap.analysis.search._pruning import pruned
+from simgap.analysis.search._scored import Scored
+from simgap.analysis.search._scoring import (
     as_good_held_out,
     improves,
     improves_on_nothing,
@@ -204,7 +204,7 @@ class ModelSearch:
         edges is a lens, not a blur). Ranked on the combined misfit of all evidence on the
         choose split (:attr:`Scored.evidence_after`: detected corners, pose, detections, image
         statistics, each in units of its smallest relevant difference); among indistinguishable
-        ones (:func:`simgap.analysis.scoring.equivalent_models`) the simpler first. A model with
+        ones (:func:`simgap.analysis.search.equivalent_models`) the simpler first. A model with
         a parameter on its search bound is no finding (:func:`at_bound`): it is kept in
         :attr:`on_bound` for the report.
         """
@@ -284,25 +284,26 @@ class ModelSearch:
         brings the pose at least :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer
         to the real one than the model without it (:func:`worsens_pose`), when the held-out
         corners single out an effect with a corner signature of its own (a lens distortion), or
-        when the held-out tag centres show it (:func:`~simgap.analysis.admission.admissible`;
-        a lens that moved no pose beyond the floor, or carriage pitches whose depth another
-        camera's edges hid, were left out). One that follows the corners without moving the poses
-        closer or the centres is a look-alike of an image effect (measured on development
-        captures: a tag print scale following the corners of a motion blur moved the pose gap by
-        6 % or less either way, every true geometric effect that started a model lowered it by
-        19 % or more; docs/results/design_evidence.md#selection).
+        when the held-out tag centres show it
+        (:func:`~simgap.analysis.search._admission.admissible`; a lens that moved no pose beyond the
+        floor, or carriage pitches whose depth another camera's edges hid, were left out). One that
+        follows the corners without moving the poses closer or the centres is a look-alike of an
+        image effect (measured on development captures: a tag print scale following the corners of a
+        motion blur moved the pose gap by 6 % or less either way, every true geometric effect that
+        started a model lowered it by 19 % or more; docs/results/design_evidence.md#selection).
 
         An effect is added while the combined misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); where no single one does (or none starts
         the search) and the model leaves the geometry unexplained, two projection effects may
-        enter at once (:mod:`simgap.analysis.pair_step`); the model is then simplified
+        enter at once (:mod:`simgap.analysis.search._pair_step`); the model is then simplified
         (:meth:`simplify`) and pruned (:meth:`prune`); last, effects with a corner signature
-        that the corners single out beside it join it (:mod:`~simgap.analysis.corner_findings`;
-        where nothing starts the search, such an effect alone is the answer). Effects are returned
-        most important first: by how much their removal worsens the combined evidence (an effect may
-        matter most for the image evidence and move no pose: it is then also :meth:`minor`),
-        stochastic effects (sensor noise) after the others: they explain noise and scatter, not
-        the systematic gap, and every real camera has some, so they lead only when alone.
+        that the corners single out beside it join it
+        (:mod:`~simgap.analysis.search._corner_findings`; where nothing starts the search, such an
+        effect alone is the answer). Effects are returned most important first: by how much their
+        removal worsens the combined evidence (an effect may matter most for the image evidence and
+        move no pose: it is then also :meth:`minor`), stochastic effects (sensor noise) after the
+        others: they explain noise and scatter, not the systematic gap, and every real camera has
+        some, so they lead only when alone.
 
         A model with a geometric or calibration effect that leaves the corners more than
         :data:`~simgap.analysis.thresholds.GEOMETRY_CORNER_GAP_PX` off has fitted the geometry to
@@ -386,7 +387,7 @@ class ModelSearch:
     def prune(self, scored: Scored) -> Scored:
         """Drop effects that move no pose by a relevant amount and are not clearly seen.
 
-        (:func:`simgap.analysis.pruning.pruned`, with this search's fits and contributions.)
+        (:func:`simgap.analysis.search.pruned`, with this search's fits and contributions.)
         """
         return pruned(scored, self.evaluate, self.contributions)
 

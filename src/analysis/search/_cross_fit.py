@@ -1,10 +1,10 @@
 """Two-fold cross-fitting of a model's corners: every searched item held out once.
 
 Models are fitted on the fit split and scored on the choose split
-(:mod:`simgap.analysis.selection`). For the corner evidence the folds are also swapped: the model's
-projection effects are refitted on the choose split and predict the corners of the fit split's
-items that the simulation effects were fitted on (its subsample, ``sim_fit_index``: rendered
-already), so that the paired corner tests (:func:`simgap.analysis.scoring.corner_residuals`, on
+(:mod:`simgap.analysis.search._selection`). For the corner evidence the folds are also swapped: the
+model's projection effects are refitted on the choose split and predict the corners of the fit
+split's items that the simulation effects were fitted on (its subsample, ``sim_fit_index``: rendered
+already), so that the paired corner tests (:func:`simgap.analysis.search.corner_residuals`, on
 the corners or on the tag centres) see every such item predicted by geometry that did not fit
 it. The simulation (appearance) effects are not refitted: their fits were made on the fit split's
 image statistics, not on corners.
@@ -19,7 +19,7 @@ import numpy as np
 
 from simgap.analysis.candidates import ProjectionCandidate
 from simgap.analysis.gap import Items
-from simgap.analysis.scored import Scored
+from simgap.analysis.search._scored import Scored
 from simgap.core.rig import Rig
 from simgap.effects.state import VariantState
 
@@ -35,7 +35,7 @@ def cross_fit_difference(
     The model's joint projection effect (``scored.projection``: the candidate, and the scored
     items with the simulation effects' corner changes it was applied to) is refitted on those
     items, on top of the simulation effects (as
-    :meth:`~simgap.analysis.selection.ModelSearch.evaluate` fits it on the fit split), and
+    :meth:`~simgap.analysis.search.ModelSearch.evaluate` fits it on the fit split), and
     predicts the corners of ``fit_items``. The simulation effects keep their fits (made on image
     statistics, not on corners).
     """
@@ -54,7 +54,7 @@ def cross_fitted(scored: Scored, rig: Rig, base: VariantState, chain: Simulation
 
     The other fold is the items the simulation effects were fitted on (``chain.items``, the fit
     split's subsample: already rendered with them). Sets
-    :attr:`~simgap.analysis.scored.Scored.cross_fit_difference` (:func:`cross_fit_difference`)
+    :attr:`~simgap.analysis.search.Scored.cross_fit_difference` (:func:`cross_fit_difference`)
     and the simulation's own corner differences on those items.
     """
     fit_items = chain.items

@@ -2,8 +2,8 @@
 
 :class:`Scored` holds a model's misfit per evidence channel before (the simulation alone) and
 after (with the model's effects) on the items it was scored on: the choose split while models are
-searched, the report split for the chosen one (:mod:`simgap.analysis.selection`). The decision
-rules that compare scored models are :mod:`simgap.analysis.scoring`;
+searched, the report split for the chosen one (:mod:`simgap.analysis.search._selection`). The
+decision rules that compare scored models are :mod:`simgap.analysis.search._scoring`;
 :func:`bootstrap_reductions` gives the intervals of a scored model's reductions.
 """
 
@@ -63,8 +63,8 @@ class Scored:
     cross_fit_difference, cross_fit_difference_before : ndarray (M, 4, 2) or None
         Per item of the *other* split (the fit split while models are searched), the corners
         real - predicted (px) by the model with its projection effects refitted on the scored
-        items (two-fold cross-fitting, :mod:`simgap.analysis.cross_fit`), and by the simulation
-        alone; None where the model was not cross-fitted.
+        items (two-fold cross-fitting, :mod:`simgap.analysis.search._cross_fit`), and by the
+        simulation alone; None where the model was not cross-fitted.
     """
 
     fits: list[tuple[Candidate, Fit]]

@@ -1,6 +1,6 @@
 """A step of two geometric effects at once, where no single one explains what the model leaves.
 
-:meth:`simgap.analysis.selection.ModelSearch.select` adds effects one at a time. Two geometric
+:meth:`simgap.analysis.search.ModelSearch.select` adds effects one at a time. Two geometric
 effects that are in the capture together can hide each other from that search: each one alone
 fails its admission test because the other one's share of the gap stays in the corners. A print
 scale beside a carriage pitch: the print scale alone is refused because the carriage's depth
@@ -14,8 +14,8 @@ Measured on blind captures where both pairs went unnamed
 
 So where the greedy step finds nothing and the model leaves the geometry unexplained
 (:func:`geometry_unexplained`), pairs of projection effects are tried as one step, under the same
-admission (:func:`~simgap.analysis.admission.admissible`, every new effect tested) and gain rules
-as single ones. Only projection effects: their joint fit is on the corners alone (no render).
+admission (:func:`~simgap.analysis.search._admission.admissible`, every new effect tested) and gain
+rules as single ones. Only projection effects: their joint fit is on the corners alone (no render).
 """
 
 from __future__ import annotations
@@ -25,15 +25,15 @@ from typing import Protocol
 
 import numpy as np
 
-from simgap.analysis.admission import admissible
 from simgap.analysis.candidates import Candidate, ProjectionCandidate
-from simgap.analysis.scored import Scored
-from simgap.analysis.scoring import parsimonious
+from simgap.analysis.search._admission import admissible
+from simgap.analysis.search._scored import Scored
+from simgap.analysis.search._scoring import parsimonious
 from simgap.analysis.thresholds import EXPLAINED_REDUCTION, GEOMETRY_CORNER_GAP_PX
 
 
 class Search(Protocol):
-    """What a pair step needs of :class:`~simgap.analysis.selection.ModelSearch`."""
+    """What a pair step needs of :class:`~simgap.analysis.search.ModelSearch`."""
 
     significant_axes: np.ndarray
 
@@ -48,7 +48,7 @@ def geometry_unexplained(
     """Whether a model that leaves these gaps leaves the geometry unexplained.
 
     Its corners stay more than :data:`~simgap.analysis.thresholds.GEOMETRY_CORNER_GAP_PX` off
-    (what :meth:`~simgap.analysis.selection.ModelSearch.select` refuses in a model with
+    (what :meth:`~simgap.analysis.search.ModelSearch.select` refuses in a model with
     geometry), or a significant pose gap falls by less than
     :data:`~simgap.analysis.thresholds.EXPLAINED_REDUCTION` (what the diagnosis reports as an
     unexplained pose gap).
@@ -105,9 +105,9 @@ def pair_options(
     """Models of ``current`` (or of nothing) with two more projection effects that may enter.
 
     Each pair from ``pool`` is fitted jointly with the model's projection effects
-    (:meth:`~simgap.analysis.selection.ModelSearch.evaluate`); a pair is kept when it is
-    :func:`~simgap.analysis.admission.admissible` beside ``current``. Empty when the model has
-    no room for two more effects, or ``pool`` no two projection effects (a search without
+    (:meth:`~simgap.analysis.search.ModelSearch.evaluate`); a pair is kept when it is
+    :func:`~simgap.analysis.search._admission.admissible` beside ``current``. Empty when the model
+    has no room for two more effects, or ``pool`` no two projection effects (a search without
     geometry).
     """
     model = () if current is None else tuple(c for c, _ in current.fits)

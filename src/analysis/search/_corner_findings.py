@@ -2,9 +2,9 @@
 
 An effect with a corner signature of its own (a lens distortion: a radial pattern no pose,
 exposure or softness change makes) is a finding wherever the held-out corners single it out
-(:func:`~simgap.analysis.admission.seen_in_corners`), even when it moves no pose beyond the floor
+(:func:`~simgap.analysis.search.seen_in_corners`), even when it moves no pose beyond the floor
 (it is then minor, never silently dropped). The greedy search of
-:meth:`simgap.analysis.selection.ModelSearch.select` adds the effect that lowers the combined
+:meth:`simgap.analysis.search.ModelSearch.select` adds the effect that lowers the combined
 misfit most, so a distortion that lowers only the corners can be crowded out by appearance
 effects that lower the image statistics more and are then pruned (a calibration file's
 distortion answered by exposure alone, although exposure + lens distortion was admissible and
@@ -17,14 +17,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from simgap.analysis.admission import (
+from simgap.analysis.candidates import Candidate, ProjectionCandidate
+from simgap.analysis.search._admission import (
     admissible,
     at_bound,
     has_corner_signature,
     seen_in_corners,
 )
-from simgap.analysis.candidates import Candidate, ProjectionCandidate
-from simgap.analysis.scored import Scored
+from simgap.analysis.search._scored import Scored
 
 
 def with_corner_effects(
@@ -82,7 +82,7 @@ def without_displaced(
 def corner_effect_alone(ranking: Sequence[Scored]) -> Scored | None:
     """The best corner-signature effect of ``ranking`` the corners single out (None: none).
 
-    ``ranking``: single-effect models (:meth:`~simgap.analysis.selection.ModelSearch.rank`).
+    ``ranking``: single-effect models (:meth:`~simgap.analysis.search.ModelSearch.rank`).
     For a capture where no evidence family differs significantly, or where the model search
     finds no effect to start from: only an effect with a corner signature of its own,
     admissible alone and seen in the held-out corners, is a finding: a true lens can be seen

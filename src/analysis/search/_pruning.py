@@ -1,7 +1,7 @@
 """Pruning a chosen model: effects that move no pose by a relevant amount leave it.
 
-:meth:`simgap.analysis.selection.ModelSearch.select` grows a model greedily; once it stops, every
-effect whose pose contribution (:meth:`~simgap.analysis.selection.ModelSearch.contributions`) is
+:meth:`simgap.analysis.search.ModelSearch.select` grows a model greedily; once it stops, every
+effect whose pose contribution (:meth:`~simgap.analysis.search.ModelSearch.contributions`) is
 below :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` is questioned here.
 """
 
@@ -10,8 +10,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from simgap.analysis.candidates import Candidate
-from simgap.analysis.scored import Scored
-from simgap.analysis.scoring import as_good, corner_gap_lower
+from simgap.analysis.search._scored import Scored
+from simgap.analysis.search._scoring import as_good, corner_gap_lower
 from simgap.analysis.thresholds import MINOR_CONTRIBUTION
 from simgap.effects import EFFECTS
 
@@ -26,8 +26,8 @@ def pruned(
     A change of the fixture's transform tree (an effect of the ``geometry`` stage: camera mount,
     turntable offset, carriage pitch, tag offset) that moves no pose beyond the floor is dropped
     first unless the corners without it are worse beyond the corner channel's tolerance
-    (:func:`~simgap.analysis.scoring.corner_gap_lower`). The item-by-item paired test and the
-    other channels do not keep it:
+    (:func:`~simgap.analysis.search._scoring.corner_gap_lower`). The item-by-item paired test and
+    the other channels do not keep it:
     such a change moves the tag rigidly against the camera, and a consistent corner improvement
     of a few hundredths of a pixel beside an appearance effect is what the modelled appearance
     leaves of another camera's image formation. Measured on validation captures: every such

@@ -1,10 +1,10 @@
 """When one model explains the evidence better than another: the decision rules of the search.
 
-A :class:`~simgap.analysis.scored.Scored` model carries its misfit per evidence channel on the
+A :class:`~simgap.analysis.search.Scored` model carries its misfit per evidence channel on the
 items it was scored on (the choose split while models are searched). The rules here decide when
 a model explains the evidence distinguishably better than another (:func:`improves`), when two
 are equivalent, and which of several equivalent models is the simplest (:func:`parsimonious`);
-:mod:`simgap.analysis.selection` searches with them. Their tolerances are
+:mod:`simgap.analysis.search._selection` searches with them. Their tolerances are
 :mod:`simgap.analysis.thresholds`.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 
 from simgap.analysis.candidates import ProjectionCandidate
 from simgap.analysis.gap import clearly_lower, item_centre_residuals_px2, item_residuals_px2
-from simgap.analysis.scored import Scored
+from simgap.analysis.search._scored import Scored
 from simgap.analysis.thresholds import EQUIVALENT_REL, EQUIVALENT_UNITS
 
 
@@ -55,13 +55,13 @@ def corner_residuals(
 
     The scored items, each predicted by the model fitted on the other split; with
     ``cross_fitted``, followed by the other split's items predicted by the model refitted on the
-    scored ones (:attr:`~simgap.analysis.scored.Scored.cross_fit_difference`; a ValueError for a
+    scored ones (:attr:`~simgap.analysis.search.Scored.cross_fit_difference`; a ValueError for a
     model that was not cross-fitted): every item is then held out once (two-fold cross-fitting).
     A choose split of 6-10 configurations alone could not show a lens distortion that moves the
     corners by a tenth of a pixel (the paired test missed correctly fitted lenses on blind
     captures: docs/results/design_evidence.md#scoring). Only the admission of a geometric effect
-    (:func:`~simgap.analysis.admission.seen_in_corners`,
-    :func:`~simgap.analysis.admission.seen_in_centres`) and ties between other geometries
+    (:func:`~simgap.analysis.search.seen_in_corners`,
+    :func:`~simgap.analysis.search.seen_in_centres`) and ties between other geometries
     (:func:`generalises_better`) use the cross-fitted residuals: the model search's other
     comparisons keep the choose split (pooled, a tiny focal length joined a principal point on a
     development capture, its corners on the choose split worse; same page).
@@ -115,7 +115,7 @@ def as_good_held_out(a: Scored, b: Scored) -> bool:
     """:func:`as_good`, and ``b``'s geometry no better held out (:func:`generalises_better`).
 
     What a simpler model must be to replace ``b``
-    (:meth:`~simgap.analysis.selection.ModelSearch.simplify`): a tag offset that explained a
+    (:meth:`~simgap.analysis.search.ModelSearch.simplify`): a tag offset that explained a
     choose split of six configurations as well as a camera mount replaced it by parsimony
     (measured on a blind capture: docs/results/design_evidence.md#scoring).
     """
@@ -143,9 +143,9 @@ def worsens_pose(
     """Whether ``scored`` leaves a larger pose gap than ``reference`` (or no effect).
 
     Larger by more than ``tolerance`` (relative; all axes,
-    :attr:`~simgap.analysis.scored.Scored.pose_gap_all_axes_after`). A geometric
+    :attr:`~simgap.analysis.search.Scored.pose_gap_all_axes_after`). A geometric
     effect that does so, and that neither the held-out corners nor the tag centres single out
-    (:func:`~simgap.analysis.admission.admissible`), is no explanation of the gap: it is
+    (:func:`~simgap.analysis.search._admission.admissible`), is no explanation of the gap: it is
     a look-alike absorbing an image effect outside the catalogue (motion blur shifts the corners
     the detector finds; a tag print scale follows them and moves every pose further away).
     """
