@@ -11,7 +11,7 @@ from test_cli import small_dataset
 from typer.testing import CliRunner
 
 from simgap.analysis.gap import align, plot_image_stats, tag_distance_and_view_angle
-from simgap.analysis.report.figures import plot_change_heatmap, plot_comparison_heatmap
+from simgap.analysis.report import plot_change_heatmap, plot_comparison_heatmap
 from simgap.cli import app
 from simgap.core.outputs import claim_folder
 from simgap.diagnosis.diagnosis_files import (

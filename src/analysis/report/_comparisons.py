@@ -5,7 +5,7 @@ A *variant* is one rendering or estimation option (``baseline``, ``distortion``,
 variant if none is, unless another is named. Every other variant is compared with it,
 configuration by configuration:
 
-1. each variant is reduced by :func:`simgap.analysis.report.summaries.summarize_variant` (errors
+1. each variant is reduced by :func:`simgap.analysis.report.summarize_variant` (errors
    averaged over repeats with NaN skipped, visible configurations only);
 2. a configuration ``(tag, p, theta)`` is *paired* when both the variant and the reference have an
    estimate of every axis there; all error statistics use paired configurations only, so a change
@@ -13,9 +13,9 @@ configuration by configuration:
 3. the spread over repeats (sample standard deviation, ``ddof=1``) is the noise level.
 
 :func:`compare_variants` returns all of this as one :class:`xarray.Dataset` in SI units (m, rad);
-the tables (:mod:`simgap.analysis.report.tables`) and figures convert to mm and mrad. Where each
+the tables (:mod:`simgap.analysis.report._tables`) and figures convert to mm and mrad. Where each
 tag faces the camera and which pin holes exist are read from the dataset's rig
-(:func:`simgap.analysis.report.summaries.dataset_rig`).
+(:func:`simgap.analysis.report.dataset_rig`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Final
 import numpy as np
 import xarray as xr
 
-from simgap.analysis.report.summaries import (
+from simgap.analysis.report._summaries import (
     as_bool,
     check_report_dataset,
     dataset_distance_m,
@@ -219,7 +219,7 @@ def compare_variants(
         repeats), ``reference_n_detected``, ``reference_n_attempts``. Coordinate
         ``view_angle_deg`` (tag, theta), see :func:`view_angle_deg`, and ``distance_m``
         (tag, p, theta), the camera-to-tag distance
-        (:func:`~simgap.analysis.report.summaries.dataset_distance_m`). Attrs ``baseline``,
+        (:func:`~simgap.analysis.report.dataset_distance_m`). Attrs ``baseline``,
         ``n_repeat``, ``pin_holes`` (the rig's, for the distance bins) and
         ``facing_theta_deg`` (tag -> turntable angle facing the camera, deg).
 

@@ -26,7 +26,7 @@ from simgap.analysis.paper import (
     THRESHOLD_BY_UNIT,
     TRANSLATION_THRESHOLD_M,
 )
-from simgap.analysis.report.summaries import as_bool
+from simgap.analysis.report._summaries import as_bool
 from simgap.core.axes import AXES, AXIS_UNITS
 
 __all__ = [
@@ -354,7 +354,7 @@ def worst_frames(
 
 def _by_carriage(ds: xr.Dataset, sweep: SunSweep) -> list[str]:
     """Markdown table per carriage position over every sun direction: detection, envelope."""
-    from simgap.analysis.report.summaries import dataset_distance_m
+    from simgap.analysis.report._summaries import dataset_distance_m
 
     sub = ds.sel(variant=list(sweep.variants))
     visible, detected, error = _detections(sub)

@@ -11,10 +11,10 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
-from simgap.analysis.errormodel import smoothing
-from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.errormodel.io import FIT_METHODS, SCHEMA, with_attrs
-from simgap.analysis.errormodel.model import Z90, ErrorModel
+from simgap.analysis.errormodel import _smoothing as smoothing
+from simgap.analysis.errormodel._geometry import covariates
+from simgap.analysis.errormodel._io import FIT_METHODS, SCHEMA, with_attrs
+from simgap.analysis.errormodel._model import Z90, ErrorModel
 from simgap.core.axes import AXES
 from simgap.core.robust import MAD_TO_SIGMA
 

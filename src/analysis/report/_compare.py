@@ -3,7 +3,7 @@
 The reference is the variant named ``baseline`` (or the first), unless another is named; every
 other variant is compared with it over *paired* configurations (both have an estimate of every
 axis), with the spread over repeats as the noise level
-(:mod:`simgap.analysis.report.comparisons` says how).
+(:mod:`simgap.analysis.report._comparisons` says how).
 
 :func:`compare_variants` returns all of this as one :class:`xarray.Dataset` in SI units (m, rad);
 the tables (:func:`variant_summary_table`, :func:`binned_change_table`) convert to mm and mrad. The
@@ -23,15 +23,15 @@ file                                content
 ==================================  ==============================================================
 
 This module is the entry point; the work is done by :mod:`simgap.analysis.report`'s
-:mod:`~simgap.analysis.report.comparisons`, :mod:`~simgap.analysis.report.tables`,
-:mod:`~simgap.analysis.report.figures` and :mod:`~simgap.analysis.report.markdown`, whose public
-comparison API is re-exported here for notebooks.
+:mod:`~simgap.analysis.report._comparisons`, :mod:`~simgap.analysis.report._tables`,
+:mod:`~simgap.analysis.report._figures` and :mod:`~simgap.analysis.report._markdown`, whose public
+comparison API is re-exported here and, for notebooks, by :mod:`simgap.analysis.report`.
 
 Examples
 --------
 >>> from pathlib import Path
 >>> from simgap.results.dataset import read_netcdf
->>> from simgap.analysis.compare import compare_variants, variant_summary_table, write_comparison
+>>> from simgap.analysis.report import compare_variants, variant_summary_table, write_comparison
 >>> ds = read_netcdf("results/variants.nc")  # doctest: +SKIP
 >>> variant_summary_table(compare_variants(ds))  # doctest: +SKIP
 >>> write_comparison(ds, Path("cmp"))  # doctest: +SKIP
@@ -44,7 +44,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from simgap.analysis.report.comparisons import (
+from simgap.analysis.report._comparisons import (
     REFERENCE_NAME,
     change_by_p,
     compare_variants,
@@ -53,14 +53,14 @@ from simgap.analysis.report.comparisons import (
     variant_names,
     view_angle_deg,
 )
-from simgap.analysis.report.figures import (
+from simgap.analysis.report._figures import (
     plot_axis_change_heatmap,
     plot_change_by_distance,
     plot_change_heatmap,
 )
-from simgap.analysis.report.markdown import comparison_markdown
-from simgap.analysis.report.output import save_figure, save_text
-from simgap.analysis.report.tables import (
+from simgap.analysis.report._markdown import comparison_markdown
+from simgap.analysis.report._output import save_figure, save_text
+from simgap.analysis.report._tables import (
     ANGLE_BINS_DEG,
     binned_change_table,
     moves_most,

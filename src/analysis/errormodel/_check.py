@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from simgap.analysis.errormodel.fit import FitSettings, fit_error_model
-from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.errormodel.model import ErrorModel, TagPoses
+from simgap.analysis.errormodel._fit import FitSettings, fit_error_model
+from simgap.analysis.errormodel._geometry import covariates
+from simgap.analysis.errormodel._model import ErrorModel, TagPoses
 from simgap.core.axes import AXES
 
 

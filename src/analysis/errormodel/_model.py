@@ -1,7 +1,7 @@
 """The error model's query API: expected tag poses in, error statistics and samples out.
 
 See :mod:`simgap.analysis.errormodel` for what the model holds; files are read and written by
-:mod:`simgap.analysis.errormodel.io`.
+:mod:`simgap.analysis.errormodel._io`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import xarray as xr
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
-from simgap.analysis.errormodel.geometry import covariates, perturb
-from simgap.analysis.errormodel.io import dataset_to_json, read_model_dataset, write_model_dataset
+from simgap.analysis.errormodel._geometry import covariates, perturb
+from simgap.analysis.errormodel._io import dataset_to_json, read_model_dataset, write_model_dataset
 from simgap.core.rig import Rig
 
 #: Half width of the two-sided 90 % interval of the standard normal, Phi^-1(0.95) = 1.645.

@@ -11,9 +11,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
-from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.errormodel.model import Z90, ErrorModel, TagPoses
-from simgap.analysis.report.heatmaps import robust_colour_limit
+from simgap.analysis.errormodel import Z90, ErrorModel, TagPoses, covariates
+from simgap.analysis.report._heatmaps import robust_colour_limit
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES, display_unit
 
@@ -94,7 +93,7 @@ def plot_error_model_bands(model: ErrorModel, ds: xr.Dataset, slices: int = 3) -
 def _robust_limits(ax, values: np.ndarray, band: np.ndarray) -> None:
     """Symmetric y limits that the band and all but far-out points set; those counted.
 
-    The points' limit is :func:`simgap.analysis.report.heatmaps.robust_colour_limit` (Tukey's
+    The points' limit is :func:`simgap.analysis.report.robust_colour_limit` (Tukey's
     far-out fence of the |errors|), the band's its largest |bias| + 90 % half-width; points
     beyond the axis are counted in the panel's title.
     """

@@ -1,6 +1,6 @@
 """Markdown documents: the report's ``table2.md`` and ``summary.md``, the ``comparison.md``.
 
-Composed from :mod:`~simgap.analysis.report.summaries` and :mod:`~simgap.analysis.report.tables`.
+Composed from :mod:`~simgap.analysis.report._summaries` and :mod:`~simgap.analysis.report._tables`.
 """
 
 from __future__ import annotations
@@ -13,14 +13,14 @@ import pandas as pd
 import xarray as xr
 
 from simgap.analysis.paper import TABLE2, threshold_for
-from simgap.analysis.report.summaries import (
+from simgap.analysis.report._summaries import (
     VariantSummary,
     abs_error_envelope,
     fit_abs_error_slope,
     thresholds,
     within_threshold_counts,
 )
-from simgap.analysis.report.tables import (
+from simgap.analysis.report._tables import (
     binned_change_table,
     fmt,
     fraction,
@@ -41,7 +41,7 @@ def table2_markdown(summary: VariantSummary) -> str:
     Parameters
     ----------
     summary : VariantSummary
-        The reported variant (:func:`~simgap.analysis.report.summaries.summarize_variant`).
+        The reported variant (:func:`~simgap.analysis.report.summarize_variant`).
 
     Returns
     -------
@@ -128,7 +128,7 @@ def summary_markdown(
     Parameters
     ----------
     summary : VariantSummary
-        The reported variant (:func:`~simgap.analysis.report.summaries.summarize_variant`).
+        The reported variant (:func:`~simgap.analysis.report.summarize_variant`).
     figures : sequence of pathlib.Path
         Figure files to embed, linked by file name (they sit beside the Markdown file).
     variants : sequence of str

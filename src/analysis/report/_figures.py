@@ -1,12 +1,12 @@
 """Figures of the report and the comparison (headless Matplotlib, Agg canvas).
 
 Report: :func:`plot_error_vs_distance` (paper style) and :func:`plot_error_heatmap` of one
-variant's :class:`~simgap.analysis.report.summaries.VariantSummary`. Comparison:
+variant's :class:`~simgap.analysis.report._summaries.VariantSummary`. Comparison:
 :func:`plot_change_by_distance`, :func:`plot_change_heatmap` and
-:func:`plot_axis_change_heatmap` of a :func:`~simgap.analysis.report.comparisons.compare_variants`
+:func:`plot_axis_change_heatmap` of a :func:`~simgap.analysis.report.compare_variants`
 dataset. Every figure speaks the display units (mm, mrad; :func:`simgap.core.axes.display_unit`)
 of the dataset's m and rad. Their heatmaps' cells, colour limits and legend are
-:mod:`simgap.analysis.report.heatmaps`'.
+:mod:`simgap.analysis.report._heatmaps`'.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from matplotlib.figure import Figure, SubFigure
 from matplotlib.lines import Line2D
 
 from simgap.analysis.paper import threshold_for
-from simgap.analysis.report.comparisons import as_comparison, change_by_p
-from simgap.analysis.report.heatmaps import (
+from simgap.analysis.report._comparisons import as_comparison, change_by_p
+from simgap.analysis.report._heatmaps import (
     ROW_DISTANCE_LABEL,
     heatmap_legend_handles,
     robust_colour_limit,
@@ -34,7 +34,7 @@ from simgap.analysis.report.heatmaps import (
     shown_columns,
     signed_mesh,
 )
-from simgap.analysis.report.summaries import VariantSummary
+from simgap.analysis.report._summaries import VariantSummary
 from simgap.core.axes import AXES, display_unit
 from simgap.core.distance import DISTANCE_LABEL
 
@@ -76,7 +76,7 @@ def plot_error_vs_distance(summary: VariantSummary, tag: int) -> Figure:
     Parameters
     ----------
     summary : VariantSummary
-        One variant (:func:`~simgap.analysis.report.summaries.summarize_variant`): its
+        One variant (:func:`~simgap.analysis.report.summarize_variant`): its
         ``abs_error``, ``distance_m`` and detections are drawn.
     tag : int
         Tag id of the figure.
@@ -165,7 +165,7 @@ def plot_error_heatmap(summary: VariantSummary, tag: int) -> Figure:
     Parameters
     ----------
     summary : VariantSummary
-        One variant (:func:`~simgap.analysis.report.summaries.summarize_variant`): its
+        One variant (:func:`~simgap.analysis.report.summarize_variant`): its
         ``signed_error`` is drawn, and its undetected cells marked.
     tag : int
         Tag whose panels are drawn.
@@ -174,7 +174,7 @@ def plot_error_heatmap(summary: VariantSummary, tag: int) -> Figure:
     -------
     matplotlib.figure.Figure
         2x3 panels, repeat-averaged signed error (mm or mrad), one cell per sampled configuration
-        (:class:`~simgap.analysis.report.heatmaps.SampledAxis`): theta (deg, unwrapped around
+        (:class:`~simgap.analysis.report._heatmaps.SampledAxis`): theta (deg, unwrapped around
         the tag's mean viewing angle, so it may be negative) across, pin-hole rows up, ticked
         with each row's median camera-to-tag distance (m). A diverging colour map centred on 0
         with a robust symmetric limit per panel (:func:`robust_colour_limit`; cells beyond it
@@ -238,7 +238,7 @@ def plot_change_by_distance(
     Parameters
     ----------
     data, baseline
-        What to compare, as in :func:`~simgap.analysis.report.comparisons.as_comparison`.
+        What to compare, as in :func:`~simgap.analysis.report._comparisons.as_comparison`.
     title : str, optional
         Figure title; default names the variant - reference change of mean ``|error|``.
 
@@ -247,7 +247,7 @@ def plot_change_by_distance(
     matplotlib.figure.Figure
         2x3 panels (tx, ty, tz / rx, ry, rz): variant - reference mean ``|error|`` (mm or mrad)
         over paired (tag, theta) of each pin hole, against the mean camera-to-tag distance (m)
-        of those configurations (:func:`~simgap.analysis.report.comparisons.change_by_p`), with
+        of those configurations (:func:`~simgap.analysis.report.change_by_p`), with
         a zero line.
     """
     cmp = as_comparison(data, baseline)
@@ -305,7 +305,7 @@ def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = N
     ----------
     data : xarray.Dataset
         What to compare, with `baseline`, as in
-        :func:`~simgap.analysis.report.comparisons.as_comparison`.
+        :func:`~simgap.analysis.report._comparisons.as_comparison`.
     variant : str
         A compared (non-reference) variant.
     baseline : str, optional
@@ -330,7 +330,7 @@ def plot_comparison_heatmap(cmp: xr.Dataset, variant: str) -> Figure:
     Parameters
     ----------
     cmp : xarray.Dataset
-        :func:`~simgap.analysis.report.comparisons.compare_variants`' layout, with at least
+        :func:`~simgap.analysis.report.compare_variants`' layout, with at least
         ``signed_shift`` (variant, tag, p, theta, axis; m or rad), ``paired`` (variant, tag, p,
         theta), the coordinates ``view_angle_deg`` (tag, theta; deg) and ``distance_m`` (tag, p,
         theta; m), and the attrs ``baseline`` and ``n_repeat``.

@@ -15,7 +15,7 @@ import pandas as pd
 import xarray as xr
 
 from simgap.analysis.gap import distance_thirds
-from simgap.analysis.report.comparisons import as_comparison, to_display
+from simgap.analysis.report._comparisons import as_comparison, to_display
 from simgap.core.axes import AXES, display_unit
 
 ANGLE_BINS_DEG: Final[tuple[tuple[str, float, float], ...]] = (
@@ -74,7 +74,7 @@ def variant_summary_table(data: xr.Dataset, baseline: str | None = None) -> pd.D
     Parameters
     ----------
     data, baseline
-        What to compare, as in :func:`~simgap.analysis.report.comparisons.as_comparison`.
+        What to compare, as in :func:`~simgap.analysis.report._comparisons.as_comparison`.
 
     Returns
     -------
@@ -177,7 +177,7 @@ def binned_change_table(
     ----------
     data : xarray.Dataset
         What to compare, with `baseline`, as in
-        :func:`~simgap.analysis.report.comparisons.as_comparison`.
+        :func:`~simgap.analysis.report._comparisons.as_comparison`.
     by : {"distance", "angle"}
         ``"distance"``: near, mid and far thirds of the rig's pin holes
         (:func:`simgap.analysis.gap.distance_thirds`); ``"angle"``: bins of the absolute view
