@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.fitting import Items
+from simgap.analysis.gap import Items
 from simgap.core.rig import Rig
 
 

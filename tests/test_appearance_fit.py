@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.analysis.fitting import Fit, Items
-from simgap.analysis.sensor_noise import SensorNoiseCandidate
+from simgap.analysis.candidates import Fit, SensorNoiseCandidate
+from simgap.analysis.gap import Items
 from simgap.effects.image import ImageContext, SensorNoise
 from simgap.effects.state import VariantState
 from simgap.pose.image_stats import STAT_INDEX, STATS, linearise, tag_stats
@@ -157,7 +157,7 @@ SHARP_EDGE_PX = 0.81
 
 
 def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path):
-    from simgap.analysis.defocus import DISK_10_90_PER_RADIUS, DefocusCandidate
+    from simgap.analysis.candidates import DISK_10_90_PER_RADIUS, DefocusCandidate
     from simgap.diagnosis.sim_runner import SimRunner
     from simgap.pipeline.experiment import load_experiment
     from simgap.pipeline.simulator import Simulator
@@ -196,14 +196,13 @@ def test_a_depth_dependent_widening_is_a_lens_and_a_constant_one_is_not(tmp_path
 
 def _blockiness_test(real_stops: np.ndarray) -> list:
     """The where step's test of a real blockiness ``real_stops`` above the simulation's."""
-    from simgap.analysis.evidence import paired_test
+    from simgap.analysis.gap import paired_test
 
     return [paired_test("blockiness", 2.0**real_stops, np.ones_like(real_stops))]
 
 
 def test_an_appearance_effect_needs_a_significant_difference_of_its_own_statistic():
-    from simgap.analysis.appearance import evidence_misfit, signature_significant
-    from simgap.analysis.candidates import CANDIDATES
+    from simgap.analysis.candidates import CANDIDATES, evidence_misfit, signature_significant
 
     rng = np.random.default_rng(3)
     # sample-null: blockiness +0.1 stop over 9 tags with a spread of a third of a stop (p 0.06);
@@ -235,7 +234,7 @@ def test_a_noise_fit_without_shot_noise_is_on_its_bound():
     non-uniformity) fits the full well at the end of its range (measured 7.6e5 e-, on the bound
     on the log scale the range is judged on): no finding. Blind seed 32 trial 17 had been named
     sensor noise with such a fit, its full well 900x off."""
-    from simgap.analysis.sensor_noise import FULL_WELL_BOUNDS_E
+    from simgap.analysis.candidates import FULL_WELL_BOUNDS_E
 
     flat = SensorNoiseCandidate().fit(None, VariantState(), _items(1e6, 0.0, 0.01))
     assert flat.extra["at_bound"] == ("full_well_e",)
@@ -325,7 +324,7 @@ def test_the_jpeg_quality_is_read_from_the_capture_dc_step():
 
     # where the tags do not agree, the blockiness search decides: two of many are too few, and
     # a step shown by fewer than half of those that show one is outvoted
-    from simgap.analysis.appearance import agreed_dc_step
+    from simgap.analysis.candidates import agreed_dc_step
 
     nan = np.nan
     assert agreed_dc_step(np.array([23.0, 23.0, 23.0, nan, nan, nan, nan])) == (23.0, 3)
@@ -377,8 +376,7 @@ def test_a_converged_simulation_counts_what_a_jpeg_does_to_its_noise():
     change there is the render noise smoothed."""
     import dataclasses
 
-    from simgap.analysis.candidates import CANDIDATES
-    from simgap.analysis.simulation_chain import SimulationChain
+    from simgap.analysis.candidates import CANDIDATES, SimulationChain
     from simgap.effects.state import RenderQuality
 
     class StatsOnly(_TagPipelineRunner):
@@ -413,14 +411,13 @@ def test_a_blur_is_fitted_on_the_exposed_simulation():
     """A 1.4 px blur behind +1.2 EV (a quarter of the tag area clipped) is read within 1 %.
 
     The model's simulation effects are fitted in order, each on the simulation with the ones
-    before it (:class:`simgap.analysis.simulation_chain.SimulationChain`): a clipped edge reads
+    before it (:class:`simgap.analysis.candidates.SimulationChain`): a clipped edge reads
     narrower, so the blur fitted on the nominal simulation reads low. Measured on these twelve
     synthetic tags through the camera pipeline (2026-11-26): alone 1.337 px (-4.5 %), after the
     exposure (fitted +1.201 EV) 1.400 px; at 1.0 px behind +1.0 EV -4.3 % and +0.2 %. Blind seed
     35 trial 47 (another light, sRGB, +1.1 EV): 0.97 px alone and 1.35 px in the chain for 1.48.
     """
-    from simgap.analysis.candidates import CANDIDATES
-    from simgap.analysis.simulation_chain import SimulationChain
+    from simgap.analysis.candidates import CANDIDATES, SimulationChain
 
     tags = _grey_tags(12, sigma_px=0.4)
     runner = _TagPipelineRunner(tags)
@@ -439,7 +436,7 @@ def test_a_blur_is_fitted_on_the_exposed_simulation():
 
 def test_the_censored_median_reads_clipped_tags_as_lower_bounds():
     """Kaplan-Meier where fewer than half are clipped; else the median of the bounds."""
-    from simgap.analysis.exposure import censored_median_ev
+    from simgap.analysis.candidates import censored_median_ev
 
     ev = np.array([0.5, 0.7, 0.9, 1.1, 1.3, 1.5, 1.7])
     assert censored_median_ev(ev, np.zeros(7, bool)) == pytest.approx(1.1)
@@ -476,8 +473,7 @@ def test_a_clipped_majority_of_tags_reads_its_exposure_from_the_ink():
     paper's censored median is only a lower bound (+1.45 EV, measured). The ink, calibrated on
     the three unclipped tags, reads the clipped ones: +1.64 EV (measured 2026-11-26).
     """
-    from simgap.analysis.appearance import AppearanceCandidate
-    from simgap.analysis.exposure import ExposureCandidate
+    from simgap.analysis.candidates import AppearanceCandidate, ExposureCandidate
 
     ratios, runner, base, items = _lit_tags()
     scan = AppearanceCandidate("exposure", ("paper_linear",), "ev", (-4.0, 4.0), 0.02)
@@ -495,9 +491,9 @@ def test_an_exposure_whose_misfit_is_flat_beyond_clipping_reads_the_tags_median(
     does not read the clipped tags; the least-squares misfit has its plateau and the paper's
     censored median reads +1.48 EV for a median of +1.65 (measured 2026-11-26; the product-limit
     median reads the informative clipping a little low, see
-    :func:`simgap.analysis.exposure.censored_median_ev`).
+    :func:`simgap.analysis.candidates.censored_median_ev`).
     """
-    from simgap.analysis.exposure import ExposureCandidate
+    from simgap.analysis.candidates import ExposureCandidate
 
     ratios, runner, base, items = _lit_tags(flare=0.02)
     fit = ExposureCandidate().fit(runner, base, items)
@@ -508,7 +504,7 @@ def test_an_exposure_whose_misfit_is_flat_beyond_clipping_reads_the_tags_median(
 
 def test_the_ink_reads_a_clipped_tag_only_where_it_follows_the_paper():
     """:func:`ink_exposures`: a clipped majority, calibrated ink; else None."""
-    from simgap.analysis.exposure import ink_exposures
+    from simgap.analysis.candidates import ink_exposures
 
     ev = np.array([0.6, 0.8, 1.0, 1.4, 1.6, 1.8, 2.0])
     sim_paper, sim_ink = np.full(7, 0.4), np.full(7, 0.02)

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from simgap.analysis.black_level import BlackLevelCandidate
-from simgap.analysis.exposure import ExposureCandidate
-from simgap.analysis.sensor_noise import SensorNoiseCandidate
+from simgap.analysis.candidates import BlackLevelCandidate, ExposureCandidate, SensorNoiseCandidate
 from simgap.pipeline.experiment import load_experiment
 from tests.grid_items import grid_items
 

@@ -16,7 +16,7 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from simgap.analysis.photo_gap import PhotoCameraFit, fit_photo_camera
+from simgap.analysis.gap import PhotoCameraFit, fit_photo_camera
 from simgap.cli import app
 from simgap.core import transforms as tf
 from simgap.core.board import Board, read_board

@@ -1,5 +1,6 @@
-"""Tests of simgap.analysis.compare (variant comparison), the `compare` command and the notebook
-notebooks/compare_rendering_options.ipynb, on a synthetic multi-variant dataset (no rendering)."""
+"""Tests of the variant comparison (simgap.analysis.report), the `compare` command and the
+notebook notebooks/compare_rendering_options.ipynb, on a synthetic multi-variant dataset (no
+rendering)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from simgap.analysis.compare import (
+from simgap.analysis.report import (
     binned_change_table,
     change_by_p,
     compare_variants,
@@ -227,7 +228,6 @@ def test_cli_compare_errors_exit_2_naming_the_file(data, tmp_path):
 
 def test_cli_compare_and_report_call_the_comparison(data, tmp_path, monkeypatch):
     """Wiring only (the files are checked above): stubs keep this test free of plotting."""
-    import simgap.analysis.compare as compare_module
     import simgap.analysis.report as report_module
 
     calls = []
@@ -240,7 +240,7 @@ def test_cli_compare_and_report_call_the_comparison(data, tmp_path, monkeypatch)
         calls.append(("report", list(ds["variant"].values), Path(out_dir), None))
         return [Path(out_dir) / "summary.md"]
 
-    monkeypatch.setattr(compare_module, "write_comparison", fake_comparison)
+    monkeypatch.setattr(report_module, "write_comparison", fake_comparison)
     monkeypatch.setattr(report_module, "write_report", fake_report)
     runner = CliRunner()
     nc = write_netcdf(data[0], tmp_path / "v.nc")

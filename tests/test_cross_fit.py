@@ -8,26 +8,27 @@ import numpy as np
 import pytest
 from test_diagnose import _items, _search, _select
 
-from simgap.analysis.admission import seen_in_centres, seen_in_corners
-from simgap.analysis.candidates import CANDIDATES
-from simgap.analysis.corner_findings import with_corner_effects, without_displaced
-from simgap.analysis.fitting import ProjectionCandidate
-from simgap.analysis.paired import (
+from simgap.analysis.candidates import CANDIDATES, ProjectionCandidate
+from simgap.analysis.gap import (
     MIN_PAIRED_ITEMS,
     clearly_lower,
     item_centre_residuals_px2,
     item_residuals_px2,
 )
-from simgap.analysis.scoring import (
+from simgap.analysis.search import (
+    ModelSearch,
     as_good,
     as_good_held_out,
     corner_residuals,
     generalises_better,
     improves_on_nothing,
     parsimonious,
+    seen_in_centres,
+    seen_in_corners,
+    with_corner_effects,
+    without_displaced,
     worsens_pose,
 )
-from simgap.analysis.selection import ModelSearch
 from simgap.analysis.thresholds import MIN_POSE_REDUCTION
 from simgap.core.rig import load_rig
 
@@ -112,7 +113,7 @@ def test_a_lens_fit_frees_k2_only_where_the_corners_need_it(
     """Issue 25, blind seed 44 trial 39: a lens without distortion (a calibration file that
     claims k1 0.062) fitted k1 0.017, k2 -0.25 on central tags; with k1 alone, 0.006. The
     nested fit keeps k2 at zero unless it lowers the items' corners consistently
-    (:func:`simgap.analysis.paired.clearly_lower`). Tolerances from the measured values (in the
+    (:func:`simgap.analysis.gap.clearly_lower`). Tolerances from the measured values (in the
     comments). Under 0.2 px of corner noise the D435-like lens keeps k1 alone on these items
     (measured k1 0.115): k2 lowers the median item by 1.9 %, at p = 0.025 (the gain is at the
     outer tags); on development seed 44 every lens but two read k1 within 10 %
@@ -132,9 +133,9 @@ def test_a_carriage_pitch_is_seen_in_the_tag_centres_where_edges_bias_the_depth(
     corner drawn ``shrink_px`` towards the tag's centre, as overexposure with softer optics
     does) reads every tag smaller, so further away; a carriage pitch of -2 % brings the far
     tags closer. The right pitch fit then leaves a *larger* pose gap (measured 1.34 -> 1.36 and
-    0.80 -> 1.77): refused by the pose (:func:`~simgap.analysis.scoring.worsens_pose`). The tag
+    0.80 -> 1.77): refused by the pose (:func:`~simgap.analysis.search.worsens_pose`). The tag
     centres carry no edge bias and single it out (cross-fitted, item by item,
-    :func:`~simgap.analysis.admission.seen_in_centres`), and the search names it. The fitted
+    :func:`~simgap.analysis.search.seen_in_centres`), and the search names it. The fitted
     scale is biased by the edges by 7-9 % (measured values in the parameters; tolerance 10 % of
     the truth)."""
 
@@ -167,7 +168,7 @@ def test_an_edge_bias_alone_moves_no_tag_centre():
 def test_a_look_alike_displaced_by_a_corner_effect_leaves():
     """Blind seed 45 trial 69: a focal length that entered on centres a distortion had moved
     leaves once the lens distortion joins it
-    (:func:`~simgap.analysis.corner_findings.without_displaced`); a true one stays. Beside the
+    (:func:`~simgap.analysis.search.without_displaced`); a true one stays. Beside the
     right lens a look-alike focal length fits -0.01 % and moves the pose gap by 1-5 % (noise
     seeds 2-7, measured; on seed 1 it happens to lower the pose gap 11 %, as pose noise may)."""
 
@@ -198,7 +199,7 @@ def test_a_tag_centre_is_blind_to_a_symmetric_edge_bias():
 
 
 def test_a_corner_effect_displaces_a_look_alike_that_sorts_after_it():
-    """Through :func:`~simgap.analysis.corner_findings.with_corner_effects`: a principal point of
+    """Through :func:`~simgap.analysis.search.with_corner_effects`: a principal point of
     0.18 px that stood in for a lens (k1 0.08, noise seed 2) leaves when the lens joins, although
     it comes after the lens in the model's order (projection effects by name)."""
     rig = load_rig()
@@ -267,7 +268,7 @@ def test_a_corner_effect_must_lower_the_corners_by_the_channels_relative_toleran
     """Per-item corner residuals (px^2) that fall consistently but by less than 10 % in RMS do
     not single a lens out; the measured cases: a blur behind a tone curve, whose spurious
     k1 -0.015 lowered the corners 0.553 -> 0.533 px (3.6 %), and a true lens, 0.483 -> 0.244 px."""
-    from simgap.analysis.admission import clearly_smaller
+    from simgap.analysis.search import clearly_smaller
 
     rng = np.random.default_rng(0)
     before = 0.553**2 * rng.uniform(0.5, 1.5, 40)

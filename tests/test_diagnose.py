@@ -8,17 +8,16 @@ import numpy as np
 import pytest
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.candidates import CANDIDATES
-from simgap.analysis.fitting import (
+from simgap.analysis.candidates import (
+    CANDIDATES,
     Fit,
-    Items,
     ProjectionCandidate,
+    ProjectionSet,
     project_items,
 )
-from simgap.analysis.projection_set import ProjectionSet
-from simgap.analysis.scored import Scored
-from simgap.analysis.scoring import parsimonious
-from simgap.analysis.selection import ModelSearch
+from simgap.analysis.gap import Items
+from simgap.analysis.search import ModelSearch, Scored, parsimonious
+from simgap.core.axes import AXES
 from simgap.core.rig import load_rig
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
@@ -207,8 +206,8 @@ def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():
     relevance rule refitted the model without focal_length, let tag_scale absorb its pose change,
     judged focal_length irrelevant and reported tag_scale alone (held-out corners 4.26 px
     instead of 0.19 px). Since seed 32 a print scale must change the sizes in proportion
-    (:mod:`simgap.analysis.size_signature`): the edge offset (measured -0.593 px on every tag,
-    slope 0.1 standard errors) is left unexplained, not read as a -1 % print."""
+    (:mod:`simgap.analysis.candidates._size_signature`): the edge offset (measured -0.593 px on
+    every tag, slope 0.1 standard errors) is left unexplained, not read as a -1 % print."""
     rig = load_rig()
     items, base = _items(
         rig, {"focal_length": {"scale": -0.03}}, noise_px=0.1, seed=1, shrink_px=0.6
@@ -234,12 +233,12 @@ def _field(gap: np.ndarray, sigma: float = 2e-4) -> gapmod.GapField:
     tags, ps, thetas = [0], np.arange(15), np.deg2rad(np.arange(0, 60, 10))
     da = xr.DataArray(
         gap,
-        coords={"tag": tags, "p": ps, "theta": thetas, "axis": list(gapmod.AXES)},
+        coords={"tag": tags, "p": ps, "theta": thetas, "axis": list(AXES)},
         dims=("tag", "p", "theta", "axis"),
     )
     ones = xr.ones_like(da.isel(axis=0))
     sig = xr.DataArray(
-        [sigma, sigma, sigma, 4e-3, 4e-3, 4e-3], coords={"axis": list(gapmod.AXES)}, dims="axis"
+        [sigma, sigma, sigma, 4e-3, 4e-3, 4e-3], coords={"axis": list(AXES)}, dims="axis"
     )
     return gapmod.GapField(da, sig, ones.astype(bool), ones, ones)
 
@@ -263,7 +262,7 @@ def test_gap_significance_noise_versus_trend():
 
 def test_detection_mismatch_compares_rates_where_the_limit_is_crossed():
     """Losing as many tags as the capture in the same group matches, whichever ones they are."""
-    from simgap.analysis.channels import detection_score
+    from simgap.analysis.gap import detection_score
     from simgap.analysis.thresholds import DETECTION_UNIT
 
     real = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 1.0])
@@ -322,7 +321,7 @@ def test_a_distortion_the_corners_show_is_not_refused_for_pose_noise():
     channel's quarter-unit tolerance): refused under a 10 % rule, it is seen now. A pose gap
     larger by more than the tolerance still refuses it.
     """
-    from simgap.analysis.admission import seen_in_corners
+    from simgap.analysis.search import seen_in_corners
     from simgap.analysis.thresholds import EQUIVALENT_REL, EQUIVALENT_UNITS
 
     rig = load_rig()
@@ -365,7 +364,7 @@ def test_geometry_fitted_to_corners_something_else_moved_is_refused(smear_px):
 
 def test_a_value_at_the_end_of_its_range_is_on_its_bound():
     """Within ``AT_BOUND_SHARE`` of the range's largest magnitude from an end: on the bound."""
-    from simgap.analysis.fitting import on_bound
+    from simgap.analysis.candidates import on_bound
 
     assert on_bound(4.95, 0.1, 5.0) and on_bound(0.1, 0.1, 5.0) and not on_bound(2.5, 0.1, 5.0)
     assert on_bound(-0.246, -0.25, 0.25) and not on_bound(0.2, -0.25, 0.25)
@@ -381,7 +380,7 @@ def test_a_model_with_a_parameter_on_its_search_bound_is_no_finding():
     validation counts the trials with a selected parameter on its bound. Run it with
     ``pytest -m slow``.
     """
-    from simgap.analysis.admission import at_bound
+    from simgap.analysis.search import at_bound
 
     rig = load_rig()
     search = _search(rig, {"tag_scale": {"scale": 0.28}})
@@ -417,7 +416,7 @@ def test_a_focal_length_and_a_camera_offset_are_found_together(translation_m, of
 def test_the_detection_channel_is_capped_like_an_image_statistic():
     """Two of eight tags lost more than the capture (25 %, 5 units) count as the cap, 3 units:
     the blur of blind seed 30's trial 13 lost them and a print scale won on 5 units."""
-    from simgap.analysis.channels import evidence_channels
+    from simgap.analysis.gap import evidence_channels
     from simgap.analysis.thresholds import RESIDUAL_CAP
 
     channels = evidence_channels(0.4, 0.7, 5.0, np.array([1.0, 4.0]), 0.2)
@@ -521,7 +520,7 @@ def test_a_size_change_tells_a_print_scale_from_an_edge_offset():
     """A print scale changes every tag's size by the same share; an edge offset by the same
     pixels; a defocus by an offset that changes with depth (so with size). 0.05 px of corner
     noise (seed 0), 30 tags of 25-95 px (the sizes of the blind captures)."""
-    from simgap.analysis.size_signature import size_change
+    from simgap.analysis.candidates import size_change
 
     rng = np.random.default_rng(0)
     sizes = np.linspace(25.0, 95.0, 30)
@@ -545,7 +544,7 @@ def test_a_print_scale_does_not_follow_an_edge_offset(shrink_px):
     the same pixels; a print scale fitted to it (-0.6 % for 0.3 px here) is no finding, while a
     true print scale of 2.5 % still is (its size change stood 20.8 standard errors out,
     measured)."""
-    from simgap.analysis.admission import grows_with_size
+    from simgap.analysis.search import grows_with_size
 
     rig = load_rig()
     items, base = _items(rig, {}, noise_px=0.2, seed=1, shrink_px=shrink_px)
@@ -589,7 +588,7 @@ def test_a_distortion_the_corners_single_out_joins_a_model_and_stands_alone():
     (measured k1 -0.055, k2 -0.020); without a lens nothing joins; pure corner noise has no
     corner finding.
     """
-    from simgap.analysis.corner_findings import corner_effect_alone, with_corner_effects
+    from simgap.analysis.search import corner_effect_alone, with_corner_effects
 
     rig = load_rig()
     focal, lens = CANDIDATES["focal_length"], CANDIDATES["lens_distortion"]
@@ -616,7 +615,7 @@ def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_i
     capture; the corners had singled them out only item by item (seed 38 trial 26: a 0.24 mm mount
     beside a laminate, corners 0.482 -> 0.447 px). Blind seed 40: true carriage pitches of 1.1 and
     2.1 % beside the camera's blur were minor on a noisy one-frame capture and lowered the corners
-    0.44 -> 0.20 and 0.91 -> 0.23 px (:func:`simgap.analysis.pruning.pruned`). Here the evidence
+    0.44 -> 0.20 and 0.91 -> 0.23 px (:func:`simgap.analysis.search.pruned`). Here the evidence
     keeps every effect (``as_good`` false): a mount that moves no pose and lowers the corners
     0.48 -> 0.45 px leaves; one that lowers them 0.44 -> 0.20 px stays, and so does one that
     moves the pose; a principal point that moves no pose stays (a calibration file may know the
@@ -624,7 +623,7 @@ def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_i
     """
     from dataclasses import dataclass as _dataclass
 
-    from simgap.analysis import pruning
+    from simgap.analysis.search import pruned
 
     @_dataclass
     class Model:
@@ -647,8 +646,8 @@ def test_a_fixture_change_that_moves_no_pose_stays_only_where_the_corners_show_i
     def weights(mount: float, pp: float):
         return lambda m: {"blur": 5.0, "camera_mount": mount, "principal_point": pp}
 
-    monkeypatch.setattr(pruning, "as_good", lambda a, b: False)  # the evidence keeps them all
-    pruned = pruning.pruned
+    # the evidence keeps them all: the rule pruned() reads, in its private module
+    monkeypatch.setattr("simgap.analysis.search._pruning.as_good", lambda a, b: False)
     model, evaluate = case(0.45, 0.48)
     assert pruned(model("blur", "camera_mount"), evaluate, weights(0.2, 0.0)).effects == ["blur"]
     kept = pruned(model("blur", "principal_point"), evaluate, weights(0.0, 0.2))

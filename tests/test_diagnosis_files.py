@@ -10,12 +10,8 @@ import pytest
 from test_cli import small_dataset
 from typer.testing import CliRunner
 
-from simgap.analysis.gap import align
-from simgap.analysis.image_evidence import (
-    plot_image_stats,
-    tag_distance_and_view_angle,
-)
-from simgap.analysis.report.figures import plot_change_heatmap, plot_comparison_heatmap
+from simgap.analysis.gap import align, plot_image_stats, tag_distance_and_view_angle
+from simgap.analysis.report import plot_change_heatmap, plot_comparison_heatmap
 from simgap.cli import app
 from simgap.core.outputs import claim_folder
 from simgap.diagnosis.diagnosis_files import (

@@ -298,7 +298,7 @@ def test_band_figure_is_not_scaled_by_one_outlier(model, synthetic):
     The panel's limit is the band's and the points' far-out fence, 1.1x; the outlier is counted
     in its title (looked at: the bands of tests' synthetic model stay visible).
     """
-    from simgap.analysis.errormodel_report import plot_error_model_bands
+    from simgap.analysis.report import plot_error_model_bands
 
     ds = synthetic.copy(deep=True)
     variant = str(model.ds.attrs.get("variant", ds.variant.values[0]))

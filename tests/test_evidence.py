@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.analysis import evidence
+from simgap.analysis.gap import (
+    detection_pvalue,
+    detection_tests,
+    holm_reject,
+    line_residuals,
+    scatter_tests,
+)
 from simgap.core.rig import load_rig
 from simgap.diagnosis.items import split_items
 from simgap.results.dataset import build_dataset, empty_results
@@ -55,18 +61,18 @@ def _dataset(
 
 def test_no_difference_is_not_significant():
     real, sim = _dataset(1), _dataset(2)
-    assert not any(t.significant for t in evidence.scatter_tests(real, sim))
-    assert not any(t.significant for t in evidence.detection_tests(real, sim))
+    assert not any(t.significant for t in scatter_tests(real, sim))
+    assert not any(t.significant for t in detection_tests(real, sim))
 
 
 def test_a_capture_that_loses_a_fifth_of_its_detections_is_significant():
     real, sim = _dataset(1, lost=0.2), _dataset(2)
-    rows = {t.region: t for t in evidence.detection_tests(real, sim)}
+    rows = {t.region: t for t in detection_tests(real, sim)}
     assert rows["all"].significant
     assert rows["all"].difference == pytest.approx(-0.2, abs=0.01)
     # the lost ones are the frontal views: that band carries the loss
     assert rows["view 60-90 deg"].significant
-    assert not any(t.significant for t in evidence.scatter_tests(real, sim))
+    assert not any(t.significant for t in scatter_tests(real, sim))
 
 
 def test_the_issue_numbers_of_lost_detections_are_significant():
@@ -74,16 +80,16 @@ def test_the_issue_numbers_of_lost_detections_are_significant():
     lens) is significant by the planned overall test (Boschloo p 0.00098 < 0.01; Fisher's 0.0025
     failed Bonferroni over seven tests, 0.0014), and so is half of one 15-configuration region
     under Holm over the six regional tests (7 of 15: p 0.00082 < 0.01 / 6)."""
-    assert evidence.detection_pvalue(36, 45, 45, 45) == pytest.approx(0.00098, abs=2e-5)
-    assert evidence.detection_pvalue(7, 15, 15, 15) == pytest.approx(0.00082, abs=2e-5)
-    assert evidence.detection_pvalue(45, 45, 45, 45) == 1.0
+    assert detection_pvalue(36, 45, 45, 45) == pytest.approx(0.00098, abs=2e-5)
+    assert detection_pvalue(7, 15, 15, 15) == pytest.approx(0.00082, abs=2e-5)
+    assert detection_pvalue(45, 45, 45, 45) == 1.0
     # Holm: the smallest against alpha / 6, the next against alpha / 5, ... stopping at a miss
     # (0.0008 < 0.00167, 0.0019 < 0.002, 0.003 >= 0.0025: stop)
-    assert evidence.holm_reject([0.0008, 0.003, 0.5, 0.0019, 0.2, 0.9]) == [
+    assert holm_reject([0.0008, 0.003, 0.5, 0.0019, 0.2, 0.9]) == [
         True, False, False, True, False, False,
     ]  # fmt: skip
-    assert evidence.holm_reject([0.002, 0.0021]) == [True, True]  # 0.002 < 0.005, 0.0021 < 0.01
-    assert evidence.holm_reject([0.012, 0.0021]) == [False, True]  # 0.012 >= 0.01
+    assert holm_reject([0.002, 0.0021]) == [True, True]  # 0.002 < 0.005, 0.0021 < 0.01
+    assert holm_reject([0.012, 0.0021]) == [False, True]  # 0.012 >= 0.01
 
 
 def test_a_fifth_of_45_detections_lost_is_significant_overall():
@@ -91,7 +97,7 @@ def test_a_fifth_of_45_detections_lost_is_significant_overall():
     ps, thetas = (0, 3, 7, 10, 14), np.deg2rad([0, 10, 20, 30, 40, 320, 330, 340, 350])
     real = _dataset(1, lost=0.2, ps=ps, thetas=thetas)
     sim = _dataset(2, ps=ps, thetas=thetas)
-    rows = {r.region: r for r in evidence.detection_tests(real, sim)}
+    rows = {r.region: r for r in detection_tests(real, sim)}
     assert (rows["all"].real_detected, rows["all"].real_attempts) == (36, 45)
     assert rows["all"].significant and rows["all"].test == "planned"
     assert rows["all"].p_value == pytest.approx(0.00098, abs=2e-5)
@@ -100,7 +106,7 @@ def test_a_fifth_of_45_detections_lost_is_significant_overall():
 @pytest.mark.parametrize("repeats", [1, 3])
 def test_doubled_scatter_is_significant_with_or_without_repeats(repeats):
     real, sim = _dataset(1, noise_mm=0.6, repeats=repeats), _dataset(2, repeats=repeats)
-    pooled = [t for t in evidence.scatter_tests(real, sim) if t.region == "all"]
+    pooled = [t for t in scatter_tests(real, sim) if t.region == "all"]
     # ~90 (single repeat) or ~350 samples per axis: measured 5-6 of 6 axes significant over
     # seeds 1, 5, 9 (ratios 1.3-2.9 for a true 2; the robust scale of 90 samples varies ~15 %)
     assert sum(t.significant for t in pooled) >= 5
@@ -110,10 +116,10 @@ def test_doubled_scatter_is_significant_with_or_without_repeats(repeats):
 def test_line_residuals_remove_any_linear_trend_on_uneven_spacing():
     x = np.array([0.0, 3, 6, 9, 12, 14])
     field = 0.7 * x + 2.0
-    np.testing.assert_allclose(evidence.line_residuals(field, x), 0.0, atol=1e-12)
+    np.testing.assert_allclose(line_residuals(field, x), 0.0, atol=1e-12)
     noise = np.random.default_rng(0).normal(0, 1, (4000, x.size))
     # unit white noise stays unit variance (measured 1.00 +/- 0.01 per position)
-    assert evidence.line_residuals(noise, x).std(axis=0) == pytest.approx(1.0, abs=0.05)
+    assert line_residuals(noise, x).std(axis=0) == pytest.approx(1.0, abs=0.05)
 
 
 @pytest.mark.parametrize("n", [3, 9, 48, 101])

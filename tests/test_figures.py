@@ -7,14 +7,14 @@ import pytest
 import xarray as xr
 from matplotlib.figure import Figure
 
-from simgap.analysis.errormodel.geometry import covariates
-from simgap.analysis.report.heatmaps import (
+from simgap.analysis.errormodel import covariates
+from simgap.analysis.report import (
+    dataset_distance_m,
     mark_beyond_limit,
     robust_colour_limit,
     row_distance_labels,
     sampled_axis,
 )
-from simgap.analysis.report.summaries import dataset_distance_m
 from simgap.core.distance import DISTANCE_LABEL, camera_to_tag_distance
 from simgap.diagnosis.engineering import plot_gap_by_distance
 from simgap.pose.image_stats import STAT_NAMES

@@ -7,7 +7,21 @@ import dataclasses
 import numpy as np
 import pytest
 
-from simgap.analysis import glint_ratio, gloss, lobe
+from simgap.analysis.candidates import (
+    ALPHA,
+    GLINT_MIN_GAIN,
+    HEIGHT_M,
+    MIN_TAGS,
+    OFFSET_M,
+    GlossCandidate,
+    TagLevels,
+    beckmann,
+    fit_levels,
+    fit_ratios,
+    fresnel_veil,
+    lobe_geometry,
+    predicted_levels,
+)
 from simgap.pipeline.experiment import load_experiment
 from simgap.pose.image_stats import STAT_INDEX, STATS
 from tests.grid_items import grid_items
@@ -28,17 +42,17 @@ def _stats(ink: np.ndarray, paper: np.ndarray) -> np.ndarray:
     return out
 
 
-def _levels(eye_from_tag: np.ndarray, x: np.ndarray, rng: np.random.Generator) -> gloss.TagLevels:
+def _levels(eye_from_tag: np.ndarray, x: np.ndarray, rng: np.random.Generator) -> TagLevels:
     """Real levels drawn from the level model at ``x`` over simulated ones, with noise."""
     paper = rng.uniform(0.25, 0.45, len(eye_from_tag))
     none = np.zeros(len(paper), bool)
-    sim = gloss.TagLevels(paper, paper, 0.035 * paper, paper, none, none, eye_from_tag)
-    ink, real_paper = gloss.predicted_levels(sim, x)
+    sim = TagLevels(paper, paper, 0.035 * paper, paper, none, none, eye_from_tag)
+    ink, real_paper = predicted_levels(sim, x)
     # noise: a tenth of a stop on ink, a twentieth on paper (the floors are 0.5 and 0.3 stop)
     ink = ink * 2.0 ** (0.1 * rng.standard_normal(ink.size))
     real_paper = real_paper * 2.0 ** (0.05 * rng.standard_normal(ink.size))
     clipped = real_paper >= 1.0
-    return gloss.TagLevels(
+    return TagLevels(
         ink, np.minimum(real_paper, 1.0), sim.sim_ink, sim.sim_paper, clipped, none, eye_from_tag
     )
 
@@ -49,16 +63,16 @@ def test_the_laminate_is_recovered_and_a_matte_light_is_no_laminate():
     # exposure -0.5 EV, ink 1.2x (a transfer curve), a light beside the lens, a laminate of
     # roughness 0.1 mirroring it from 5 cm right of and 2 cm above the lens
     truth = np.array([-0.5, np.log2(1.2), 0.01, 2e-3, 0.1, 0.05, 0.02])
-    fit = gloss.fit_levels(_levels(eye_from_tag, truth, rng))
+    fit = fit_levels(_levels(eye_from_tag, truth, rng))
     # measured: alpha 0.095, offsets 0.046 and 0.015 m, glint scale 1.78e-3 (the offsets and
     # the roughness trade off a little: all three widen or shift the lobe)
     assert fit.alpha == pytest.approx(0.1, rel=0.1)
     assert fit.offset_x_m == pytest.approx(0.05, abs=0.01)
     assert fit.offset_z_m == pytest.approx(0.02, abs=0.01)
     assert fit.glint_scale == pytest.approx(2e-3, rel=0.15)
-    assert fit.rms_light - fit.rms_laminate >= gloss.GLINT_MIN_GAIN
-    matte = gloss.fit_levels(_levels(eye_from_tag, np.r_[truth[:3], 0.0, truth[4:]], rng))
-    assert matte.rms_light - matte.rms_laminate < gloss.GLINT_MIN_GAIN
+    assert fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN
+    matte = fit_levels(_levels(eye_from_tag, np.r_[truth[:3], 0.0, truth[4:]], rng))
+    assert matte.rms_light - matte.rms_laminate < GLINT_MIN_GAIN
 
 
 @pytest.mark.slow
@@ -77,7 +91,7 @@ def test_a_rendered_laminate_under_a_lens_side_light_is_named_with_its_roughness
     runner = SimRunner(exp, Simulator(tmp_path))
     items = grid_items(runner.rig, (0, 4, 8, 13), (0, 10, 30, 180, 190, 210))
     base = exp.variant_states()[0][1]
-    candidate = gloss.GlossCandidate()
+    candidate = GlossCandidate()
     truth = {
         "alpha": 0.1,
         "light_intensity_w_sr": 0.3,
@@ -107,15 +121,15 @@ def test_a_rendered_laminate_under_a_lens_side_light_is_named_with_its_roughness
 
 def _lit_otherwise(
     eye_from_tag: np.ndarray, glint_scale: float, rng: np.random.Generator
-) -> gloss.TagLevels:
+) -> TagLevels:
     """Real levels under another camera's lights (each tag lit 0.6-1.6x the simulation's), an
     exposure of -0.5 EV, flare, and a laminate of roughness 0.2 mirroring a light 6 cm left of
     and 2 cm below the lens (``glint_scale`` 0: no laminate)."""
     paper = rng.uniform(0.25, 0.45, len(eye_from_tag))
     ink = 0.035 * paper
     lighting = 2.0 ** rng.uniform(-0.7, 0.7, len(paper))
-    cos_h, cos_o, _, distance = lobe.lobe_geometry(eye_from_tag, -0.06, -0.02)
-    glint = glint_scale * lobe.beckmann(cos_h, 0.2) / (distance**2 * np.maximum(cos_o, 0.05))
+    cos_h, cos_o, _, distance = lobe_geometry(eye_from_tag, -0.06, -0.02)
+    glint = glint_scale * beckmann(cos_h, 0.2) / (distance**2 * np.maximum(cos_o, 0.05))
     gain, flare = 2.0**-0.5, 0.004
     real_paper = (gain * paper * lighting + glint + flare) * 2.0 ** (
         0.05 * rng.standard_normal(paper.size)
@@ -124,7 +138,7 @@ def _lit_otherwise(
         0.1 * rng.standard_normal(paper.size)
     )
     none = np.zeros(len(paper), bool)
-    return gloss.TagLevels(real_ink, real_paper, ink, paper, none, none, eye_from_tag)
+    return TagLevels(real_ink, real_paper, ink, paper, none, none, eye_from_tag)
 
 
 def test_the_glint_is_placed_from_ink_to_paper_ratios_whatever_the_lights():
@@ -138,54 +152,54 @@ def test_the_glint_is_placed_from_ink_to_paper_ratios_whatever_the_lights():
     eye_from_tag = _grid()
     rng = np.random.default_rng(4)
     levels = _lit_otherwise(eye_from_tag, 2e-4, rng)
-    fit = glint_ratio.fit_ratios(levels, gloss.ALPHA, gloss.OFFSET_M)
+    fit = fit_ratios(levels, ALPHA, OFFSET_M)
     assert fit is not None and fit.tags == len(eye_from_tag)
     alpha, offset_x, offset_z = fit.geometry
     assert alpha == pytest.approx(0.2, rel=0.15)
     assert offset_x == pytest.approx(-0.06, abs=0.01)
-    assert offset_z == glint_ratio.HEIGHT_M
-    assert fit.gain >= gloss.GLINT_MIN_GAIN
-    level = gloss.fit_levels(levels)
-    assert level.rms_light - level.rms_laminate < gloss.GLINT_MIN_GAIN
-    matte = glint_ratio.fit_ratios(
-        _lit_otherwise(eye_from_tag, 0.0, rng), gloss.ALPHA, gloss.OFFSET_M
+    assert offset_z == HEIGHT_M
+    assert fit.gain >= GLINT_MIN_GAIN
+    level = fit_levels(levels)
+    assert level.rms_light - level.rms_laminate < GLINT_MIN_GAIN
+    matte = fit_ratios(
+        _lit_otherwise(eye_from_tag, 0.0, rng), ALPHA, OFFSET_M
     )
-    assert matte is not None and matte.gain < gloss.GLINT_MIN_GAIN
+    assert matte is not None and matte.gain < GLINT_MIN_GAIN
 
 
 @pytest.mark.parametrize("veil", [0.002, 0.004, 0.008])
 def test_a_laminate_veil_is_told_from_flare(veil):
     """A laminate mirrors the room into the lens with its Fresnel reflectance, which grows
-    towards grazing views (``lobe.fresnel_veil``); a camera's flare adds the same level to every
+    towards grazing views (``fresnel_veil``); a camera's flare adds the same level to every
     tag. Over the same matte levels under another camera's lights, a veil of 0.002-0.008 full
     scale (no glint) is supported and measured, a flare of 0.005-0.02 is not. Measured: veil
     0.0019 / 0.0039 / 0.0079 with gains 0.33 / 0.56 / 0.77 floors; flare gains below 0.003
     floors, the flare fitted as flare. Bounds: the veil within 10 %, the flare's gain a tenth
     of the support."""
     eye_from_tag = _grid()
-    cos_o = lobe.lobe_geometry(eye_from_tag, 0.0)[1]
+    cos_o = lobe_geometry(eye_from_tag, 0.0)[1]
     base = _lit_otherwise(eye_from_tag, 0.0, np.random.default_rng(5))
-    added = veil * lobe.fresnel_veil(cos_o)
+    added = veil * fresnel_veil(cos_o)
     lit = dataclasses.replace(
         base, real_ink=base.real_ink + added, real_paper=base.real_paper + added
     )
-    fit = glint_ratio.fit_ratios(lit, gloss.ALPHA, gloss.OFFSET_M)
-    assert fit is not None and fit.gain >= gloss.GLINT_MIN_GAIN
+    fit = fit_ratios(lit, ALPHA, OFFSET_M)
+    assert fit is not None and fit.gain >= GLINT_MIN_GAIN
     assert fit.veil == pytest.approx(veil, rel=0.1)
     flare = 5.0 * veil / 2.0
     flared = dataclasses.replace(
         base, real_ink=base.real_ink + flare, real_paper=base.real_paper + flare
     )
-    fit = glint_ratio.fit_ratios(flared, gloss.ALPHA, gloss.OFFSET_M)
-    assert fit is not None and fit.gain < 0.1 * gloss.GLINT_MIN_GAIN
+    fit = fit_ratios(flared, ALPHA, OFFSET_M)
+    assert fit is not None and fit.gain < 0.1 * GLINT_MIN_GAIN
 
 
 def test_too_few_unclipped_papers_leave_the_glint_to_the_level_model():
     eye_from_tag = _grid()
     levels = _lit_otherwise(eye_from_tag, 2e-4, np.random.default_rng(4))
-    clipped = np.arange(len(levels)) >= glint_ratio.MIN_TAGS - 1
-    levels = gloss.TagLevels(
+    clipped = np.arange(len(levels)) >= MIN_TAGS - 1
+    levels = TagLevels(
         levels.real_ink, levels.real_paper, levels.sim_ink, levels.sim_paper, clipped,
         np.zeros(len(levels), bool), levels.eye_from_tag,
     )  # fmt: skip
-    assert glint_ratio.fit_ratios(levels, gloss.ALPHA, gloss.OFFSET_M) is None
+    assert fit_ratios(levels, ALPHA, OFFSET_M) is None

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.fitting import Items
+from simgap.analysis.gap import Items
 from simgap.analysis.thresholds import PRACTICAL_FLOOR
 from simgap.diagnosis.items import build_items, with_render_seeds
 from simgap.diagnosis.settings import DiagnoseSettings

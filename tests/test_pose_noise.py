@@ -1,4 +1,4 @@
-"""Each configuration's pose noise propagated from corner noise (simgap.analysis.pose_noise)."""
+"""Each configuration's pose noise propagated from corner noise (simgap.analysis.gap)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from simgap.analysis.fitting import Items, project_items
-from simgap.analysis.pose_noise import SHIFT_DRAWS, noise_shift, propagated_pose_noise
+from simgap.analysis.candidates import project_items
+from simgap.analysis.gap import SHIFT_DRAWS, Items, noise_shift, propagated_pose_noise
 from simgap.core.axes import AXES
 from simgap.diagnosis.items import with_noise_shift, with_propagated_noise
 from simgap.pipeline.experiment import load_experiment
@@ -112,7 +112,7 @@ def _dataset(corners: np.ndarray, reproj_px: float) -> xr.Dataset:
 def test_a_converged_simulation_reads_its_poses_with_the_captures_extra_noise():
     """Each simulated error moves by the shift under the capture's noise beyond the simulation's:
     median reprojection 0.1 px (capture) and 0.06 px (simulation): 2 sqrt(0.1^2 - 0.06^2) = 0.16
-    px a coordinate (:func:`simgap.analysis.channels.frame_corner_noise`)."""
+    px a coordinate (:func:`simgap.analysis.gap.frame_corner_noise`)."""
     corners, rig, base = _corners()
     sim_corners = corners.copy()
     sim_corners[3] = np.nan  # not detected in the simulation: its error is left as it was

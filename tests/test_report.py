@@ -12,8 +12,7 @@ import pytest
 import xarray as xr
 
 from simgap.analysis.paper import AXES, TABLE2, threshold_for
-from simgap.analysis.report import write_report
-from simgap.analysis.report.summaries import fit_abs_error_slope, summarize_variant
+from simgap.analysis.report import fit_abs_error_slope, summarize_variant, write_report
 
 PITCH_M = 0.0254
 TAGS = [0, 1]
@@ -239,7 +238,7 @@ def test_missing_coordinate_is_named(tmp_path: Path) -> None:
 
 
 def test_report_figures_speak_mm_and_mrad() -> None:
-    from simgap.analysis.report.figures import plot_error_heatmap, plot_error_vs_distance
+    from simgap.analysis.report import plot_error_heatmap, plot_error_vs_distance
 
     ds = make_dataset()
     summary = summarize_variant(ds.isel(variant=0), pin_pitch_m=PITCH_M)

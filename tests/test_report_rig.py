@@ -8,8 +8,7 @@ import yaml
 
 from simgap.analysis.gap import distance_thirds
 from simgap.analysis.paper import ROTATION_THRESHOLD_RAD, TRANSLATION_THRESHOLD_M
-from simgap.analysis.report.comparisons import rig_facing_theta_rad
-from simgap.analysis.report.summaries import dataset_rig
+from simgap.analysis.report import dataset_rig, rig_facing_theta_rad
 from simgap.analysis.thresholds import PRACTICAL_FLOOR
 from simgap.core.config import to_mapping
 from simgap.core.rig import load_rig

@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgap.analysis.report import write_sun_report
-from simgap.analysis.report.sun import envelope_rows, summarize_sun, worst_directions
+from simgap.analysis.report import envelope_rows, summarize_sun, worst_directions, write_sun_report
 from simgap.pipeline.experiment import experiment_from_yaml
 from simgap.pipeline.sweep import run_experiment
 from simgap.results.dataset import POOLED, pooled_variants, read_netcdf, write_netcdf

@@ -6,8 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from simgap.analysis.candidates import CANDIDATES
-from simgap.analysis.fitting import project_items
+from simgap.analysis.candidates import CANDIDATES, project_items
 from simgap.core.rig import load_rig
 from simgap.diagnosis.telling_poses import corner_difference_px, grid_items, telling_poses
 from simgap.effects import make_effect

@@ -257,7 +257,7 @@ def test_experiment_round_trips_through_its_dataset_yaml():
 def test_image_stats_figure_counts_view_angle_from_facing(smoke_variants_nc):
     """The image-statistics figure's view angle is counted from facing, as the heatmaps' (issue
     53), and a statistic with one value everywhere says so instead of drawing a made-up scale."""
-    from simgap.analysis.image_evidence import VIEW_ANGLE_LABEL, plot_image_stats
+    from simgap.analysis.gap import VIEW_ANGLE_LABEL, plot_image_stats
     from simgap.results.dataset import read_netcdf
 
     ds = read_netcdf(smoke_variants_nc)

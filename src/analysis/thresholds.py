@@ -54,7 +54,7 @@ FLIP_RAD: Final[float] = 0.15
 
 #: Family-wise false-alarm rate of each family of evidence tests (scatter and image:
 #: Bonferroni over the tests of a family; detection: the overall test is the planned one, the
-#: six regional ones Holm's step-down, :mod:`simgap.analysis.evidence`).
+#: six regional ones Holm's step-down, :mod:`simgap.analysis.gap._evidence`).
 ALPHA: Final[float] = 0.01
 #: Largest number of attempts (the smaller side of a 2 x 2 detection table) for which Boschloo's
 #: exact test is run; beyond it Fisher's, whose power is then the same and which is far cheaper
@@ -103,7 +103,7 @@ def image_floor(stat: str) -> float:
 
 #: Unit of the corner channel (px): the ArUco detector's own corner bias on ideal renders
 #: (~0.2 px, measured on them); a capture whose corner noise is larger uses that instead
-#: (:func:`simgap.analysis.channels.corner_unit`).
+#: (:func:`simgap.analysis.gap.corner_unit`).
 CORNER_UNIT_PX: Final[float] = 0.2
 #: Smallest difference of detection rates that matters (share of tags): the unit of the
 #: detection channel and the practical floor of the detection tests.
@@ -117,7 +117,7 @@ EQUIVALENT_REL: Final[float] = 0.1
 #: channel's tolerance in its unit, a quarter unit, applied to every channel.
 EQUIVALENT_UNITS: Final[float] = EQUIVALENT_PX / CORNER_UNIT_PX
 #: Paired one-sided signed-rank test of per-item corner residuals
-#: (:func:`simgap.analysis.paired.clearly_lower`): its false-alarm rate, and the
+#: (:func:`simgap.analysis.gap.clearly_lower`): its false-alarm rate, and the
 #: smallest median improvement as a share of the other model's median residual (a lens
 #: distortion moves the central tags' corners by tenths of a pixel, consistently).
 PAIRED_ALPHA: Final[float] = 0.01
@@ -125,7 +125,7 @@ PAIRED_MIN_SHARE: Final[float] = 0.05
 #: Image-statistic misfits beyond this many floors count as this many (a robust, Huber-like
 #: cap): a difference nothing in the catalogue explains (a print whose ink is blacker than the
 #: simulation's) is neither credited to nor blamed on an effect. The detection channel is
-#: capped the same way (:func:`simgap.analysis.channels.evidence_channels`).
+#: capped the same way (:func:`simgap.analysis.gap.evidence_channels`).
 RESIDUAL_CAP: Final[float] = 3.0
 #: A significant piece of evidence whose misfit (choose split) with the chosen model is at or above
 #: this many channel units (one: the smallest difference that matters) is *unexplained*.
@@ -134,7 +134,7 @@ UNEXPLAINED_MISFIT: Final[float] = 1.0
 # -- which: the model search -------------------------------------------------------------------
 
 #: Share by which a geometric effect must bring the pose gap (all axes, choose split) closer to the
-#: real one to enter a model (:meth:`simgap.analysis.selection.ModelSearch.select`): between
+#: real one to enter a model (:meth:`simgap.analysis.search.ModelSearch.select`): between
 #: the look-alikes (at most 6 % closer) and the true effects (at least 19 %) measured on
 #: development captures (docs/results/design_evidence.md#thresholds).
 MIN_POSE_REDUCTION: Final[float] = 0.10
@@ -143,7 +143,7 @@ MIN_POSE_REDUCTION: Final[float] = 0.10
 #: answers on blind captures lower it by far more (docs/results/design_evidence.md#thresholds).
 EXPLAINED_REDUCTION: Final[float] = 0.3
 #: An effect whose pose contribution (median change of the choose split's poses over their noise or
-#: the practical floor, :meth:`simgap.analysis.selection.ModelSearch.contributions`) is below
+#: the practical floor, :meth:`simgap.analysis.search.ModelSearch.contributions`) is below
 #: this moves no pose by a relevant amount: it is *minor* (one unit: the floor itself).
 MINOR_CONTRIBUTION: Final[float] = 1.0
 
@@ -154,7 +154,7 @@ MINOR_CONTRIBUTION: Final[float] = 1.0
 #: in 6 of 28 captures of another generator; every true effect of the hidden tables lies inside
 #: its range by a margin). 2 %: far below the ranges' margins over the hidden magnitudes.
 AT_BOUND_SHARE: Final[float] = 0.02
-#: Most effects a model may hold (:meth:`simgap.analysis.selection.ModelSearch.select`). A real
+#: Most effects a model may hold (:meth:`simgap.analysis.search.ModelSearch.select`). A real
 #: camera brings up to three of its own (exposure, softness and sensor noise) beside the one or
 #: two effects that make the gap. Source: blind captures where a full model of the camera's
 #: own effects left no room for a lens distortion that lowered the corner gap beside them, so
@@ -170,17 +170,19 @@ MAX_EFFECTS: Final[int] = 5
 #: spurious geometric effect 0.97-2.11 px (docs/results/design_evidence.md#thresholds).
 GEOMETRY_CORNER_GAP_PX: Final[float] = 4.0 * CORNER_UNIT_PX
 #: A print scale (a size signature) enters a model only where the size change it explains grows
-#: with the tag's image size by this many standard errors (:mod:`simgap.analysis.size_signature`):
-#: the significance of :data:`Z_SIGNIFICANT`. Measured on development captures, true print
-#: scales stand 10.6-34.2 standard errors out, look-alikes 0.6-2.6, two defocused ones 6.0 and
-#: 8.9, which :data:`SIZE_ZERO_SHARE` catches (docs/results/design_evidence.md#thresholds).
+#: with the tag's image size by this many standard errors
+#: (:mod:`simgap.analysis.candidates._size_signature`): the significance of :data:`Z_SIGNIFICANT`.
+#: Measured on development captures, true print scales stand 10.6-34.2 standard errors out,
+#: look-alikes 0.6-2.6, two defocused ones 6.0 and 8.9, which :data:`SIZE_ZERO_SHARE` catches
+#: (docs/results/design_evidence.md#thresholds).
 SIZE_SLOPE_Z: Final[float] = Z_SIGNIFICANT
 #: ... and only where an edge offset against the slope does not cancel the size change before
-#: this share of the smallest tag's size (:attr:`simgap.analysis.size_signature.SizeChange.
-#: zero_share`). A print scale changes no size at zero size (share 0; measured true ones at most
-#: 0.30); defocused look-alikes cross zero near or inside the sizes measured (0.93 and 1.19;
-#: docs/results/design_evidence.md#thresholds). Half: the offset is at most half the print's
-#: change on the smallest tag.
+#: this share of the smallest tag's size
+#: (:attr:`simgap.analysis.candidates._size_signature.SizeChange.zero_share`). A print scale
+#: changes no size at zero size (share 0; measured true ones at most 0.30); defocused look-alikes
+#: cross zero near or inside the sizes measured (0.93 and 1.19;
+#: docs/results/design_evidence.md#thresholds). Half: the offset is at most half the print's change
+#: on the smallest tag.
 SIZE_ZERO_SHARE: Final[float] = 0.5
 
 # -- which: the appearance gates ---------------------------------------------------------------

@@ -49,8 +49,7 @@ def errormodel(
     overwrite: OverwriteOption = False,
 ) -> None:
     """Fit a pose-error and detection model a controller can load (netCDF and JSON)."""
-    from simgap.analysis.errormodel import check_error_model, fit_error_model
-    from simgap.analysis.errormodel.io import model_paths
+    from simgap.analysis.errormodel import check_error_model, fit_error_model, model_paths
 
     # the model is written as netCDF and JSON: OUTPUT and its other file
     outputs = [(OUTPUT, output, ERROR_MODEL)]
@@ -68,8 +67,7 @@ def errormodel(
         if check and ds.sizes["variant"] > 1:
             pooled_check = check_pooled_model(ds)
         ds = pooled_variants(ds)
-    from simgap.analysis.errormodel import FitSettings
-    from simgap.analysis.errormodel.io import FIT_METHODS
+    from simgap.analysis.errormodel import FIT_METHODS, FitSettings
 
     model = fit_error_model(ds, variant=variant, source=str(result))
     summary, skipped = None, ""

@@ -64,7 +64,7 @@ def _is_ingested_dataset(path: Path) -> bool:
 
 def _is_error_model(path: Path) -> bool:
     """An error model simgap wrote: netCDF or JSON with the model schema."""
-    from simgap.analysis.errormodel.io import SCHEMA
+    from simgap.analysis.errormodel import SCHEMA
     from simgap.results.provenance import netcdf_header
 
     header = netcdf_header(path)

@@ -193,7 +193,7 @@ def _ingest_photos(
                             progress=bars)  # fmt: skip
         diagnosis = None
         if opts.simulate:
-            from simgap.analysis.photo_gap import diagnose_photos
+            from simgap.analysis.gap import diagnose_photos
 
             spec = exp.scene_spec if exp is not None else None
             diagnosis = diagnose_photos(ds, board, camera, spec, opts.spp, opts.seed, bars)

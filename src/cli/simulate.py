@@ -85,11 +85,11 @@ def report(
         sun = write_sun_report(ds, output, cache)
         paths += sun
         if ds.sizes.get("variant", 1) > 1 and not sun:  # compare the variants with the reference
-            from simgap.analysis.compare import write_comparison
+            from simgap.analysis.report import write_comparison
 
             paths += write_comparison(ds, output, progress=bars)
         if model is not None:
-            from simgap.analysis.errormodel_report import write_error_model_bands
+            from simgap.analysis.report import write_error_model_bands
 
             paths.append(write_error_model_bands(model, ds, output))
     for p in paths:
@@ -107,7 +107,7 @@ def compare(
     overwrite: OverwriteOption = False,
 ) -> None:
     """Compare each variant of a result dataset with the reference variant."""
-    from simgap.analysis.compare import write_comparison
+    from simgap.analysis.report import write_comparison
     from simgap.cli.progress import StepBars
     from simgap.core.outputs import claimed_folder
 

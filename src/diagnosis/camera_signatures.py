@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 import xarray as xr
 
-from simgap.analysis.image_evidence import repeat_median_stats
+from simgap.analysis.gap import repeat_median_stats
 from simgap.diagnosis.result import PipelineSignature
 
 

@@ -9,7 +9,7 @@ Steps (docs/conventions.md §5):
 3. **which**: the comparable configurations are split into fit, choose and report splits; every
    candidate effect is fitted on the fit split and scored on the choose split on all evidence;
    a ranking; a greedy combination while some evidence channel improves distinguishably, with
-   the model simplified and pruned after every step (:class:`simgap.analysis.selection.
+   the model simplified and pruned after every step (:class:`simgap.analysis.search._selection.
    ModelSearch`); ``unexplained`` evidence when the chosen model leaves it;
 4. **how far**: the chosen model's gap before and after on the report split, per axis, with a
    bootstrap interval, confirmed by re-running the full pipeline (re-render) with the fitted
@@ -32,15 +32,15 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.appearance import signature_significant
-from simgap.analysis.candidates import CANDIDATES
-from simgap.analysis.channels import corner_unit
-from simgap.analysis.corner_findings import corner_effect_alone
-from simgap.analysis.fitting import Candidate
-from simgap.analysis.gap_size import gap_score, median_abs_gap
-from simgap.analysis.scored import Scored, bootstrap_reductions
-from simgap.analysis.scoring import equivalent_models
-from simgap.analysis.selection import ModelSearch
+from simgap.analysis.candidates import CANDIDATES, Candidate, signature_significant
+from simgap.analysis.gap import corner_unit, gap_score, median_abs_gap
+from simgap.analysis.search import (
+    ModelSearch,
+    Scored,
+    bootstrap_reductions,
+    corner_effect_alone,
+    equivalent_models,
+)
 from simgap.core.axes import AXES
 from simgap.core.progress import ProgressCallback, Steps
 from simgap.diagnosis.camera_signatures import pipeline_signatures
@@ -305,7 +305,7 @@ def diagnose(
         Candidate effects, projection or appearance (default: the whole catalogue,
         :data:`simgap.analysis.candidates.CANDIDATES`). An appearance effect is kept only where
         one of its own image statistics differs significantly
-        (:func:`simgap.analysis.appearance.signature_significant`).
+        (:func:`simgap.analysis.candidates.signature_significant`).
     progress : ProgressCallback, optional
         Told the progress of every step after the simulation (whose progress is the
         simulator's): ``fitting candidates`` (one unit per candidate), ``model search`` (one per

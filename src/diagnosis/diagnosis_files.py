@@ -36,9 +36,8 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from simgap.analysis.gap import align
-from simgap.analysis.image_evidence import image_stat_view
-from simgap.analysis.report.comparisons import compare_variants
+from simgap.analysis.gap import align, image_stat_view
+from simgap.analysis.report import compare_variants
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES
 from simgap.diagnosis.result import DiagnosisResult
@@ -360,7 +359,7 @@ class GapEvidence(_GridRecord):
         Both the capture and the simulation estimate every axis.
     turntable_from_facing_deg : ndarray (T, Θ)
         Turntable angle relative to where the tag faces the camera, wrapped to [-180, 180] deg
-        (:func:`~simgap.analysis.report.comparisons.view_angle_deg`).
+        (:func:`~simgap.analysis.report._comparisons.view_angle_deg`).
     distance_m : ndarray (T, P, Θ)
         Camera-to-tag distance of the capture's expected poses (m).
     repeats : int
@@ -400,7 +399,7 @@ class GapEvidence(_GridRecord):
     def comparison(self) -> xr.Dataset:
         """The gap in :func:`compare_variants`' layout: ``real`` against ``simulation``.
 
-        What :func:`~simgap.analysis.report.figures.plot_comparison_heatmap` reads:
+        What :func:`~simgap.analysis.report.plot_comparison_heatmap` reads:
         ``signed_shift`` and ``paired`` of the variant ``real``, the coordinates
         ``view_angle_deg`` and ``distance_m``, the attrs ``baseline`` and ``n_repeat``.
         """
@@ -422,7 +421,7 @@ class GapEvidence(_GridRecord):
 class ImageStatEvidence(_GridRecord):
     """The image statistics of the capture and its simulation, as its figures draw them.
 
-    Each side's :func:`~simgap.analysis.image_evidence.image_stat_view`, on the capture's grid.
+    Each side's :func:`~simgap.analysis.gap.image_stat_view`, on the capture's grid.
 
     Attributes
     ----------
@@ -483,7 +482,7 @@ class ImageStatEvidence(_GridRecord):
         }
 
     def views(self) -> dict[str, xr.Dataset]:
-        """Per source, its :func:`~simgap.analysis.image_evidence.image_stat_view`."""
+        """Per source, its :func:`~simgap.analysis.gap.image_stat_view`."""
         ds = self.to_dataset().reset_coords(drop=True)
         return {source: ds.sel(source=source, drop=True) for source in SOURCES}
 

@@ -5,7 +5,7 @@
 (``evidence.nc``), so ``simgap report-diagnosis`` writes it again from those two files, byte for
 byte. Where the gap lies, its markdown, is :mod:`simgap.diagnosis.where_report`.
 
-The gap heatmap is the comparison figure (:mod:`simgap.analysis.report.figures`) of the real data
+The gap heatmap is the comparison figure (:mod:`simgap.analysis.report._figures`) of the real data
 against the simulation as two variants (:class:`~simgap.diagnosis.diagnosis_files.GapEvidence`),
 so the signed shift of ``real`` against ``simulation`` is the gap. ``gap_by_distance.png``
 (:func:`simgap.diagnosis.engineering.plot_gap_by_distance`) draws the same signed gap,
@@ -20,9 +20,8 @@ from typing import Any
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from simgap.analysis.image_evidence import plot_image_stats
-from simgap.analysis.report.figures import plot_comparison_heatmap
-from simgap.analysis.report.output import save_figure, save_text
+from simgap.analysis.gap import plot_image_stats
+from simgap.analysis.report import plot_comparison_heatmap, save_figure, save_text
 from simgap.analysis.thresholds import EQUIVALENT_PX, EQUIVALENT_REL, GEOMETRY_CORNER_GAP_PX
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.camera_signatures import pipeline_markdown

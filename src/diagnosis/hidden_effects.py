@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from simgap.analysis.gloss import laminate_effects
+from simgap.analysis.candidates import laminate_effects
 
 Sampler = Callable[[np.random.Generator], dict[str, Any]]
 
@@ -41,7 +41,7 @@ def _gloss(rng: np.random.Generator) -> dict[str, Any]:
     Roughness of a gloss to satin laminate film; the light 2-8 cm to either side of the lens and
     up to 4 cm above or below it, 0.1-0.5 W sr^-1 (a tag 0.45 m away gets 0.4-2x the template
     key light's irradiance from it). Rendered as the scene effects of
-    :func:`simgap.analysis.gloss.laminate_effects`.
+    :func:`simgap.analysis.candidates.laminate_effects`.
     """
     return {
         "alpha": float(rng.uniform(0.05, 0.3)),

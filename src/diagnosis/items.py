@@ -1,7 +1,7 @@
 """The diagnosis' items: the real dataset's visible configurations, their simulation, their splits.
 
 An item is one visible (tag, p, theta) with the real and simulated errors, corners, image
-statistics and detection outcomes (:class:`simgap.analysis.fitting.Items`). Candidates are fitted
+statistics and detection outcomes (:class:`simgap.analysis.gap.Items`). Candidates are fitted
 on one split of the items, chosen on a second and the reduction is reported on a third.
 """
 
@@ -18,10 +18,13 @@ import xarray as xr
 import yaml
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.channels import frame_corner_noise
-from simgap.analysis.fitting import Items
-from simgap.analysis.image_evidence import repeat_median_stats
-from simgap.analysis.pose_noise import noise_shift, propagated_pose_noise
+from simgap.analysis.gap import (
+    Items,
+    frame_corner_noise,
+    noise_shift,
+    propagated_pose_noise,
+    repeat_median_stats,
+)
 from simgap.analysis.thresholds import FLIP_RAD, PRACTICAL_FLOOR
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.config import to_mapping
@@ -105,7 +108,7 @@ def repeats_of_simulation(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
 
     A capture with two frames per pose against a simulation with one (a deterministic image
     pipeline) would compare the real repeats' spread with the simulation's neighbour residuals
-    (:mod:`simgap.analysis.evidence`); its first frames are compared instead. The temporal
+    (:mod:`simgap.analysis.gap._evidence`); its first frames are compared instead. The temporal
     noise, measured across a pose's frames at ingest, is kept (on the first repeat).
     """
     n = sim.sizes["repeat"]
@@ -196,9 +199,9 @@ def with_propagated_noise(items: Items, sigma_px: float, rig: Rig, base: Variant
 
     For a simulation whose repeats measure no noise (a converged render): corner noise of
     ``sigma_px`` per coordinate (the diagnosis takes the corner channel's unit, the gap's corner
-    noise of both sides, :func:`simgap.analysis.channels.corner_unit`, over sqrt 2: its two
+    noise of both sides, :func:`simgap.analysis.gap.corner_unit`, over sqrt 2: its two
     coordinates) is propagated through PnP at the simulated corners, or the real ones where the
-    simulation found none (:func:`simgap.analysis.pose_noise.propagated_pose_noise`).
+    simulation found none (:func:`simgap.analysis.gap.propagated_pose_noise`).
     """
     found = np.isfinite(items.sim_corners).all(axis=(1, 2))
     corners = np.where(found[:, None, None], items.sim_corners, items.real_corners)
@@ -284,11 +287,11 @@ def with_noise_shift(
     """A converged ``sim`` whose errors are the poses it would read with ``real``'s corner noise.
 
     At a far, oblique tag PnP turns corner noise into a one-sided shift of the pose
-    (:func:`simgap.analysis.pose_noise.noise_shift`): the capture's pose there carries it, a
+    (:func:`simgap.analysis.gap.noise_shift`): the capture's pose there carries it, a
     noise-free simulation's does not. Each simulated configuration's error (every variant and
     repeat) is moved by the median shift under the capture's corner noise beyond the
     simulation's own, both from their median PnP reprojection errors (sqrt(real^2 - sim^2),
-    :func:`simgap.analysis.channels.frame_corner_noise`), with as many frames a draw as the
+    :func:`simgap.analysis.gap.frame_corner_noise`), with as many frames a draw as the
     capture averages (``real`` has the simulation's repeats:
     :func:`repeats_of_simulation`).
 
@@ -300,7 +303,7 @@ def with_noise_shift(
         Its converged simulation (errors, m and rad; corners and reprojection errors, px).
     rig, base : Rig, VariantState
         The fixture and the simulation's state, whose calibration and PnP settings solve the
-        poses (:func:`simgap.analysis.pose_noise.pose_draws`).
+        poses (:func:`simgap.analysis.gap._pose_noise.pose_draws`).
 
     Returns
     -------

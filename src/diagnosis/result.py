@@ -18,10 +18,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
-from simgap.analysis.channels import root_sum_square
-from simgap.analysis.evidence import DetectionTest, ImageTest, ScatterTest
-from simgap.analysis.gap import AxisGap, DetectionRates, RegionGap
-from simgap.analysis.scored import Scored
+from simgap.analysis.gap import (
+    AxisGap,
+    DetectionRates,
+    DetectionTest,
+    ImageTest,
+    RegionGap,
+    ScatterTest,
+    root_sum_square,
+)
+from simgap.analysis.search import Scored
 from simgap.core.axes import AXES
 from simgap.diagnosis.result_json import VersionedRecord
 
@@ -52,7 +58,7 @@ class Scores:
     """A model's misfit of the evidence of one split, before and after its effects.
 
     ``*_before``: the simulation alone; ``*_after``: with the model's effects. Units as
-    :class:`simgap.analysis.scored.Scored`'s: ``pose_gap`` on the axes with a significant gap,
+    :class:`simgap.analysis.search.Scored`'s: ``pose_gap`` on the axes with a significant gap,
     ``pose_gap_all_axes``, ``median_abs_gap`` per axis (m or rad), ``corner_gap_*_px``,
     ``image_misfit`` (root sum of squares over the image statistics, floors),
     ``detection_mismatch`` (5 % units) and ``evidence`` (all channels combined); the reductions
@@ -124,12 +130,12 @@ class Finding:
         Fitted parameters, in the units the effect's params declare.
     pose_contribution : float
         How far it moves the choose split's poses, the other effects held at their fitted values
-        (:meth:`simgap.analysis.selection.ModelSearch.contributions`).
+        (:meth:`simgap.analysis.search.ModelSearch.contributions`).
     minor : bool
         Seen in the corners or images, moves no pose beyond the floor.
     at_bound : list of str
         Its parameters fitted on the end of their searched range
-        (:func:`simgap.analysis.admission.at_bound`; empty for every finding the search admits,
+        (:func:`simgap.analysis.search.at_bound`; empty for every finding the search admits,
         recorded so that validation measures it).
     """
 
@@ -352,7 +358,7 @@ class DiagnosisResult(VersionedRecord):
     #: every candidate alone, best first
     ranking: list[RankedEffect] = field(default_factory=list)
     #: candidates whose fit put a parameter on the end of its searched range: not findings
-    #: (:func:`simgap.analysis.admission.at_bound`), listed for the engineer
+    #: (:func:`simgap.analysis.search.at_bound`), listed for the engineer
     on_bound: list[RankedEffect] = field(default_factory=list)
     #: None when nothing is selected
     selection: Selection | None = None

@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from simgap.analysis.fitting import Items
+from simgap.analysis.gap import Items
 from simgap.effects.state import VariantState
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.simulator import Simulator
@@ -20,7 +20,7 @@ _FIELD_SHAPES = {"error": (6,), "corners": (4, 2), "image_stats": (len(STAT_NAME
 class SimRunner:
     """Runs variant states through the simulator for a set of items (in process, memoised).
 
-    The :class:`simgap.analysis.runner.Runner` of :class:`simgap.analysis.selection.ModelSearch`
+    The :class:`simgap.analysis.candidates.Runner` of :class:`simgap.analysis.search.ModelSearch`
     and of the simulation-fitted candidates: :meth:`errors`, :meth:`corners`, :meth:`stats`,
     :meth:`detected`, :meth:`depths` and :meth:`eye_from_tag` give the simulated evidence.
 

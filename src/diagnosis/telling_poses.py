@@ -4,8 +4,8 @@ Two models the capture's poses cannot tell apart (a principal point and a camera
 length and a print scale or a tag offset, seen from a handful of frontal poses) still predict
 different corners elsewhere on the fixture's grid. Both fitted models are applied to every
 visible tag at every pin hole and turntable stop with the exact projection
-(:meth:`simgap.analysis.fitting.ProjectionCandidate.corner_shift`: no render needed), and the poses
-where their predicted corners differ most are the ones to add to the capture. A model without
+(:meth:`simgap.analysis.candidates.ProjectionCandidate.corner_shift`: no render needed), and the
+poses where their predicted corners differ most are the ones to add to the capture. A model without
 geometry moves no corner there.
 """
 
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.fitting import Items
-from simgap.analysis.scored import Scored
+from simgap.analysis.gap import Items
+from simgap.analysis.search import Scored
 from simgap.core.distance import camera_to_tag_distance
 from simgap.core.rig import Rig
 from simgap.diagnosis.result import TellingPose

@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from simgap.analysis import evidence
 from simgap.analysis import gap as gapmod
-from simgap.analysis.channels import SCORED_STATS
-from simgap.analysis.scored import Scored
+from simgap.analysis.gap import SCORED_STATS
+from simgap.analysis.search import Scored
 from simgap.analysis.thresholds import UNEXPLAINED_MISFIT
 from simgap.diagnosis.result import Where
 from simgap.diagnosis.settings import DiagnoseSettings
@@ -33,9 +32,9 @@ def where_summary(
         ``field``'s :func:`simgap.analysis.gap.axis_summary` when already computed.
     """
     axis_gaps = gapmod.axis_summary(field) if axis_gaps is None else axis_gaps
-    scatter = evidence.scatter_tests(real, sim)
-    detection = evidence.detection_tests(real, sim)
-    image = evidence.image_tests(real, sim)
+    scatter = gapmod.scatter_tests(real, sim)
+    detection = gapmod.detection_tests(real, sim)
+    image = gapmod.image_tests(real, sim)
     families = {
         "pose": any(a.significant for a in axis_gaps.values()),
         "scatter": any(t.significant for t in scatter),

@@ -6,7 +6,7 @@ z-scores, significance) and the scatter, detection and image-evidence tests behi
 
 from __future__ import annotations
 
-from simgap.analysis.report.tables import markdown_table
+from simgap.analysis.report import markdown_table
 from simgap.core.axes import AXES, display_unit
 from simgap.diagnosis.result import Where
 

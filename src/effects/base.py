@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from simgap.core.config import ConfigError, from_mapping, require, to_mapping
 
-if TYPE_CHECKING:  # annotation only: the state module reads the registry, not the reverse
+if TYPE_CHECKING:  # annotation only: state imports no module of simgap.effects at import time
     from simgap.effects.state import VariantState
 
 try:  # Python >= 3.11: type checkers then see Params classes as frozen dataclasses

@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from simgap.core.rig import NOMINAL, CameraModel, FixtureErrors
-from simgap.effects.base import EFFECTS
 from simgap.pose.tags import Estimation
 from simgap.scene.spec import SceneSpec, default_scene_spec
 
@@ -82,6 +81,10 @@ class ImageState:
     @property
     def stochastic(self) -> bool:
         """Whether the pipeline draws random numbers (then repeats differ)."""
+        # the registry is read when asked, not imported with this module: simgap.effects.base
+        # names VariantState in its annotations, so state stays below it
+        from simgap.effects.base import EFFECTS
+
         return any(EFFECTS[name].stochastic for name, _ in self.ops)
 
 

@@ -45,27 +45,28 @@ interpolated support is at least ``min_support``. Outside, the runtime raises
 Files: :meth:`ErrorModel.save` writes netCDF (grid, units, provenance) and JSON (the schema in
 docs/errormodel.md, readable by a controller without simgap).
 
-Modules (in ``simgap.analysis.errormodel``): ``fit`` (fitting), ``model`` (the query API),
-``io`` (files), ``check`` (the held-out check), ``geometry`` (covariates) and ``smoothing`` (the
-local-linear smoother); the public names are re-exported here.
+Modules (private, in ``simgap.analysis.errormodel``): ``_fit`` (fitting), ``_model`` (the query
+API), ``_io`` (files), ``_check`` (the held-out check), ``_geometry`` (covariates) and
+``_smoothing`` (the local-linear smoother); the public names are re-exported here (``__all__``).
 """
 
 from __future__ import annotations
 
-from simgap.analysis.errormodel.check import (
+from simgap.analysis.errormodel._check import (
     check_error_model,
     check_pooled_model,
     evaluate_held_out,
     split_configurations,
 )
-from simgap.analysis.errormodel.fit import FitSettings, fit_error_model
-from simgap.analysis.errormodel.geometry import covariates, perturb, pose_matrices
-from simgap.analysis.errormodel.io import SCHEMA
-from simgap.analysis.errormodel.model import Z90, ErrorModel, OutOfRangeError, TagPoses
+from simgap.analysis.errormodel._fit import FitSettings, fit_error_model
+from simgap.analysis.errormodel._geometry import covariates, perturb, pose_matrices
+from simgap.analysis.errormodel._io import FIT_METHODS, SCHEMA, model_paths
+from simgap.analysis.errormodel._model import Z90, ErrorModel, OutOfRangeError, TagPoses
 from simgap.core.axes import AXES
 
 __all__ = [
     "AXES",
+    "FIT_METHODS",
     "SCHEMA",
     "Z90",
     "ErrorModel",
@@ -77,6 +78,7 @@ __all__ = [
     "covariates",
     "evaluate_held_out",
     "fit_error_model",
+    "model_paths",
     "perturb",
     "pose_matrices",
     "split_configurations",

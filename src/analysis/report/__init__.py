@@ -1,8 +1,9 @@
-"""Paper-style report of one result dataset: figures, Table 2 beside the paper's, and a summary.
+"""Reports of result datasets: the paper-style report, variant comparison and error-model bands.
 
+The paper-style report of one result dataset: figures, Table 2 beside the paper's, and a summary.
 The entry point is :func:`write_report`. It validates the dataset against the result-dataset
 contract (docs/conventions.md §3), reduces the first variant to a
-:class:`~simgap.analysis.report.summaries.VariantSummary` (absolute and signed errors averaged over
+:class:`~simgap.analysis.report._summaries.VariantSummary` (absolute and signed errors averaged over
 repeats, restricted to visible configurations) and writes, atomically:
 
 ========================================  ======================================================
@@ -19,11 +20,17 @@ file                                      content
                                           computed from the data, embedded figures
 ========================================  ======================================================
 
-The package holds one job a module, composed here and by :mod:`simgap.analysis.compare`:
-:mod:`~simgap.analysis.report.summaries` (reductions, the dataset's rig),
-:mod:`~simgap.analysis.report.comparisons` (paired variant comparison),
-:mod:`~simgap.analysis.report.tables`, :mod:`~simgap.analysis.report.figures`,
-:mod:`~simgap.analysis.report.markdown` and :mod:`~simgap.analysis.report.output` (atomic files).
+The package holds one job a module, composed here and by the variant comparison
+(:mod:`~simgap.analysis.report._compare`, :func:`write_comparison`):
+:mod:`~simgap.analysis.report._summaries` (reductions, the dataset's rig),
+:mod:`~simgap.analysis.report._comparisons` (paired variant comparison),
+:mod:`~simgap.analysis.report._tables`, :mod:`~simgap.analysis.report._figures` (with
+:mod:`~simgap.analysis.report._heatmaps`), :mod:`~simgap.analysis.report._markdown` and
+:mod:`~simgap.analysis.report._output` (atomic files); :mod:`~simgap.analysis.report._sun` the
+sun-direction section (:func:`write_sun_report`) and
+:mod:`~simgap.analysis.report._errormodel_bands` an error model's 90 % bands over the data it
+describes (:func:`write_error_model_bands`). The modules are private; other packages import the
+names of ``__all__`` from here.
 
 Examples
 --------
@@ -40,16 +47,86 @@ from pathlib import Path
 
 import xarray as xr
 
-from simgap.analysis.image_evidence import plot_image_stats
-from simgap.analysis.report.figures import plot_error_heatmap, plot_error_vs_distance
-from simgap.analysis.report.markdown import summary_markdown, table2_markdown
-from simgap.analysis.report.output import save_figure, save_text
-from simgap.analysis.report.summaries import (
+from simgap.analysis.gap import plot_image_stats
+from simgap.analysis.report._compare import write_comparison
+from simgap.analysis.report._comparisons import (
+    change_by_p,
+    compare_variants,
+    resolve_baseline,
+    rig_facing_theta_rad,
+    variant_names,
+)
+from simgap.analysis.report._errormodel_bands import plot_error_model_bands, write_error_model_bands
+from simgap.analysis.report._figures import (
+    plot_axis_change_heatmap,
+    plot_change_by_distance,
+    plot_change_heatmap,
+    plot_comparison_heatmap,
+    plot_error_heatmap,
+    plot_error_vs_distance,
+)
+from simgap.analysis.report._heatmaps import (
+    mark_beyond_limit,
+    robust_colour_limit,
+    row_distance_labels,
+    sampled_axis,
+)
+from simgap.analysis.report._markdown import summary_markdown, table2_markdown
+from simgap.analysis.report._output import save_figure, save_text
+from simgap.analysis.report._summaries import (
     VariantSummary,
     check_report_dataset,
+    dataset_distance_m,
+    dataset_rig,
+    fit_abs_error_slope,
     summarize_variant,
 )
+from simgap.analysis.report._sun import envelope_rows, summarize_sun, worst_directions
+from simgap.analysis.report._tables import (
+    binned_change_table,
+    markdown_table,
+    moves_most,
+    variant_summary_table,
+)
 from simgap.core.progress import ProgressCallback, Steps
+
+__all__ = [
+    "VariantSummary",
+    "binned_change_table",
+    "change_by_p",
+    "compare_variants",
+    "dataset_distance_m",
+    "dataset_rig",
+    "envelope_rows",
+    "fit_abs_error_slope",
+    "mark_beyond_limit",
+    "markdown_table",
+    "moves_most",
+    "plot_axis_change_heatmap",
+    "plot_change_by_distance",
+    "plot_change_heatmap",
+    "plot_comparison_heatmap",
+    "plot_error_heatmap",
+    "plot_error_model_bands",
+    "plot_error_vs_distance",
+    "resolve_baseline",
+    "rig_facing_theta_rad",
+    "robust_colour_limit",
+    "row_distance_labels",
+    "sampled_axis",
+    "save_figure",
+    "save_text",
+    "summarize_sun",
+    "summarize_variant",
+    "variant_names",
+    "variant_summary_table",
+    "worst_directions",
+    "write_comparison",
+    "write_error_model_bands",
+    "write_report",
+    "write_sun_report",
+    "write_variant_report",
+]
 
 #: Writes one figure; module-level so that tests can replace PNG encoding with a placeholder.
 _save_figure = save_figure
@@ -67,7 +144,7 @@ def write_variant_report(
     Parameters
     ----------
     summary : VariantSummary
-        Output of :func:`~simgap.analysis.report.summaries.summarize_variant`.
+        Output of :func:`~simgap.analysis.report.summarize_variant`.
     out_dir : pathlib.Path
         Existing output folder.
     variants : sequence of str, optional
@@ -121,7 +198,7 @@ def write_report(
     pin_pitch_m : float, optional
         Carriage pin-hole pitch in metres (x axis of the error-vs-distance figures and the slope
         fit use carriage position ``pin_pitch_m * p``); default: the pitch of the dataset's rig
-        (:func:`~simgap.analysis.report.summaries.dataset_rig`).
+        (:func:`~simgap.analysis.report.dataset_rig`).
     progress : ProgressCallback, optional
         Told of each figure written (:func:`write_variant_report`).
 
@@ -149,11 +226,11 @@ def write_sun_report(
 ) -> list[Path]:
     """Write the sun-direction section of a sweep over the sun (nothing for other datasets).
 
-    ``sun_polar.png`` (:func:`~simgap.analysis.report.sun.plot_sun_polar`),
+    ``sun_polar.png`` (:func:`~simgap.analysis.report._sun.plot_sun_polar`),
     ``sun_worst_frames.png`` (the worst directions' frames, from the pipeline's cache in
     ``cache_dir``, default the user's) and ``sun.md``.
     """
-    from simgap.analysis.report import sun
+    from simgap.analysis.report import _sun as sun
     from simgap.core.paths import default_cache_dir
 
     sweep = sun.summarize_sun(ds)

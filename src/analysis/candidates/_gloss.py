@@ -1,0 +1,349 @@
+"""A glossy laminate under a light beside the lens, fitted on ink and paper levels against view.
+
+The appearance candidate ``tag_gloss`` (:class:`GlossCandidate`): the tag print under a rough
+dielectric coating (:class:`simgap.effects.scene.TagGloss`, Beckmann roughness ``alpha``, the
+distribution of Mitsuba's ``roughplastic``) lit by a small light on the camera
+(:class:`simgap.effects.scene.CameraLight`: intensity in W sr^-1, offset from the lens in m).
+The pair: a laminated sticker mirrors a lens-side LED straight back into the lens at frontal
+views, so near frontal tags glint, lose contrast or clip and are lost to the detector, while
+oblique ones look as simulated. A laminate seldom sends a lab light into the
+lens; a light on the camera over matte prints only brightens near tags (no glint).
+
+How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.candidates._defocus`):
+
+1. **Levels.** Per tag of the fit split, the real and the simulated (matte, the simulation's
+   lights) linear ink and paper levels (:class:`TagLevels`). A clipped real paper is a lower
+   bound of its level only.
+2. **The level model** (:func:`predicted_levels`): ``paper = G (q + a L + b S)`` and
+   ``ink = G (h i (1 + a L / q) + b S)``, with ``q, i`` the simulated paper and ink, ``G`` the
+   exposure, ``h`` what a transfer curve or flare does to dark ink, ``L = cos(theta_l) / d^2`` the
+   light's diffuse geometry, and the glint ``S = D(theta_h; alpha) / (d^2 cos(theta_o))``: a
+   mirror reflection adds the same radiance to ink and paper (Walter et al. 2007; Fresnel and
+   shadowing near constant over a rough coating's lobe). ``theta_h`` is the angle between the
+   tag's normal and the half vector of the directions to the lens and to the light, ``theta_o``
+   the view angle, ``d`` the distance to the light (nominal rig). Residuals are log levels in
+   the floors of :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`; bounded robust least
+   squares fit exposure alone, then a matte light (``a``), then the laminate (``b``,
+   ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`).
+3. **Geometry from the ink-to-paper ratios** where at least
+   :data:`~simgap.analysis.candidates.MIN_TAGS` tags have unclipped ink and paper
+   (:mod:`simgap.analysis.candidates._glint_ratio`: the capture's own lights cancel in a ratio, a
+   glint does not): roughness and the light's horizontal offset, its height not fitted; the level
+   model then fits only its scales at that geometry. With fewer (an overexposed capture), the
+   level model's own geometry.
+4. **Supported** where the glint explains the ratios better than flare and a constant ratio
+   by :data:`GLINT_MIN_GAIN` (with too few unclipped papers: where the laminate explains the
+   levels better than a matte light by as much): a glint that follows the half-angle is the
+   laminate's signature (that a level differs at all is the where step's test, which makes it
+   a candidate). Three glinting tags of nineteen are 0.95 floors RMS under exposure alone: an
+   RMS gate on the levels would miss them.
+5. **Intensity.** ``a`` and ``b`` are in the simulation's linear units; one render of the fit
+   split with the fitted laminate and a light of :data:`REFERENCE_INTENSITY_W_SR` is fitted with
+   the same roughness and offset, each scale over its rendered one estimates the intensity (a
+   glint and a light are linear in the intensity; the ratios' glint scale gives a third), and a
+   few renders around the estimates pick the intensity whose levels and detections match
+   (:meth:`GlossCandidate.intensity`).
+6. **Exposure.** The candidate carries the exposure ``G`` it was fitted with (``ev``).
+
+Only tags near the half-angle's zero (the frontal stops) sample the lobe's width: with few of
+them roughness, offset and intensity trade off (development captures: roughness within 1.6x).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from simgap.analysis.candidates._appearance import (
+    AppearanceCandidate,
+    capped_rms,
+    evidence_misfit,
+    measuring_only,
+)
+from simgap.analysis.candidates._fitting import Fit, on_bound
+from simgap.analysis.candidates._glint_ratio import STARTS, RatioFit, fit_ratios
+from simgap.analysis.candidates._lobe import LAMINATE_IOR, MIN_COS, beckmann, lobe_geometry
+from simgap.analysis.candidates._runner import Runner
+from simgap.analysis.candidates._subset_fit import fit_subset
+from simgap.analysis.candidates._tag_levels import TagLevels
+from simgap.analysis.gap import Items, detection_groups, detection_score
+from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
+from simgap.effects import make_effect
+from simgap.effects.state import VariantState
+
+#: Searched ranges: laminate roughness (dimensionless; below 0.01 a glint is a mirror image of
+#: the LED a few pixels wide, above 0.6 the coating's reflection is spread like paper's) and the
+#: light's horizontal and vertical offsets from the lens (m; a light on the camera body: a fit
+#: that runs to 15 cm is mimicking a lab light's glint, as every spurious fit did on development
+#: captures without a laminate; docs/results/design_evidence.md#gloss).
+ALPHA: tuple[float, float] = (0.01, 0.6)
+OFFSET_M: tuple[float, float] = (-0.15, 0.15)
+#: Intensity of the light of the calibration render (W sr^-1; the camera light's default: a tag
+#: 0.45 m away gets the template key light's irradiance) and the largest intensity reported.
+REFERENCE_INTENSITY_W_SR = 0.24
+INTENSITY_W_SR: tuple[float, float] = (0.0, 5.0)
+#: Smallest gain (floors) of the laminate over a matte light for a supported fit.
+GLINT_MIN_GAIN = SIGNATURE_MIN_GAIN
+
+
+def laminate_effects(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The scene effects of a ``tag_gloss`` finding: the laminate and the light beside the lens.
+
+    ``params``: ``alpha``, ``light_intensity_w_sr``, ``light_offset_x_m`` and
+    ``light_offset_z_m``.
+    """
+    offset = (float(params["light_offset_x_m"]), float(params["light_offset_z_m"]))
+    return {
+        "tag_gloss": {"alpha": float(params["alpha"]), "int_ior": LAMINATE_IOR},
+        "camera_light": {"offset_m": offset, "intensity": float(params["light_intensity_w_sr"])},
+    }
+
+
+def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ink and paper linear levels of the level model (module docstring, step 2) at ``x``.
+
+    ``x = (log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m)``.
+    """
+    gain, ink_factor, a, b, alpha = 2.0 ** x[0], 2.0 ** x[1], x[2], x[3], x[4]
+    cos_h, cos_o, cos_l, distance = lobe_geometry(levels.eye_from_tag, x[5], x[6])
+    light = a * cos_l / distance**2
+    glint = b * beckmann(cos_h, alpha) / (distance**2 * np.maximum(cos_o, MIN_COS))
+    paper = gain * (levels.sim_paper + light + glint)
+    ink = gain * (ink_factor * levels.sim_ink * (1.0 + light / levels.sim_paper) + glint)
+    return ink, paper
+
+
+def level_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
+    """Log-level residuals of ink and paper in their floors; a clipped level only from below."""
+    ink, paper = predicted_levels(levels, x)
+    r_ink = np.log2(np.maximum(ink, 1e-6) / levels.real_ink) / IMAGE_FLOORS["ink_linear"][1]
+    r_paper = np.log2(np.maximum(paper, 1e-6) / levels.real_paper) / IMAGE_FLOORS["paper_linear"][1]
+    r_paper = np.where(levels.clipped, np.minimum(r_paper, 0.0), r_paper)
+    r_ink = np.where(levels.ink_clipped, np.minimum(r_ink, 0.0), r_ink)
+    return np.concatenate([r_ink, r_paper])
+
+
+@dataclass(frozen=True)
+class LevelFit:
+    """The level model fitted without light, with a matte light, and with the laminate.
+
+    Attributes
+    ----------
+    x : ndarray (7,)
+        ``(log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m)`` of the laminate model.
+    rms_exposure, rms_light, rms_laminate : float
+        RMS misfits (floors) of the exposure-only, the matte light and the laminate models.
+    tags : int
+        Tags fitted.
+    """
+
+    x: np.ndarray
+    rms_exposure: float
+    rms_light: float
+    rms_laminate: float
+    tags: int
+
+    @property
+    def alpha(self) -> float:
+        """Laminate roughness."""
+        return float(self.x[4])
+
+    @property
+    def offset_x_m(self) -> float:
+        """The light's horizontal offset from the lens (m)."""
+        return float(self.x[5])
+
+    @property
+    def offset_z_m(self) -> float:
+        """The light's vertical offset from the lens (m)."""
+        return float(self.x[6])
+
+    @property
+    def glint_scale(self) -> float:
+        """``b``: the glint's scale (simulation's linear units x m^2 sr)."""
+        return float(self.x[3])
+
+
+def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = None) -> LevelFit:
+    """Robust least squares of the level model: exposure, + matte light, + laminate.
+
+    With ``fixed`` (alpha, offset x, offset z) only the scales are fitted (the calibration
+    render).
+    """
+    if len(levels) < 4:
+        nan = float("nan")
+        return LevelFit(np.array([0, 0, 0, 0, ALPHA[1], 0.0, 0.0]), nan, nan, nan, len(levels))
+
+    def solve(x0: np.ndarray, free: np.ndarray, lower, upper) -> tuple[np.ndarray, float]:
+        x = fit_subset(lambda v: level_residuals(levels, v), x0, free, lower, upper)
+        return x, capped_rms(level_residuals(levels, x))
+
+    a_scale = float(np.median(levels.sim_paper)) * 0.1  # a light of a tenth of the key at 0.3 m
+    base = np.array([0.0, 0.0, 0.0, 0.0, ALPHA[1], 0.0, 0.0])
+    inf = np.inf
+    x_exp, rms_exp = solve(base, np.array([1, 1, 0, 0, 0, 0, 0], bool), (-6, -4), (6, 4))
+    start = x_exp.copy()
+    start[2] = a_scale
+    scales = np.array([1, 1, 1, 0, 0, 0, 0], bool)
+    x_light, rms_light = solve(start, scales, (-6, -4, 0), (6, 4, inf))
+    if fixed is not None:
+        start = x_light.copy()
+        start[4:7] = fixed
+        start[3] = a_scale
+        scales[3] = True
+        x, rms = solve(start, scales, (-6, -4, 0, 0), (6, 4, inf, inf))
+        return LevelFit(x, rms_exp, rms_light, rms, len(levels))
+    best, best_rms = x_light, rms_light
+    lower = (-6, -4, 0, 0, ALPHA[0], OFFSET_M[0], OFFSET_M[0])
+    upper = (6, 4, inf, inf, ALPHA[1], OFFSET_M[1], OFFSET_M[1])
+    for alpha in STARTS[0]:
+        for offset in STARTS[1]:
+            start = x_light.copy()
+            start[3], start[4], start[5], start[6] = a_scale * alpha, alpha, offset, 0.0
+            x, rms = solve(start, np.ones(7, bool), lower, upper)
+            if rms < best_rms:
+                best, best_rms = x, rms
+    return LevelFit(best, rms_exp, rms_light, best_rms, len(levels))
+
+
+class GlossCandidate(AppearanceCandidate):
+    """A laminate under a light beside the lens, fitted on the glints (see module docstring)."""
+
+    n_params = 3
+
+    def __init__(self) -> None:
+        # its signature: ink brightened (the glint) and contrast lost, or highlights
+        stats = ("ink_linear", "contrast", "highlight_fraction")
+        super().__init__("tag_gloss", stats, "alpha", ALPHA, 0.0)
+
+    def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
+        """The state with the laminate and the light beside the lens."""
+        state = base
+        effects = laminate_effects(params)
+        # the exposure the levels were fitted with: a light beside the lens brightens near tags,
+        # so an exposure fitted without it is another (and added to it, counts that twice)
+        effects["exposure"] = {"ev": float(params.get("ev", 0.0))}
+        for name, values in effects.items():
+            state = make_effect(name, values).apply(state)
+        return state
+
+    def intensity(
+        self,
+        runner: Runner,
+        base: VariantState,
+        items: Items,
+        params: dict[str, Any],
+        fit: LevelFit,
+        ratio: RatioFit | None = None,
+    ) -> float:
+        """The light's intensity (W sr^-1) whose renders match the real levels best.
+
+        One render with :data:`REFERENCE_INTENSITY_W_SR` gives the simulation's scales of the
+        matte light and of the glint; the real ones over them give two estimates (the level
+        model's nuisance lights bias them differently: on development captures each was off
+        by up to 3x, in opposite directions), and with a ``ratio`` fit the glint's scale in
+        the ink-to-paper ratios a third (:mod:`simgap.analysis.candidates._glint_ratio`). The
+        estimates, their geometric mean and a factor 2 beyond either are rendered, and the one whose
+        ink, paper and contrast
+        (:func:`~simgap.analysis.candidates.evidence_misfit`) and detections
+        (:func:`~simgap.analysis.gap.detection_score`, one more statistic in the mean of
+        squares, capped like them) match the real best is kept: a glint too bright, its levels
+        matched by an exposure too low, loses tags the capture kept (measured on a blind
+        capture: docs/results/design_evidence.md#gloss).
+        """
+        stats = ("ink_linear", "paper_linear", "contrast")
+        groups = detection_groups(items)
+
+        def misfit(intensity: float) -> tuple[float, np.ndarray]:
+            state = measuring_only(
+                self.apply(base, dict(params, light_intensity_w_sr=intensity)), ()
+            )
+            rendered = runner.stats(state, items)
+            detection = 0.0
+            if items.real_detected is not None:  # no detections: the levels alone
+                rendered_detected = runner.detected(state, items)
+                score = detection_score(items.real_detected, rendered_detected, groups)
+                detection = min(float(score), RESIDUAL_CAP)
+            levels = evidence_misfit(stats, items.required("real_stats"), rendered)
+            return (len(stats) * levels + detection**2) / (len(stats) + 1), rendered
+
+        ref_misfit, rendered = misfit(REFERENCE_INTENSITY_W_SR)
+        geometry = tuple(fit.x[4:7])
+        rendered_levels = TagLevels.of(
+            rendered, items.required("sim_stats"), runner.eye_from_tag(items)
+        )
+        ref = fit_levels(rendered_levels, geometry)
+        scales = [(fit.glint_scale, ref.glint_scale), (fit.x[2], ref.x[2])]
+        if ratio is not None:
+            ref_ratio = fit_ratios(rendered_levels, ALPHA, OFFSET_M, geometry)
+            if ref_ratio is not None:
+                scales.append((ratio.glint_scale, ref_ratio.glint_scale))
+        estimates = [
+            REFERENCE_INTENSITY_W_SR * real / sim for real, sim in scales if real > 0 and sim > 0
+        ]
+        if not estimates:
+            return 0.0
+        low, high = min(estimates), max(estimates)
+        tried = {REFERENCE_INTENSITY_W_SR: ref_misfit}
+        for intensity in (low, high, np.sqrt(low * high), low / 2.0, high * 2.0):
+            intensity = float(min(intensity, INTENSITY_W_SR[1]))
+            if intensity not in tried:
+                tried[intensity] = misfit(intensity)[0]
+        finite = {k: v for k, v in tried.items() if np.isfinite(v)}
+        return float(min(finite, key=finite.__getitem__)) if finite else 0.0
+
+    def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
+        """The level model on the fit split, then the intensity whose renders match best."""
+        t0 = time.perf_counter()
+        eye_from_tag = runner.eye_from_tag(items)
+        levels = TagLevels.of(
+            items.required("real_stats"), items.required("sim_stats"), eye_from_tag
+        )
+        fit = fit_levels(levels)
+        # the glint's geometry from the ink-to-paper ratios where enough papers are unclipped
+        # (the capture's lights cancel in them), its scales from the levels at that geometry
+        ratio = fit_ratios(levels, ALPHA, OFFSET_M)
+        if ratio is not None:
+            fit = fit_levels(levels, ratio.geometry)
+        params = {
+            "alpha": fit.alpha,
+            "light_intensity_w_sr": 0.0,
+            "light_offset_x_m": fit.offset_x_m,
+            "light_offset_z_m": fit.offset_z_m,
+            "ev": float(fit.x[0]),
+        }
+        if ratio is None:
+            supported = fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
+        else:
+            supported = ratio.gain >= GLINT_MIN_GAIN and (ratio.glint_scale > 0 or ratio.veil > 0)
+        if supported:
+            params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit, ratio)
+        top = INTENSITY_W_SR[1]
+        at_bound = tuple(
+            name
+            for name, hit in (
+                ("alpha", on_bound(fit.alpha, *ALPHA)),
+                ("light_offset_x_m", on_bound(fit.offset_x_m, *OFFSET_M)),
+                ("light_offset_z_m", on_bound(fit.offset_z_m, *OFFSET_M)),
+                # no light is no glint (not supported), not a bound: only the bright end is
+                ("light_intensity_w_sr", on_bound(params["light_intensity_w_sr"], -top, top)),
+            )
+            if hit
+        )
+        return Fit(
+            self.effect,
+            params,
+            time.perf_counter() - t0,
+            {
+                "supported": bool(supported),
+                "tags": fit.tags,
+                "level_rms_exposure": fit.rms_exposure,
+                "level_rms_light": fit.rms_light,
+                "level_rms_laminate": fit.rms_laminate,
+                "ratio_gain": float("nan") if ratio is None else ratio.gain,
+                "at_bound": at_bound,
+            },
+        )
