@@ -118,7 +118,7 @@ def test_a_coated_print_separates_a_smooth_specular_field(spp, bound):
 
 
 def test_smooth_light_is_not_flagged():
-    # false alarms: ALPHA = 1e-3 per sticker; 10 seeds at 4 spp should give none
+    # false alarms: FALSE_ALARM_PROBABILITY = 1e-3 per sticker; 10 seeds at 4 spp should give none
     for k in range(10):
         s = synthetic_sticker(np.random.default_rng(100 + k), 4, relative_noise=NOISE)
         assert demodulate(s.samples).treatment is Treatment.SMOOTH

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from simgap.analysis.candidates import (
-    ALPHA,
     GLINT_MIN_GAIN,
     HEIGHT_M,
     MIN_TAGS,
     OFFSET_M,
+    ROUGHNESS_RANGE,
     GlossCandidate,
     TagLevels,
     beckmann,
@@ -152,7 +152,7 @@ def test_the_glint_is_placed_from_ink_to_paper_ratios_whatever_the_lights():
     eye_from_tag = _grid()
     rng = np.random.default_rng(4)
     levels = _lit_otherwise(eye_from_tag, 2e-4, rng)
-    fit = fit_ratios(levels, ALPHA, OFFSET_M)
+    fit = fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M)
     assert fit is not None and fit.tags == len(eye_from_tag)
     alpha, offset_x, offset_z = fit.geometry
     assert alpha == pytest.approx(0.2, rel=0.15)
@@ -162,7 +162,7 @@ def test_the_glint_is_placed_from_ink_to_paper_ratios_whatever_the_lights():
     level = fit_levels(levels)
     assert level.rms_light - level.rms_laminate < GLINT_MIN_GAIN
     matte = fit_ratios(
-        _lit_otherwise(eye_from_tag, 0.0, rng), ALPHA, OFFSET_M
+        _lit_otherwise(eye_from_tag, 0.0, rng), ROUGHNESS_RANGE, OFFSET_M
     )
     assert matte is not None and matte.gain < GLINT_MIN_GAIN
 
@@ -183,14 +183,14 @@ def test_a_laminate_veil_is_told_from_flare(veil):
     lit = dataclasses.replace(
         base, real_ink=base.real_ink + added, real_paper=base.real_paper + added
     )
-    fit = fit_ratios(lit, ALPHA, OFFSET_M)
+    fit = fit_ratios(lit, ROUGHNESS_RANGE, OFFSET_M)
     assert fit is not None and fit.gain >= GLINT_MIN_GAIN
     assert fit.veil == pytest.approx(veil, rel=0.1)
     flare = 5.0 * veil / 2.0
     flared = dataclasses.replace(
         base, real_ink=base.real_ink + flare, real_paper=base.real_paper + flare
     )
-    fit = fit_ratios(flared, ALPHA, OFFSET_M)
+    fit = fit_ratios(flared, ROUGHNESS_RANGE, OFFSET_M)
     assert fit is not None and fit.gain < 0.1 * GLINT_MIN_GAIN
 
 
@@ -202,4 +202,4 @@ def test_too_few_unclipped_papers_leave_the_glint_to_the_level_model():
         levels.real_ink, levels.real_paper, levels.sim_ink, levels.sim_paper, clipped,
         np.zeros(len(levels), bool), levels.eye_from_tag,
     )  # fmt: skip
-    assert fit_ratios(levels, ALPHA, OFFSET_M) is None
+    assert fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M) is None

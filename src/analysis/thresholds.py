@@ -52,10 +52,10 @@ FLIP_RAD: Final[float] = 0.15
 
 # -- where: the evidence tests -----------------------------------------------------------------
 
-#: Family-wise false-alarm rate of each family of evidence tests (scatter and image:
-#: Bonferroni over the tests of a family; detection: the overall test is the planned one, the
-#: six regional ones Holm's step-down, :mod:`simgap.analysis.gap._evidence`).
-ALPHA: Final[float] = 0.01
+#: Significance level: the family-wise false-alarm rate of each family of evidence tests (scatter
+#: and image: Bonferroni over the tests of a family; detection: the overall test is the planned one,
+#: the six regional ones Holm's step-down, :mod:`simgap.analysis.gap._evidence`).
+SIGNIFICANCE_LEVEL: Final[float] = 0.01
 #: Largest number of attempts (the smaller side of a 2 x 2 detection table) for which Boschloo's
 #: exact test is run; beyond it Fisher's, whose power is then the same and which is far cheaper
 #: (Boschloo on 540 x 2160 attempts: 7.6 s, measured).
@@ -120,7 +120,7 @@ EQUIVALENT_UNITS: Final[float] = EQUIVALENT_PX / CORNER_UNIT_PX
 #: (:func:`simgap.analysis.gap.clearly_lower`): its false-alarm rate, and the
 #: smallest median improvement as a share of the other model's median residual (a lens
 #: distortion moves the central tags' corners by tenths of a pixel, consistently).
-PAIRED_ALPHA: Final[float] = 0.01
+PAIRED_SIGNIFICANCE_LEVEL: Final[float] = 0.01
 PAIRED_MIN_SHARE: Final[float] = 0.05
 #: Image-statistic misfits beyond this many floors count as this many (a robust, Huber-like
 #: cap): a difference nothing in the catalogue explains (a print whose ink is blacker than the

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from simgap.render.smooth_field import MAX_ORDER, ChannelFit, fit_channel, n_coefficients
 
 __all__ = [
-    "ALPHA",
+    "FALSE_ALARM_PROBABILITY",
     "ChannelFit",
     "DemodulationResult",
     "StickerSamples",
@@ -45,7 +45,7 @@ __all__ = [
 ]
 
 #: Family-wise false-alarm probability per sticker of the smooth-model tests (dimensionless).
-ALPHA = 1e-3
+FALSE_ALARM_PROBABILITY = 1e-3
 #: A pixel counts as fully on the sticker at this coverage or above (dimensionless).
 FULL_COVERAGE = 1.0 - 1e-6
 #: Pixels of lower albedo are left out of the fit (their ratio is undefined; dimensionless).
@@ -169,7 +169,9 @@ class DemodulationResult:
         return self.treatment is Treatment.FALLBACK
 
 
-def demodulate(samples: StickerSamples, alpha: float = ALPHA) -> DemodulationResult:
+def demodulate(
+    samples: StickerSamples, alpha: float = FALSE_ALARM_PROBABILITY
+) -> DemodulationResult:
     """The converged radiance of one sticker from its few-sample render and its albedo pass.
 
     Parameters
@@ -178,7 +180,7 @@ def demodulate(samples: StickerSamples, alpha: float = ALPHA) -> DemodulationRes
         The sticker's pixels, their rendered mean and sample variance, albedo and coverage.
     alpha : float
         Family-wise false-alarm probability per sticker of the smooth-model tests
-        (default :data:`ALPHA`).
+        (default :data:`FALSE_ALARM_PROBABILITY`).
 
     Returns
     -------

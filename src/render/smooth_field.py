@@ -25,8 +25,8 @@ The statistics, each stated once:
   coefficients (Akaike 1974, IEEE Trans. Automat. Contr. 19:716; with known variances
   ``-2 ln L = chi2 + const``).
 - **Smooth model rejected** when either of two tests fails at the family-wise false-alarm
-  probability per sticker (:data:`simgap.render.demodulate.ALPHA`; Bonferroni over channels and
-  the two tests):
+  probability per sticker (:data:`simgap.render.demodulate.FALSE_ALARM_PROBABILITY`; Bonferroni over
+  channels and the two tests):
   the global lack-of-fit F test, the fit's reduced chi-square (residual mean square) against the
   pure-error mean square from the samples' own variance, ``F(n - k, sum(spp - 1))``
   (NIST/SEMATECH e-Handbook of Statistical Methods, section 4.4.4.3, "lack-of-fit test" with

@@ -37,9 +37,9 @@ from simgap.analysis.candidates._fitting import (
 )
 from simgap.analysis.candidates._glint_ratio import HEIGHT_M, MIN_TAGS, fit_ratios
 from simgap.analysis.candidates._gloss import (
-    ALPHA,
     GLINT_MIN_GAIN,
     OFFSET_M,
+    ROUGHNESS_RANGE,
     GlossCandidate,
     fit_levels,
     laminate_effects,
@@ -55,7 +55,6 @@ from simgap.analysis.candidates._size_signature import size_change
 from simgap.analysis.candidates._tag_levels import TagLevels
 
 __all__ = [
-    "ALPHA",
     "AppearanceCandidate",
     "BlackLevelCandidate",
     "CANDIDATES",
@@ -72,6 +71,7 @@ __all__ = [
     "OFFSET_M",
     "ProjectionCandidate",
     "ProjectionSet",
+    "ROUGHNESS_RANGE",
     "Runner",
     "SensorNoiseCandidate",
     "SimulationChain",

@@ -79,7 +79,7 @@ from simgap.effects.state import VariantState
 #: light's horizontal and vertical offsets from the lens (m; a light on the camera body: a fit
 #: that runs to 15 cm is mimicking a lab light's glint, as every spurious fit did on development
 #: captures without a laminate; docs/results/design_evidence.md#gloss).
-ALPHA: tuple[float, float] = (0.01, 0.6)
+ROUGHNESS_RANGE: tuple[float, float] = (0.01, 0.6)
 OFFSET_M: tuple[float, float] = (-0.15, 0.15)
 #: Intensity of the light of the calibration render (W sr^-1; the camera light's default: a tag
 #: 0.45 m away gets the template key light's irradiance) and the largest intensity reported.
@@ -175,14 +175,15 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
     """
     if len(levels) < 4:
         nan = float("nan")
-        return LevelFit(np.array([0, 0, 0, 0, ALPHA[1], 0.0, 0.0]), nan, nan, nan, len(levels))
+        at_rest = np.array([0, 0, 0, 0, ROUGHNESS_RANGE[1], 0.0, 0.0])
+        return LevelFit(at_rest, nan, nan, nan, len(levels))
 
     def solve(x0: np.ndarray, free: np.ndarray, lower, upper) -> tuple[np.ndarray, float]:
         x = fit_subset(lambda v: level_residuals(levels, v), x0, free, lower, upper)
         return x, capped_rms(level_residuals(levels, x))
 
     a_scale = float(np.median(levels.sim_paper)) * 0.1  # a light of a tenth of the key at 0.3 m
-    base = np.array([0.0, 0.0, 0.0, 0.0, ALPHA[1], 0.0, 0.0])
+    base = np.array([0.0, 0.0, 0.0, 0.0, ROUGHNESS_RANGE[1], 0.0, 0.0])
     inf = np.inf
     x_exp, rms_exp = solve(base, np.array([1, 1, 0, 0, 0, 0, 0], bool), (-6, -4), (6, 4))
     start = x_exp.copy()
@@ -197,8 +198,8 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
         x, rms = solve(start, scales, (-6, -4, 0, 0), (6, 4, inf, inf))
         return LevelFit(x, rms_exp, rms_light, rms, len(levels))
     best, best_rms = x_light, rms_light
-    lower = (-6, -4, 0, 0, ALPHA[0], OFFSET_M[0], OFFSET_M[0])
-    upper = (6, 4, inf, inf, ALPHA[1], OFFSET_M[1], OFFSET_M[1])
+    lower = (-6, -4, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0])
+    upper = (6, 4, inf, inf, ROUGHNESS_RANGE[1], OFFSET_M[1], OFFSET_M[1])
     for alpha in STARTS[0]:
         for offset in STARTS[1]:
             start = x_light.copy()
@@ -217,7 +218,7 @@ class GlossCandidate(AppearanceCandidate):
     def __init__(self) -> None:
         # its signature: ink brightened (the glint) and contrast lost, or highlights
         stats = ("ink_linear", "contrast", "highlight_fraction")
-        super().__init__("tag_gloss", stats, "alpha", ALPHA, 0.0)
+        super().__init__("tag_gloss", stats, "alpha", ROUGHNESS_RANGE, 0.0)
 
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
         """The state with the laminate and the light beside the lens."""
@@ -278,7 +279,7 @@ class GlossCandidate(AppearanceCandidate):
         ref = fit_levels(rendered_levels, geometry)
         scales = [(fit.glint_scale, ref.glint_scale), (fit.x[2], ref.x[2])]
         if ratio is not None:
-            ref_ratio = fit_ratios(rendered_levels, ALPHA, OFFSET_M, geometry)
+            ref_ratio = fit_ratios(rendered_levels, ROUGHNESS_RANGE, OFFSET_M, geometry)
             if ref_ratio is not None:
                 scales.append((ratio.glint_scale, ref_ratio.glint_scale))
         estimates = [
@@ -305,7 +306,7 @@ class GlossCandidate(AppearanceCandidate):
         fit = fit_levels(levels)
         # the glint's geometry from the ink-to-paper ratios where enough papers are unclipped
         # (the capture's lights cancel in them), its scales from the levels at that geometry
-        ratio = fit_ratios(levels, ALPHA, OFFSET_M)
+        ratio = fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M)
         if ratio is not None:
             fit = fit_levels(levels, ratio.geometry)
         params = {
@@ -325,7 +326,7 @@ class GlossCandidate(AppearanceCandidate):
         at_bound = tuple(
             name
             for name, hit in (
-                ("alpha", on_bound(fit.alpha, *ALPHA)),
+                ("alpha", on_bound(fit.alpha, *ROUGHNESS_RANGE)),
                 ("light_offset_x_m", on_bound(fit.offset_x_m, *OFFSET_M)),
                 ("light_offset_z_m", on_bound(fit.offset_z_m, *OFFSET_M)),
                 # no light is no glint (not supported), not a bound: only the bright end is

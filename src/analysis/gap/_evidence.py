@@ -9,15 +9,16 @@ scatter
     of each value from the straight line through its two neighbours along the carriage (exact
     for any linear trend, also for unevenly spaced pin holes), scaled to unit noise. Real and
     simulated residuals are compared with the Brown-Forsythe test (``scipy.stats.levene`` with
-    ``center="median"``). Significant when the test rejects at :data:`ALPHA` (Bonferroni over the
-    tests), the robust scales differ by :data:`SCATTER_RATIO` or more, and the extra scatter
-    ``sqrt(|real^2 - sim^2|)`` reaches :data:`SCATTER_FLOOR_SHARE` of the practical floor.
+    ``center="median"``). Significant when the test rejects at :data:`SIGNIFICANCE_LEVEL`
+    (Bonferroni over the tests), the robust scales differ by :data:`SCATTER_RATIO` or more, and the
+    extra scatter ``sqrt(|real^2 - sim^2|)`` reaches :data:`SCATTER_FLOOR_SHARE` of the practical
+    floor.
 detection
     Detected / visible counts of the real data and of the simulation (over repeats), overall,
     per distance region and per view-angle band; Boschloo's exact test of the 2 x 2 table
     (:func:`detection_pvalue`). The overall test is the one planned test, at
-    :data:`~simgap.analysis.thresholds.ALPHA`; the six regional tests are corrected for their
-    multiplicity by Holm's step-down rule at the same level (:func:`holm_reject`). Significant
+    :data:`~simgap.analysis.thresholds.SIGNIFICANCE_LEVEL`; the six regional tests are corrected for
+    their multiplicity by Holm's step-down rule at the same level (:func:`holm_reject`). Significant
     when the test rejects and the rates differ by
     :data:`~simgap.analysis.thresholds.DETECTION_UNIT` or more. A fifth of 45 detections lost
     overall (36 / 45 against 45 / 45: p = 0.00098) and half of one 15-configuration region
@@ -26,11 +27,12 @@ detection
 image
     Per statistic of :mod:`simgap.pose.image_stats`, the paired difference real - simulated over
     tags visible in both (levels and noise as log2 ratios, in stops); Wilcoxon's signed-rank test
-    (``scipy.stats.wilcoxon``). Significant when it rejects at :data:`ALPHA` and the median
-    difference reaches the statistic's practical floor (:data:`IMAGE_FLOORS`).
+    (``scipy.stats.wilcoxon``). Significant when it rejects at :data:`SIGNIFICANCE_LEVEL` and the
+    median difference reaches the statistic's practical floor (:data:`IMAGE_FLOORS`).
 
-The thresholds (:data:`ALPHA` and the others) are those of :mod:`simgap.analysis.thresholds`, with
-their sources; every one was fixed before the blind validation runs that report on it.
+The thresholds (:data:`SIGNIFICANCE_LEVEL` and the others) are those of
+:mod:`simgap.analysis.thresholds`, with their sources; every one was fixed before the blind
+validation runs that report on it.
 """
 
 from __future__ import annotations
@@ -45,13 +47,13 @@ from scipy import stats as sps
 from simgap.analysis.gap._gap import align
 from simgap.analysis.gap._image_evidence import repeat_median_stats, tag_distance_and_view_angle
 from simgap.analysis.thresholds import (
-    ALPHA,
     BOSCHLOO_MAX_ATTEMPTS,
     DETECTION_UNIT,
     IMAGE_FLOORS,
     PRACTICAL_FLOOR,
     SCATTER_FLOOR_SHARE,
     SCATTER_RATIO,
+    SIGNIFICANCE_LEVEL,
 )
 from simgap.core.axes import AXES, axis_unit
 from simgap.core.robust import mad_sigma, signed_rank_pvalue
@@ -66,8 +68,9 @@ LEVEL_EPSILON = 0.002
 class EvidenceTest:
     """A test of real against simulated evidence: its p-value and whether the difference matters.
 
-    ``significant``: the test rejects (at :data:`~simgap.analysis.thresholds.ALPHA`, Bonferroni
-    over its family) and the difference reaches its practical floor (see the module docstring).
+    ``significant``: the test rejects (at :data:`~simgap.analysis.thresholds.SIGNIFICANCE_LEVEL`,
+    Bonferroni over its family) and the difference reaches its practical floor (see the module
+    docstring).
     """
 
     p_value: float
@@ -99,9 +102,9 @@ class DetectionTest(EvidenceTest):
 
     #: ``"all"``, a distance third or a view-angle band
     region: str
-    #: ``"planned"`` (``all``, at ALPHA) or ``"Holm over regions"`` (the six regional tests);
-    #: empty in results written before the exact tests were corrected this way (Fisher's test,
-    #: Bonferroni over all seven)
+    #: ``"planned"`` (``all``, at SIGNIFICANCE_LEVEL) or ``"Holm over regions"`` (the six regional
+    #: tests); empty in results written before the exact tests were corrected this way (Fisher's
+    #: test, Bonferroni over all seven)
     test: str = ""
     #: detections and attempts (visible configurations times repeats) of each side
     real_detected: int
@@ -216,7 +219,7 @@ def scatter_tests(real: xr.Dataset, sim: xr.Dataset) -> list[ScatterTest]:
             ratio = sa / sb if sb > 0 else float("inf")
             extra = float(np.sqrt(abs(sa**2 - sb**2)))
             significant = (
-                pvalue < ALPHA / n_tests
+                pvalue < SIGNIFICANCE_LEVEL / n_tests
                 and (ratio >= SCATTER_RATIO or ratio <= 1 / SCATTER_RATIO)
                 and extra >= SCATTER_FLOOR_SHARE * PRACTICAL_FLOOR[unit]
             )
@@ -255,7 +258,7 @@ def detection_pvalue(kr: int, nr: int, ks: int, ns: int) -> float:
     return float(min(sps.boschloo_exact(table).pvalue, 1.0))
 
 
-def holm_reject(pvalues: list[float], alpha: float = ALPHA) -> list[bool]:
+def holm_reject(pvalues: list[float], alpha: float = SIGNIFICANCE_LEVEL) -> list[bool]:
     """Holm's step-down rule: which of ``pvalues`` are rejected at family-wise ``alpha``.
 
     The k-th smallest p-value (k from 0) is compared with ``alpha / (m - k)``; testing stops at
@@ -302,7 +305,7 @@ def detection_tests(real: xr.Dataset, sim: xr.Dataset) -> list[DetectionTest]:
     tests = []
     for i, (name, kr, nr, ks, ns) in enumerate(rows):
         planned = name == "all"
-        reject = pvalues[i] < ALPHA if planned else rejected[i]
+        reject = pvalues[i] < SIGNIFICANCE_LEVEL if planned else rejected[i]
         diff = kr / nr - ks / ns
         tests.append(
             DetectionTest(
@@ -370,7 +373,9 @@ def paired_test(stat: str, real: np.ndarray, sim: np.ndarray) -> ImageTest | Non
         sim_median=float(np.nanmedian(sim)),
         floor=floor,
         p_value=pvalue,
-        significant=bool(floor is not None and pvalue < ALPHA and abs(median) >= floor),
+        significant=bool(
+            floor is not None and pvalue < SIGNIFICANCE_LEVEL and abs(median) >= floor
+        ),
     )
 
 

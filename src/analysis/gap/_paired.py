@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgap.analysis.thresholds import PAIRED_ALPHA, PAIRED_MIN_SHARE
+from simgap.analysis.thresholds import PAIRED_MIN_SHARE, PAIRED_SIGNIFICANCE_LEVEL
 from simgap.core.robust import signed_rank_pvalue
 
 #: Fewest paired items the test is run on (fewer: never "clearly lower").
@@ -37,9 +37,9 @@ def clearly_lower(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether per-item residuals ``a`` are consistently lower than ``b`` on the same items.
 
     A paired one-sided Wilcoxon signed-rank test at
-    :data:`~simgap.analysis.thresholds.PAIRED_ALPHA`, with a median improvement of at least
-    :data:`~simgap.analysis.thresholds.PAIRED_MIN_SHARE` of ``b``'s median, over the items where
-    both are finite (at least :data:`MIN_PAIRED_ITEMS`).
+    :data:`~simgap.analysis.thresholds.PAIRED_SIGNIFICANCE_LEVEL`, with a median improvement of at
+    least :data:`~simgap.analysis.thresholds.PAIRED_MIN_SHARE` of ``b``'s median, over the items
+    where both are finite (at least :data:`MIN_PAIRED_ITEMS`).
 
     Parameters
     ----------
@@ -54,4 +54,4 @@ def clearly_lower(a: np.ndarray, b: np.ndarray) -> bool:
         return False
     if np.median(d) <= PAIRED_MIN_SHARE * np.median(b[ok]):
         return False
-    return bool(signed_rank_pvalue(d, alternative="greater") < PAIRED_ALPHA)
+    return bool(signed_rank_pvalue(d, alternative="greater") < PAIRED_SIGNIFICANCE_LEVEL)
