@@ -80,7 +80,7 @@ def main() -> None:
         c = result.combined
         lo, hi = c.pose_gap_reduction_interval_90
         interval = f"90 % interval {lo:.0%} to {hi:.0%}"
-        print(f"report-split reduction  {c.scores.pose_gap_reduction:.0%} ({interval})")
+        print(f"measure-split reduction  {c.scores.pose_gap_reduction:.0%} ({interval})")
     if result.confirmed:
         print(f"confirmed reduction     {result.confirmed.pose_gap_reduction:.0%} (re-rendered)")
 

@@ -81,7 +81,7 @@ def test_every_searched_item_is_held_out_once():
 
 
 def test_a_report_split_score_is_not_cross_fitted():
-    """Scored outside the search (the report split), a model has its own items only: asked for
+    """Scored outside the search (the measure split), a model has its own items only: asked for
     cross-fitted residuals it raises (a paired test against a cross-fitted model would compare
     other items)."""
     rig = load_rig()
@@ -259,7 +259,7 @@ def test_a_geometry_that_predicts_held_out_corners_better_is_not_tied():
     assert as_good(tied, mount)
     assert not as_good_held_out(tied, mount)
     assert parsimonious([mount, tied]) is mount
-    # not cross-fitted (a report split's score), or the same geometry: no held-out comparison
+    # not cross-fitted (a measure split's score), or the same geometry: no held-out comparison
     assert not generalises_better(dataclasses.replace(mount, cross_fit_difference=None), offset)
     assert not generalises_better(mount, mount)
 

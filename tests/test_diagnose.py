@@ -191,7 +191,7 @@ def test_a_geometric_effect_that_moves_the_pose_away_never_starts_the_selection(
     away = dataclasses.replace(scored, pose_gap_all_axes_after=1.05 * before)
     assert search.select([away]) is None
     # blind seed 25, trial 15: the print scale following a motion blur's corners brought the
-    # choice split's poses 6 % closer (0.554 -> 0.521; the report split's moved 42 % away). A
+    # choice split's poses 6 % closer (0.554 -> 0.521; the measure split's moved 42 % away). A
     # geometric effect must bring them MIN_POSE_REDUCTION (10 %) closer; every true one that
     # started a model on seeds 22, 23 and 25 did by 19 % or more
     slightly = dataclasses.replace(scored, pose_gap_all_axes_after=0.94 * before)

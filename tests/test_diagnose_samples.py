@@ -82,7 +82,7 @@ def test_public_sample_is_diagnosed_as_focal_length(focal_diagnosis):
     assert "pose" not in result.unexplained_evidence
     # generator: +2 %; measured fit 0.0194 (the generator's own edge bias differs from ours)
     assert result.ranking[0].params["scale"] == pytest.approx(0.02, abs=0.003)
-    # measured: 93 % reduction on the report split, confirmed by re-rendering
+    # measured: 93 % reduction on the measure split, confirmed by re-rendering
     assert result.confirmed.pose_gap_reduction >= 0.7
     for name in DIAGNOSIS_FILES:
         assert (out / name).is_file()
@@ -125,7 +125,7 @@ def test_the_report_is_written_again_from_its_folder_alone(tmp_path, focal_diagn
     evidence = DiagnosisEvidence.read(out / EVIDENCE_FILE)
     result = DiagnosisResult.from_json(json.loads(js.read_text()))
     assert len(evidence.items) == result.where.comparable_configurations == 9
-    assert evidence.items.report_items == result.split.report
+    assert evidence.items.measure_items == result.split.measure
     assert evidence.items.confirmed_error is not None and evidence.image_stats is not None
     for record in (evidence.items, evidence.gap, evidence.image_stats):
         assert type(record).from_dataset(record.to_dataset()) == record

@@ -36,7 +36,7 @@ def pair():
 
 
 def _items(n: int = 7, fitted: bool = True, confirmed: bool = True) -> ItemEvidence:
-    """Random items with NaN errors (undetected, flipped) and the report split's fit only."""
+    """Random items with NaN errors (undetected, flipped) and the measure split's fit only."""
     rng = np.random.default_rng(3)
     in_split = np.zeros((n, len(SPLITS)), bool)
     in_split[np.arange(n), np.arange(n) % len(SPLITS)] = True
@@ -124,10 +124,31 @@ def test_an_evidence_file_of_another_schema_is_refused(pair, tmp_path):
         root = ds.load()
     root.attrs["schema_version"] = 7
     root.to_netcdf(path, mode="a")
-    with pytest.raises(ValueError, match=rf"{EVIDENCE_FILE}: schema_version: expected 1, got 7"):
+    expected = rf"{EVIDENCE_FILE}: schema_version: expected 1 or 2, got 7"
+    with pytest.raises(ValueError, match=expected):
         DiagnosisEvidence.read(path)
     with pytest.raises(ValueError, match="missing variable 'simulated_error'"):
         ItemEvidence.from_dataset(_items().to_dataset().drop_vars("simulated_error"))
+
+
+def test_an_evidence_file_of_schema_1_is_read_under_the_new_split_name(pair, tmp_path):
+    """Schema 1 named the measure split ``report``: such a file (this one's root group as
+    schema 1 wrote it) reads as the evidence it holds."""
+    import netCDF4
+    import xarray as xr
+
+    evidence = DiagnosisEvidence(items=_items(), gap=GapEvidence.of(*pair))
+    path = evidence.write(tmp_path / EVIDENCE_FILE)
+    with netCDF4.Dataset(path, "a") as nc:  # the labels as char arrays (simgap.results.cf)
+        labels = nc["split"]
+        labels.set_auto_chartostring(False)
+        old = np.array(["fit", "choose", "report"], f"S{labels.shape[1]}")
+        labels[:] = netCDF4.stringtochar(old)
+        nc.setncattr("schema_version", np.int64(1))
+    with xr.open_dataset(path) as ds:
+        assert list(ds.split.values) == ["fit", "choose", "report"]
+        assert ds.attrs["schema_version"] == 1
+    assert DiagnosisEvidence.read(path) == evidence
 
 
 def test_report_diagnosis_names_the_missing_evidence_file(tmp_path):

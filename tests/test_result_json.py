@@ -1,4 +1,4 @@
-"""result.json as typed records: schema 2 written and read back, schema 1 still read."""
+"""result.json as typed records: schema 3 written and read back, schemas 2 and 1 still read."""
 
 from __future__ import annotations
 
@@ -12,17 +12,19 @@ from simgap.diagnosis.result import SCHEMA_VERSION, DiagnosisResult
 
 #: sample-focal's result.json as simgap wrote it before schema 2 (commit 23f6bf2)
 V1 = Path(__file__).parent / "data" / "result_v1_sample_focal.json"
+#: sample-focal's result.json as simgap wrote it in schema 2 (commit f0cf48a)
+V2 = Path(__file__).parent / "data" / "result_schema2.json"
 
 
 def test_schema_1_is_read_under_the_new_names():
     raw = json.loads(V1.read_text())
     result = DiagnosisResult.from_json(raw)
-    assert result.schema_version == SCHEMA_VERSION == 2
+    assert result.schema_version == SCHEMA_VERSION == 3
     # what the old file said, read through the new names (values copied from the file)
     assert result.selected == raw["selected"] == ["focal_length", "blur", "exposure"]
     assert result.minor == raw["minor"] == ["exposure"]
     assert result.unexplained is raw["unexplained"] is True
-    assert (result.split.fit, result.split.choose, result.split.report) == (4, 2, 3)
+    assert (result.split.fit, result.split.choose, result.split.measure) == (4, 2, 3)
     assert result.where.axis_gaps["ty"].z_median == raw["where"]["axes"]["ty"]["z_mean"]
     assert result.where.regions[0].median == raw["where"]["regions"][0]["mean"]
     top = raw["ranking"][0]
@@ -37,10 +39,35 @@ def test_schema_1_is_read_under_the_new_names():
     assert result.confirmed.pose_gap_reduction == raw["confirmed"]["reduction"]
 
 
-def test_schema_2_round_trips_and_writes_the_derived_keys():
+def test_schema_2_is_read_under_the_new_names():
+    raw = json.loads(V2.read_text())
+    assert raw["schema_version"] == 2
+    result = DiagnosisResult.from_json(raw)
+    assert result.schema_version == SCHEMA_VERSION
+    # what the old file said, read through the new names (values copied from the file)
+    assert result.selected == raw["selected"] and result.selected[0] == "focal_length"
+    split = raw["split"]
+    assert (result.split.fit, result.split.choose, result.split.measure) == (
+        split["fit"],
+        split["choose"],
+        split["report"],
+    )
+    assert result.combined.scores.pose_gap_reduction == raw["combined"]["scores"][
+        "pose_gap_reduction"
+    ]
+    # nothing is lost between the schemas: the old file's numbers are the new one's, NaN too
+    data = json.loads(json.dumps(result.to_json()))
+    assert data["schema_version"] == 3
+    new = {k: v for k, v in data.items() if k != "schema_version"}
+    old = {k: v for k, v in raw.items() if k != "schema_version"}
+    assert _numbers(old) == _numbers(new)
+    assert json.dumps(old).count("NaN") == json.dumps(new).count("NaN")
+
+
+def test_schema_3_round_trips_and_writes_the_derived_keys():
     result = DiagnosisResult.from_json(json.loads(V1.read_text()))
     data = json.loads(json.dumps(result.to_json()))
-    assert data["schema_version"] == 2
+    assert data["schema_version"] == 3
     assert data["selected"] == result.selected and data["unexplained"] is True
     again = DiagnosisResult.from_json(data).to_json()
     assert json.dumps(again) == json.dumps(data)  # NaN for what schema 1 did not keep
@@ -65,7 +92,7 @@ def _numbers(tree) -> list[float]:
         (lambda d: d["where"]["axis_gaps"]["ty"].update(n="nine"), r"where\.axis_gaps\.ty\.n"),
         (lambda d: d["split"].pop("choose"), r"split: missing key 'choose'"),
         (lambda d: d["combined"].update(reduction=0.5), r"combined: unexpected key\(s\) reduction"),
-        (lambda d: d.update(schema_version=3), r"schema_version: expected 1 or 2, got 3"),
+        (lambda d: d.update(schema_version=4), r"schema_version: expected 1, 2 or 3, got 4"),
     ],
 )
 def test_a_result_that_does_not_fit_the_schema_names_the_key(change, message):

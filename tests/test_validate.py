@@ -110,7 +110,7 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         assert s.crushed_black_share is not None and 0.0 <= s.crushed_black_share <= 1.0
         result = t.result
         if result.combined:  # the reduction is measured on configurations that did not choose
-            assert result.combined.configurations == result.split.report
+            assert result.combined.configurations == result.split.measure
 
 
 def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():

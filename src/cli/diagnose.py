@@ -124,7 +124,7 @@ def diagnose(
     ),
     cache: CacheOption = None,
     seed: int = typer.Option(
-        0, "--seed", help="Seed of the fit / choose / report split (>= 0).", min=0
+        0, "--seed", help="Seed of the fit / choose / measure split (>= 0).", min=0
     ),
     converged_simulation: bool = typer.Option(
         True,

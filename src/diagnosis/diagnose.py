@@ -6,12 +6,12 @@ Steps (docs/conventions.md §5):
    calibration (:mod:`simgap.diagnosis.items`);
 2. **where**: the gap field with its noise, per-axis significance, regions, and the scatter,
    detection and image-evidence tests (:mod:`simgap.diagnosis.where`);
-3. **which**: the comparable configurations are split into fit, choose and report splits; every
+3. **which**: the comparable configurations are split into fit, choose and measure splits; every
    candidate effect is fitted on the fit split and scored on the choose split on all evidence;
    a ranking; a greedy combination while some evidence channel improves distinguishably, with
    the model simplified and pruned after every step (:class:`simgap.analysis.search._selection.
    ModelSearch`); ``unexplained`` evidence when the chosen model leaves it;
-4. **how far**: the chosen model's gap before and after on the report split, per axis, with a
+4. **how far**: the chosen model's gap before and after on the measure split, per axis, with a
    bootstrap interval, confirmed by re-running the full pipeline (re-render) with the fitted
    effects.
 
@@ -147,13 +147,13 @@ class Diagnosis:
             self.propagated_px = unit_px / np.sqrt(2.0)
             self.items = with_propagated_noise(self.items, self.propagated_px, self.rig, self.base)
         self.runner = SimRunner(exp, simulator)
-        fit, choose, report = split_items(
+        fit, choose, measure = split_items(
             len(self.items), settings.fit_fraction, settings.choose_fraction, settings.seed
         )
-        #: item indices of the fit, choose and report splits
-        self.fit_index, self.report_index = fit, report
+        #: item indices of the fit, choose and measure splits
+        self.fit_index, self.measure_index = fit, measure
         self.choose_index = subsample(choose, settings.max_choose_items, settings.seed)
-        #: errors (m, rad) with the chosen effects, per item: the report split's from the fast
+        #: errors (m, rad) with the chosen effects, per item: the measure split's from the fast
         #: model (:meth:`combined`; NaN elsewhere)
         self.fitted_errors: np.ndarray | None = None
         #: errors (m, rad) of every item re-rendered with the chosen effects (:meth:`confirm`)
@@ -175,22 +175,22 @@ class Diagnosis:
         )
 
     def confirm(self, chosen: Scored) -> Confirmed:
-        """Re-run the pipeline (re-render) with all selected effects; score the report split.
+        """Re-run the pipeline (re-render) with all selected effects; score the measure split.
 
         Every item is re-rendered (:attr:`confirmed_errors`, for the report in mm and mrad); the
-        scores are those of the report split's items, which neither fitted nor chose the model.
+        scores are those of the measure split's items, which neither fitted nor chose the model.
         """
         state = self.base
         for cand, fit in chosen.fits:
             state = cand.apply(state, fit.params)
-        h = self.items.subset(self.report_index)
+        h = self.items.subset(self.measure_index)
         t0 = time.perf_counter()
         self.search.steps.start("confirmation re-render", len(self.items))
         errors = self.runner.errors(state, self.items, self.search.steps.advance)
         if self.noise_shift is not None:  # as the simulation's own errors (with_noise_shift)
             errors = errors + np.nan_to_num(self.noise_shift.at(self.items))
         self.confirmed_errors = errors
-        pred = errors[self.report_index]
+        pred = errors[self.measure_index]
         before = float(gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes))
         after = float(gap_score(h.real_err, pred, h.scale, self.significant_axes))
         return Confirmed(
@@ -246,7 +246,7 @@ class Diagnosis:
         :attr:`real` against :attr:`sim`.
         """
         membership = np.zeros((len(self.items), len(SPLITS)), bool)
-        splits = {"fit": self.fit_index, "choose": self.choose_index, "report": self.report_index}
+        splits = {"fit": self.fit_index, "choose": self.choose_index, "measure": self.measure_index}
         for k, name in enumerate(SPLITS):
             membership[splits[name], k] = True
         items = ItemEvidence(
@@ -267,15 +267,15 @@ class Diagnosis:
         )
 
     def combined(self, chosen: Scored) -> Combined:
-        """The chosen model on the report split, with bootstrap intervals of its reductions."""
+        """The chosen model on the measure split, with bootstrap intervals of its reductions."""
         projection = chosen.projection[:2] if chosen.projection else None
-        reported = self.search.score(chosen.fits, projection, self.report_index)
+        measured = self.search.score(chosen.fits, projection, self.measure_index)
         self.fitted_errors = np.full_like(self.items.real_err, np.nan)
-        self.fitted_errors[self.report_index] = reported.items_and_prediction()[1].error
-        interval = bootstrap_reductions(reported, self.significant_axes, seed=self.settings.seed)
+        self.fitted_errors[self.measure_index] = measured.items_and_prediction()[1].error
+        interval = bootstrap_reductions(measured, self.significant_axes, seed=self.settings.seed)
         return Combined(
-            configurations=len(self.report_index),
-            scores=Scores.of(reported),
+            configurations=len(self.measure_index),
+            scores=Scores.of(measured),
             pose_gap_reduction_interval_90=interval.pose_gap,
             evidence_reduction_interval_90=interval.evidence,
         )
@@ -330,7 +330,7 @@ def diagnose(
     if candidates is None:
         candidates = list(CANDIDATES.values())
     # an appearance effect is a candidate only where one of its own image statistics differs
-    # significantly (the where step, over every comparable tag; the report split's pose gap,
+    # significantly (the where step, over every comparable tag; the measure split's pose gap,
     # on which the reduction is measured, plays no part in it)
     candidates = [c for c in candidates if signature_significant(c, where.image_tests)]
     ranking = d.search.rank(candidates, where.significant) if len(d.items) >= 2 else []
@@ -350,7 +350,7 @@ def diagnose(
         split=Split(
             fit=len(d.fit_index),
             choose=len(d.choose_index),
-            report=len(d.report_index),
+            measure=len(d.measure_index),
             seed=settings.seed,
         ),
         render_seeds=seeds,

@@ -13,15 +13,18 @@ three groups:
 - the root group (:class:`ItemEvidence`): per comparable item (a visible tag, pin hole and
   turntable angle of the capture; dim ``item``, in the diagnosis's order) its ``tag``, ``p`` and
   ``theta`` (rad), ``distance_m`` (camera-to-tag distance of the rig, m), ``in_split`` (item,
-  split: ``fit``, ``choose``, ``report``) and its repeat-mean pose errors per axis:
+  split: ``fit``, ``choose``, ``measure``) and its repeat-mean pose errors per axis:
   ``real_error``, ``simulated_error``, ``fitted_error`` (the fast model with the selected
-  effects, on the report split; absent where nothing is selected) and ``confirmed_error``
+  effects, on the measure split; absent where nothing is selected) and ``confirmed_error``
   (every item re-rendered with them; absent without a confirmation);
 - ``gap`` (:class:`GapEvidence`): the real - simulated signed error of every configuration of
   the capture's grid (tag, p, theta), as the gap heatmap draws it;
 - ``image_stats`` (:class:`ImageStatEvidence`; absent where the capture or the simulation has
   no image statistics): per source (``real``, ``simulation``) and configuration what the image
   evidence figures draw.
+
+Schema versions: 2 (this one); 1 (the third split was called ``report``) is still read
+(:func:`upgrade_v1`).
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ from simgap.analysis.report import compare_variants
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES
 from simgap.diagnosis.result import DiagnosisResult
-from simgap.diagnosis.result_json import write_json
+from simgap.diagnosis.result_json import versions_read, write_json
 from simgap.pose.image_stats import STATS
 from simgap.results.cf import ERROR_UNITS, decode_cf, encode_cf
 from simgap.results.contract import COORD_ATTRS
@@ -51,9 +54,9 @@ RESULT_FILE = "result.json"
 #: The evidence beside it.
 EVIDENCE_FILE = "evidence.nc"
 #: Version of the ``evidence.nc`` schema written (its global attr ``schema_version``).
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 #: The splits of the comparable items, in the order of the ``split`` dim.
-SPLITS = ("fit", "choose", "report")
+SPLITS = ("fit", "choose", "measure")
 #: The two sides of the gap, in the order of the ``source`` dim.
 SOURCES = ("real", "simulation")
 #: The reference variant of the gap comparison (:meth:`GapEvidence.comparison`) and the compared.
@@ -66,7 +69,7 @@ FOLDER_FILES = f"a diagnosis folder holds {RESULT_FILE} and {EVIDENCE_FILE} (sim
 #: ``units`` and ``long_name`` of the evidence's variables and of coordinates other than the
 #: result dataset's (:data:`~simgap.results.contract.COORD_ATTRS`).
 ATTRS: dict[str, dict[str, str]] = {
-    "split": {"long_name": "split of the comparable items: fit, choose or report"},
+    "split": {"long_name": "split of the comparable items: fit, choose or measure"},
     "source": {"long_name": "side of the gap: the capture (real) or its simulation"},
     "distance_m": {"units": "m", "long_name": "camera-to-tag distance"},
     "in_split": {"long_name": "the item belongs to the split"},
@@ -74,7 +77,7 @@ ATTRS: dict[str, dict[str, str]] = {
     "simulated_error": {"units": ERROR_UNITS, "long_name": "repeat-mean simulated pose error"},
     "fitted_error": {
         "units": ERROR_UNITS,
-        "long_name": "simulated pose error with the selected effects, fast model, report split",
+        "long_name": "simulated pose error with the selected effects, fast model, measure split",
     },
     "confirmed_error": {
         "units": ERROR_UNITS,
@@ -252,7 +255,7 @@ class ItemEvidence(_Record):
         Repeat-mean pose errors along :data:`~simgap.core.axes.AXES` (m, rad); NaN where a side
         did not detect the tag or either side's pose is a planar flip.
     fitted_error : ndarray (N, 6) or None
-        Simulated errors with the selected effects, from the fast model on the report split
+        Simulated errors with the selected effects, from the fast model on the measure split
         (NaN elsewhere); None where nothing is selected.
     confirmed_error : ndarray (N, 6) or None
         Simulated errors of every item re-rendered with the selected effects; None without a
@@ -286,9 +289,9 @@ class ItemEvidence(_Record):
         return len(self.tag)
 
     @property
-    def report_items(self) -> int:
-        """Number of items in the report split."""
-        return int(self.in_split[:, SPLITS.index("report")].sum())
+    def measure_items(self) -> int:
+        """Number of items in the measure split."""
+        return int(self.in_split[:, SPLITS.index("measure")].sum())
 
     @property
     def with_fitted_effects(self) -> np.ndarray:
@@ -557,8 +560,11 @@ class DiagnosisEvidence(_Record):
                 f"by simgap diagnose): {type(exc).__name__}: {exc}"
             ) from exc
         version = root.attrs.get("schema_version")
-        if version != SCHEMA_VERSION:
-            raise ValueError(f"{where}: schema_version: expected {SCHEMA_VERSION}, got {version!r}")
+        if version in UPGRADES:
+            root = UPGRADES[version](root)
+        elif version != SCHEMA_VERSION:
+            readable = versions_read(UPGRADES, SCHEMA_VERSION)
+            raise ValueError(f"{where}: schema_version: expected {readable}, got {version!r}")
         if "gap" not in groups:
             raise ValueError(f"{where}: missing group 'gap'")
         image_stats = groups.get("image_stats")
@@ -569,6 +575,19 @@ class DiagnosisEvidence(_Record):
             if image_stats is None
             else ImageStatEvidence.from_dataset(image_stats, f"{where} (group image_stats)"),
         )
+
+
+#: Schema-1 split names renamed in schema 2.
+_V1_SPLITS = {"report": "measure"}
+
+
+def upgrade_v1(root: xr.Dataset) -> xr.Dataset:
+    """A schema-1 root group in the schema-2 layout: its split ``report`` is ``measure``."""
+    return root.assign_coords(split=[_V1_SPLITS.get(str(s), str(s)) for s in root.split.values])
+
+
+#: The older schema versions of ``evidence.nc`` still read, and what lifts each to the current.
+UPGRADES = {1: upgrade_v1}
 
 
 def _read_group(path: Path, group: str | None) -> xr.Dataset:

@@ -96,7 +96,7 @@ def which_markdown(result: DiagnosisResult) -> list[str]:
         "## Which",
         "",
         "Each effect fitted on the fit split and scored on the choose split "
-        f"({split.fit} / {split.choose} configurations; the {split.report} of the report split "
+        f"({split.fit} / {split.choose} configurations; the {split.measure} of the measure split "
         "are kept for 'how far'). Ranked by the combined misfit of all evidence on the choose "
         "split, each channel in units of the smallest difference that matters: detected corners "
         "(px over the capture's corner noise), pose (per axis the median of ((real - predicted "
@@ -221,14 +221,14 @@ def _look_alike_line(model: EquivalentModel) -> str:
 
 
 def how_far_markdown(result: DiagnosisResult) -> list[str]:
-    """Markdown lines for the chosen model on the report split (fast and confirmed)."""
+    """Markdown lines for the chosen model on the measure split (fast and confirmed)."""
     if result.combined is None or result.selection is None:
-        raise ValueError("the result has no selected model scored on the report split")
+        raise ValueError("the result has no selected model scored on the measure split")
     c, s, f = result.combined, result.combined.scores, result.confirmed
     lines = [
         "## How far it shrinks",
         "",
-        f"Measured on the report split ({c.configurations} configurations that neither "
+        f"On the measure split ({c.configurations} configurations that neither "
         "fitted nor chose the model): pose gap "
         f"{s.pose_gap_before:.2f} -> {s.pose_gap_after:.2f} "
         f"({s.pose_gap_reduction:.0%} reduction, 90 % bootstrap interval "
@@ -242,7 +242,7 @@ def how_far_markdown(result: DiagnosisResult) -> list[str]:
         lines.append(
             f"Confirmed by a full re-run of the pipeline with the fitted effects: "
             f"{f.pose_gap_after:.2f} ({f.pose_gap_reduction:.0%} reduction, "
-            f"{f.configurations} report-split configurations, {f.seconds:.0f} s)."
+            f"{f.configurations} measure-split configurations, {f.seconds:.0f} s)."
         )
     lines += [
         "",

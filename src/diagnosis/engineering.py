@@ -317,7 +317,7 @@ def verdict(rows: list[RegionRow], selected: str, fitted_on: str) -> list[str]:
     selected : str
         The selected effects in words (``-`` for none).
     fitted_on : str
-        Which configurations the "after" values come from (e.g. "the report split, re-rendered").
+        Which configurations the "after" values come from (e.g. "the measure split, re-rendered").
     """
     floor = PRACTICAL_FLOOR
     finite = [r for r in rows if np.isfinite(r.gap_before)]
@@ -371,9 +371,9 @@ def engineering_markdown(items: ItemEvidence, selected: str) -> list[str]:
     rows = region_rows(items.p, items.distance_m, items.real_error, items.simulated_error, fitted)
     fitted_on = (
         "every configuration re-rendered with the fitted effects; the "
-        f"{items.report_items} of the report split neither fitted nor chose them"
+        f"{items.measure_items} of the measure split neither fitted nor chose them"
         if items.confirmed_error is not None
-        else f"fast model, the {items.report_items} report-split configurations"
+        else f"fast model, the {items.measure_items} measure-split configurations"
     )
     lines = ["## In mm and mrad", ""]
     lines += verdict(rows, selected, fitted_on)

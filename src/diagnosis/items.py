@@ -212,14 +212,14 @@ def with_propagated_noise(items: Items, sigma_px: float, rig: Rig, base: Variant
 def split_items(
     n: int, fit_fraction: float, choose_fraction: float, seed: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Disjoint random fit / choose / report index sets of ``n`` items (each non-empty if n >= 3).
+    """Disjoint random fit / choose / measure index sets of ``n`` items (each non-empty if n >= 3).
 
     Parameters
     ----------
     n : int
         Number of items.
     fit_fraction, choose_fraction : float
-        Shares of the fit and choice splits; the report split takes the rest.
+        Shares of the fit and choice splits; the measure split takes the rest.
     seed : int
         Seed of the permutation.
     """

@@ -5,12 +5,13 @@
 docs/diagnosis.md documents the schema). Three splits of the comparable configurations, one name
 each:
 *fit* (the effects' parameters are fitted), *choose* (models are ranked, combined, simplified and
-pruned: :class:`RankedEffect`, :class:`Selection`) and *report* (the chosen model is measured:
+pruned: :class:`RankedEffect`, :class:`Selection`) and *measure* (the chosen model is measured:
 :class:`Combined`, :class:`Confirmed`).
 
-Schema versions: 2 (this one); 1 (no ``schema_version`` key: the splits were ``train`` /
-``heldout`` / ``report`` and most scores had a ``heldout_`` prefix whatever their split) is still
-read (:func:`upgrade_v1`).
+Schema versions: 3 (this one); 2 (the measure split was ``report``) and 1 (no ``schema_version``
+key: the splits were ``train`` / ``heldout`` / ``report`` and most scores had a ``heldout_`` prefix
+whatever their split) are still read (:func:`upgrade_v2`, :func:`upgrade_v1` then
+:func:`upgrade_v2`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from simgap.core.axes import AXES
 from simgap.diagnosis.result_json import VersionedRecord
 
 #: Version of the ``result.json`` schema written.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 NAN = float("nan")
 
 
@@ -191,7 +192,7 @@ class Selection:
 
 @dataclass(kw_only=True)
 class Combined:
-    """The chosen model measured on the report split (neither fitted nor chose it).
+    """The chosen model measured on the measure split (neither fitted nor chose it).
 
     The intervals are 90 % bootstrap intervals ([low, high]) of the scores' reductions.
     """
@@ -204,7 +205,7 @@ class Combined:
 
 @dataclass(kw_only=True)
 class Confirmed:
-    """The report split re-run through the full pipeline (re-rendered) with the fitted effects."""
+    """The measure split re-run through the full pipeline (re-rendered) with the fitted effects."""
 
     configurations: int
     pose_gap_after: float
@@ -215,11 +216,11 @@ class Confirmed:
 
 @dataclass(kw_only=True)
 class Split:
-    """Sizes of the fit, choose and report splits, and the seed that drew them."""
+    """Sizes of the fit, choose and measure splits, and the seed that drew them."""
 
     fit: int
     choose: int
-    report: int
+    measure: int
     seed: int
 
 
@@ -289,7 +290,7 @@ def _scored_record(record: dict[str, Any], keep: tuple[str, ...]) -> dict[str, A
 
 
 def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
-    """Schema-1 ``result.json`` data in the schema-2 layout (read for one version).
+    """Schema-1 ``result.json`` data in the schema-2 layout (:func:`upgrade_v2` lifts it on).
 
     Renamed: ``split.train`` / ``split.heldout`` (``fit`` / ``choose``), ``where.axes``
     (``axis_gaps``) with ``z_mean`` (``z_median``), a region's ``mean`` (``median``), the
@@ -298,7 +299,7 @@ def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
     ``n_params``, ``choice`` and ``equivalent_models`` to ``selection``.
     """
     out = {k: v for k, v in data.items() if k not in DiagnosisResult.json_derived}
-    out["schema_version"] = SCHEMA_VERSION
+    out["schema_version"] = 2
     where = dict(data.get("where", {}))
     if "axes" in where:
         where["axis_gaps"] = {
@@ -339,18 +340,31 @@ def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def upgrade_v2(data: dict[str, Any]) -> dict[str, Any]:
+    """Schema-2 ``result.json`` data in the schema-3 layout.
+
+    Renamed: ``split.report`` (``split.measure``).
+    """
+    out = dict(data, schema_version=3)
+    if out.get("split") is not None:
+        split = out["split"]
+        out["split"] = {("measure" if k == "report" else k): v for k, v in split.items()}
+    return out
+
+
 @dataclass(kw_only=True)
 class DiagnosisResult(VersionedRecord):
     """The whole diagnosis (``result.json``); see the module docstring.
 
     ``selected``, ``minor`` and ``unexplained`` follow from the others (written to
     ``result.json`` for readers, never read back). :meth:`to_json` and :meth:`from_json` write
-    and read ``result.json`` data of schema 2, and read schema 1 (:func:`upgrade_v1`).
+    and read ``result.json`` data of schema 3, and read schemas 2 (:func:`upgrade_v2`) and 1
+    (:func:`upgrade_v1`, then :func:`upgrade_v2`).
     """
 
     json_derived: ClassVar[tuple[str, ...]] = ("selected", "minor", "unexplained")
     json_schema = SCHEMA_VERSION
-    json_upgrades = {1: upgrade_v1}
+    json_upgrades = {1: upgrade_v1, 2: upgrade_v2}
     json_source = "result.json"
 
     schema_version: int = SCHEMA_VERSION

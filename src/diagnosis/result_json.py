@@ -82,7 +82,8 @@ class VersionedRecord:
 
     A subclass is a dataclass whose ``schema_version`` field defaults to :attr:`json_schema`,
     the version it writes; :attr:`json_upgrades` maps each older version still read (a file
-    without the key is version 1) to the function that lifts its data to the current layout;
+    without the key is version 1) to the function that lifts its data to a later version's
+    layout (its ``schema_version`` says which), applied in turn until the data is current;
     :attr:`json_source` names the file in errors where the reader names none.
     """
 
@@ -108,12 +109,19 @@ class VersionedRecord:
         if not isinstance(data, dict):
             raise ValueError(f"{source}: expected a mapping, got {type(data).__name__}")
         version = data.get("schema_version", 1)
-        if version in cls.json_upgrades:
+        while version in cls.json_upgrades:
             data = cls.json_upgrades[version](data)
-        elif version != cls.json_schema:
-            readable = " or ".join(str(v) for v in sorted({*cls.json_upgrades, cls.json_schema}))
+            version = data["schema_version"]
+        if version != cls.json_schema:
+            readable = versions_read(cls.json_upgrades, cls.json_schema)
             raise ValueError(f"{source}: schema_version: expected {readable}, got {version!r}")
         return from_jsonable(cast(Any, cls), data, source)
+
+
+def versions_read(upgrades: Mapping[int, Any], current: int) -> str:
+    """The schema versions a reader takes, in words: ``"1, 2 or 3"``."""
+    versions = [str(v) for v in sorted({*upgrades, current})]
+    return " or ".join([", ".join(versions[:-1]), versions[-1]] if len(versions) > 1 else versions)
 
 
 def _value(tp: Any, value: Any, where: str) -> Any:

@@ -21,7 +21,7 @@ class DiagnoseSettings:
     #: Share of the visible configurations used to fit effects (the fit split).
     fit_fraction: float = 0.5
     #: Share used to rank, add, simplify and prune effects (the choose split). The rest is the
-    #: report split: the reduction is measured there only, never on configurations that fitted
+    #: measure split: the reduction is measured there only, never on configurations that fitted
     #: or chose the model.
     choose_fraction: float = 0.25
     #: Seed of the split and the subsamples.

@@ -71,12 +71,12 @@ class TrialScore:
         between the fitted and the true value relative to the truth's scale (a fraction;
         :meth:`simgap.diagnosis.trial.Trial.truth`). Empty without a hidden catalogue effect.
     pose_gap_reduction : float or None
-        Relative fall of the pose gap on the report split (1: closed): re-rendered with the
+        Relative fall of the pose gap on the measure split (1: closed): re-rendered with the
         fitted effects where the diagnosis confirmed them, else predicted by the combined
         model. None without a hidden catalogue effect or without a combined model.
     pose_gap_reduction_interval_90 : (float, float) or None
         90 % bootstrap interval ([low, high]) of the combined model's pose-gap reduction on the
-        report split; None without a hidden catalogue effect or without a combined model.
+        measure split; None without a hidden catalogue effect or without a combined model.
     crushed_black_share : float or None
         The largest share of a tag's pixels at 0 DN over the capture's frames (0-1,
         :func:`simgap.diagnosis.trial.crushed_black_share`), against which the camera's own

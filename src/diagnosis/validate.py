@@ -9,7 +9,7 @@ effects, ingests it like hardware data, diagnoses it without being told, and sco
 (:meth:`simgap.diagnosis.trial.Trial.score`): correct when the hidden effect is named (of a
 pair at least one; the recall and the report's strict row count both) and nothing is named that
 the capture does not have, magnitudes against the camera's truths, the
-reduction on the report split, and the nuisance bins of the trial's camera.
+reduction on the measure split, and the nuisance bins of the trial's camera.
 
 Thresholds of the diagnosis are fixed before a blind run; reports on a seed never used while
 developing are the ones quoted.

@@ -94,7 +94,7 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         f"| fitted magnitude within 25 % | {pct(summary.magnitude_within_25pct)} |",
         f"| magnitude error, median / 90th percentile | {num(summary.magnitude_error_median)} / "
         f"{num(summary.magnitude_error_p90)} |",
-        "| pose-gap reduction on the report split, median (correct trials) | "
+        "| pose-gap reduction on the measure split, median (correct trials) | "
         f"{pct(summary.pose_gap_reduction_median)} |",
         f"| reduced >= 70 % | {pct(summary.pose_gap_reduction_at_least_70pct)} |",
         f"| trials naming something the capture does not have | {pct(summary.spurious_share)} |",

@@ -111,7 +111,7 @@ class ValidationSummary:
     magnitude_error_median, magnitude_error_p90 : float or None
         Median and 90th percentile of those relative magnitude errors.
     pose_gap_reduction_median : float or None
-        Median pose-gap reduction on the report split (:attr:`TrialScore.pose_gap_reduction`)
+        Median pose-gap reduction on the measure split (:attr:`TrialScore.pose_gap_reduction`)
         over the correct trials with hidden catalogue effects that measured one.
     pose_gap_reduction_at_least_70pct : float or None
         Share of those reductions that are at least 0.7.

@@ -2,7 +2,7 @@
 
 :class:`Scored` holds a model's misfit per evidence channel before (the simulation alone) and
 after (with the model's effects) on the items it was scored on: the choose split while models are
-searched, the report split for the chosen one (:mod:`simgap.analysis.search._selection`). The
+searched, the measure split for the chosen one (:mod:`simgap.analysis.search._selection`). The
 decision rules that compare scored models are :mod:`simgap.analysis.search._scoring`;
 :func:`bootstrap_reductions` gives the intervals of a scored model's reductions.
 """

@@ -8,7 +8,7 @@ effects, then adds effects greedily while the combined misfit falls and some cha
 distinguishably (:mod:`simgap.analysis.search._scoring`), and after every step simplifies the model:
 effects are dropped or swapped for ones with fewer parameters while the model stays *as good*
 (the data cannot tell the models apart, so the simpler explanation is reported and the others are
-listed). The report split is scored only for the chosen model. Whether an effect may enter a
+listed). The measure split is scored only for the chosen model. Whether an effect may enter a
 model at all is :mod:`simgap.analysis.search._admission`.
 """
 
