@@ -45,7 +45,10 @@ def main() -> None:
     visible = ds.visible.broadcast_like(ds.detected).astype(bool).isel(repeat=0)
     lost = visible & ~ds.detected.astype(bool).isel(repeat=0)
     cache = Cache(Path(tempfile.mkdtemp(prefix="simgap-lost-")))
-    print(f"{int(lost.sum())} lost tag configurations; reference: path traced at {args.spp} spp")
+    print(
+        f"{int(lost.sum())} lost items (tag x configuration); "
+        f"reference: path traced at {args.spp} spp"
+    )
     print("variant | tag | p | theta | study's sticker | brightest 1 % hold | reference | seconds")
     recovered = 0
     for v, t, i, j in np.argwhere(lost.values):

@@ -46,7 +46,7 @@ def slope(x: np.ndarray, y: np.ndarray) -> float:
 
 
 def visible_ty(ds):
-    """Expected ty and ty error (m) of the detected, visible tag configurations."""
+    """Expected ty and ty error (m) of the detected, visible items."""
     ok = (ds.detected.isel(variant=0, repeat=0) & ds.visible).values
     expected = ds.expected.sel(axis="ty").values[ok]
     error = ds.error.isel(variant=0, repeat=0).sel(axis="ty").values[ok]
@@ -499,7 +499,8 @@ def test_cli_ingest(tmp_path, sample):
     out = tmp_path / "real.nc"
     res = CliRunner().invoke(app, ["ingest", str(sample), "-o", str(out), "--no-progress"])
     assert res.exit_code == 0, res.output
-    assert "9 frame(s), 0 unreadable; 9 visible tag configurations, 9 detected" in res.output
+    said = "9 frame(s), 0 unreadable; 9 visible items (tag x configuration), 9 detected"
+    assert said in res.output
     ds = read_netcdf(out)
     assert ds.attrs["source"] == "capture" and ds.attrs["capture_dir"] == str(sample.resolve())
     assert ds.detected.dtype == bool and int(ds.detected.sum()) == 9

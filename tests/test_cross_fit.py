@@ -229,7 +229,7 @@ def test_a_lens_the_held_out_corners_show_is_found_where_nothing_starts_the_sear
 
 
 def test_a_geometry_that_predicts_held_out_corners_better_is_not_tied():
-    """Blind seed 46 trial 38: on six configurations a tag offset explained the choose split as
+    """Blind seed 46 trial 38: on six items a tag offset explained the choose split as
     well as the true camera mount (evidence 4.50 against 4.51) and parsimony named it; refitted
     on those few items it did not predict the others (median 0.60 px^2 against 0.08). Here a
     mount of (-2.8, 2.2, -1.2) mm on 24 items within 40 deg of each tag's frontal stop: the

@@ -23,7 +23,7 @@ from simgap.pipeline.experiment import load_experiment
 def test_public_sample_reads_as_focal_length_at_another_render_seed(session_cache, sample):
     """sample-focal against a simulation rendered at seed 5 instead of 0.
 
-    Path traced, before each configuration's own noise was measured (4 render seeds for a
+    Path traced, before each item's own noise was measured (4 render seeds for a
     9-configuration capture), this seed read as a camera mount: one far, oblique tag's depth
     moved 9 mm with the render noise and decided the choice
     (docs/results/sample_focal_render_seeds.md). Path traced here

@@ -124,7 +124,7 @@ def test_the_report_is_written_again_from_its_folder_alone(tmp_path, focal_diagn
     assert not differ, differ
     evidence = DiagnosisEvidence.read(out / EVIDENCE_FILE)
     result = DiagnosisResult.from_json(json.loads(js.read_text()))
-    assert len(evidence.items) == result.where.comparable_configurations == 9
+    assert len(evidence.items) == result.where.comparable_items == 9
     assert evidence.items.measure_items == result.split.measure
     assert evidence.items.confirmed_error is not None and evidence.image_stats is not None
     for record in (evidence.items, evidence.gap, evidence.image_stats):

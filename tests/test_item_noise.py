@@ -1,4 +1,4 @@
-"""Each configuration's own noise: measured by repeats, carried into the diagnosis' items.
+"""Each item's own noise: measured by repeats, carried into the diagnosis' items.
 
 A far, oblique tag's depth and rotation move millimetres with a tenth of a pixel of corner
 noise; on a small capture one such item decided between a focal length and a camera mount by the
@@ -21,7 +21,7 @@ from simgap.pipeline.experiment import load_experiment
 from simgap.results.dataset import build_dataset, empty_results
 
 TAGS, PS, THETAS = (0,), (0, 1, 2, 3, 4, 5, 6, 7, 8, 9), np.deg2rad([0.0, 10.0])
-NOISY = (0, 4, 1)  # the (tag, p, theta) index of the one noisy configuration
+NOISY = (0, 4, 1)  # the (tag, p, theta) index of the one noisy item
 QUIET_M, NOISY_M = 1e-5, 3e-3
 
 
@@ -44,20 +44,20 @@ def _dataset(repeats: int, offset_m: float = 0.0):
     return build_dataset(TAGS, PS, THETAS, expected, visible, res, repeats=tuple(range(repeats)))
 
 
-def test_configuration_noise_is_each_configurations_own():
+def test_item_noise_is_each_items_own():
     """Sim with 4 repeats, capture with 1: the capture's frame is as noisy as a simulated one."""
-    noise = gapmod.configuration_noise(_dataset(1), _dataset(4))
+    noise = gapmod.item_noise(_dataset(1), _dataset(4))
     # sample standard deviation of (+a, -a, +a, -a) is a sqrt(4/3); the gap's noise carries
     # one simulated frame (the capture) and the mean of four (the simulation)
     frame = NOISY_M * np.sqrt(4 / 3)
     assert float(noise[NOISY][0]) == pytest.approx(frame * np.sqrt(1 + 1 / 4), rel=1e-9)
     assert float(noise[0, 0, 0, 0]) == pytest.approx(QUIET_M * np.sqrt(4 / 3 * 5 / 4), rel=1e-9)
     # neither side has repeats: nothing measured
-    assert np.isnan(gapmod.configuration_noise(_dataset(1), _dataset(1)).values).all()
+    assert np.isnan(gapmod.item_noise(_dataset(1), _dataset(1)).values).all()
 
 
-def test_items_carry_the_noise_of_their_configuration():
-    """The noisy configuration's scale is its own noise; the others keep the per-axis level."""
+def test_items_carry_their_own_noise():
+    """The noisy item's scale is its own noise; the others keep the per-axis level."""
     real, sim = _dataset(1, offset_m=1e-3), _dataset(4)
     field = gapmod.gap_field(real, sim)
     items = build_items(real, sim, field)

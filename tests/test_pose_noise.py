@@ -1,4 +1,4 @@
-"""Each configuration's pose noise propagated from corner noise (simgap.analysis.gap)."""
+"""Each item's pose noise propagated from corner noise (simgap.analysis.gap)."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def _corners():
     return project_items(rig, s.camera, s.errors, s.tag_scale, _items()), rig, base
 
 
-def test_far_configurations_are_noisier_and_noise_scales_with_the_corners():
+def test_far_items_are_noisier_and_noise_scales_with_the_corners():
     corners, rig, base = _corners()
     small = propagated_pose_noise(corners, 0.1, rig, base)
     large = propagated_pose_noise(corners, 0.2, rig, base)
@@ -58,7 +58,7 @@ def test_missing_corners_give_nan_and_leave_the_others_as_they_were():
     corners[1] = np.nan
     out = propagated_pose_noise(corners, 0.1, rig, base)
     assert np.isnan(out[1]).all()
-    # each configuration takes its own draws whichever others have corners
+    # each item takes its own draws whichever others have corners
     np.testing.assert_array_equal(out[[0, 2, 3]], full[[0, 2, 3]])
 
 

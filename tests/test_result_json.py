@@ -32,7 +32,7 @@ def test_schema_1_is_read_under_the_new_names():
     assert result.ranking[0].kind == top["stage"] == "projection"
     combined = raw["combined"]
     assert result.selection.findings[0].params == combined["effects"][0]["params"]
-    assert result.selection.configurations == combined["choice"]["configurations"] == 2
+    assert result.selection.items == combined["choice"]["configurations"] == 2
     assert result.combined.scores.pose_gap_reduction == combined["reduction"]
     assert list(result.combined.pose_gap_reduction_interval_90) == combined["reduction_interval_90"]
     assert result.combined.scores.median_abs_gap_after == combined["heldout_gap_after_per_axis"]
@@ -55,6 +55,13 @@ def test_schema_2_is_read_under_the_new_names():
     assert result.combined.scores.pose_gap_reduction == raw["combined"]["scores"][
         "pose_gap_reduction"
     ]
+    # counts of items were called configurations
+    assert result.where.comparable_items == raw["where"]["comparable_configurations"] == 9
+    detection = raw["where"]["detection"]
+    assert result.where.detection.visible_items == detection["visible_configurations"]
+    for name in ("selection", "combined", "confirmed"):
+        assert getattr(result, name).items == raw[name]["configurations"], name
+    assert result.combined.items == result.split.measure
     # nothing is lost between the schemas: the old file's numbers are the new one's, NaN too
     data = json.loads(json.dumps(result.to_json()))
     assert data["schema_version"] == 3

@@ -81,7 +81,7 @@ def test_the_summary_and_report_name_a_look_alike_and_the_poses_that_tell_it_apa
         selection=Selection(
             findings=[finding],
             n_params=2,
-            configurations=9,
+            items=9,
             scores=Scores(),
             equivalent_models=[alike],
         )

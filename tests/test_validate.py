@@ -109,8 +109,8 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         assert set(s.nuisance_bins) == basic | stages
         assert s.crushed_black_share is not None and 0.0 <= s.crushed_black_share <= 1.0
         result = t.result
-        if result.combined:  # the reduction is measured on configurations that did not choose
-            assert result.combined.configurations == result.split.measure
+        if result.combined:  # the reduction is measured on items that did not choose
+            assert result.combined.items == result.split.measure
 
 
 def test_confusion_counts_each_hidden_effect_as_found_or_as_the_top1():
@@ -138,7 +138,7 @@ def _selecting(*effects: str, **params: dict[str, float]) -> DiagnosisResult:
         Finding(effect=e, params=params.get(e, {}), pose_contribution=1.0, minor=False)
         for e in effects
     ]
-    selection = Selection(findings=findings, n_params=0, configurations=0, scores=Scores())
+    selection = Selection(findings=findings, n_params=0, items=0, scores=Scores())
     return DiagnosisResult(selection=selection)
 
 

@@ -41,7 +41,7 @@ Z_SIGNIFICANT: Final[float] = 4.0
 #: measure its own (fewer than 8 second differences along the carriage; without repeats). Set
 #: with the first diagnosis (docs/results/design_evidence.md#thresholds); measured since on the
 #: public sample-focal's 9 configurations simulated at 4 render seeds, one frame's pose noise
-#: (median over configurations) is 0.014-0.36 mm per translation axis (depth, ty, the largest)
+#: (median over items) is 0.014-0.36 mm per translation axis (depth, ty, the largest)
 #: and 1.0-4.9 mrad per rotation axis: 0.2 mm and 4 mrad lie within those ranges.
 DEFAULT_NOISE: Final = MappingProxyType({"m": 2e-4, "rad": 4e-3})
 #: A rotation error beyond this (rad, 8.6 deg) is the other branch of a square marker's planar
@@ -161,7 +161,7 @@ AT_BOUND_SHARE: Final[float] = 0.02
 #: it was never tried (raised from three to four to five;
 #: docs/results/design_evidence.md#thresholds).
 MAX_EFFECTS: Final[int] = 5
-#: Largest corner gap (px, RMS over the choose split's configurations) a model with a geometric or
+#: Largest corner gap (px, RMS over the choose split's items) a model with a geometric or
 #: calibration effect may leave: geometry is fitted on the corners and, once the image formation
 #: is modelled, explains them to the detector's bias. A model that leaves more has fitted the
 #: geometry to corners that something else moved (a motion smear, an unmodelled defocus), and the

@@ -151,7 +151,7 @@ def ingest(
     det = ds.detected.values[0].any(axis=0)
     typer.echo(
         f"wrote {output}: {ds.attrs['frames']} frame(s), {ds.attrs['frames_unreadable']} "
-        f"unreadable; {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
+        f"unreadable; {vis.sum()} visible items (tag x configuration), {(det & vis).sum()} detected"
     )
 
 

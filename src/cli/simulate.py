@@ -51,7 +51,7 @@ def run(
     det = ds.detected.values[0, 0]
     typer.echo(
         f"wrote {output}: {ds.sizes['variant']} variant(s) x {ds.sizes['repeat']} repeat(s); "
-        f"baseline: {vis.sum()} visible tag configurations, {(det & vis).sum()} detected"
+        f"baseline: {vis.sum()} visible items (tag x configuration), {(det & vis).sum()} detected"
     )
 
 

@@ -6,7 +6,7 @@ Steps (docs/conventions.md §5):
    calibration (:mod:`simgap.diagnosis.items`);
 2. **where**: the gap field with its noise, per-axis significance, regions, and the scatter,
    detection and image-evidence tests (:mod:`simgap.diagnosis.where`);
-3. **which**: the comparable configurations are split into fit, choose and measure splits; every
+3. **which**: the comparable items are split into fit, choose and measure splits; every
    candidate effect is fitted on the fit split and scored on the choose split on all evidence;
    a ranking; a greedy combination while some evidence channel improves distinguishably, with
    the model simplified and pruned after every step (:class:`simgap.analysis.search._selection.
@@ -141,7 +141,7 @@ class Diagnosis:
         self.field = gapmod.gap_field(real, sim)
         unit_px = corner_unit(real.reproj_px.isel(variant=0).values)
         self.items = build_items(real, sim, self.field)
-        #: corner noise propagated to each configuration's pose noise (px; None: not)
+        #: corner noise propagated to each item's pose noise (px; None: not)
         self.propagated_px: float | None = None
         if converged:
             self.propagated_px = unit_px / np.sqrt(2.0)
@@ -194,7 +194,7 @@ class Diagnosis:
         before = float(gap_score(h.real_err, h.sim_err, h.scale, self.significant_axes))
         after = float(gap_score(h.real_err, pred, h.scale, self.significant_axes))
         return Confirmed(
-            configurations=len(h),
+            items=len(h),
             pose_gap_after=after,
             pose_gap_reduction=1.0 - after / before if before > 0 else 0.0,
             median_abs_gap_after=per_axis(median_abs_gap(h.real_err, pred)),
@@ -217,7 +217,7 @@ class Diagnosis:
                 for _, fit in chosen.fits
             ],
             n_params=chosen.n_params,
-            configurations=len(self.choose_index),
+            items=len(self.choose_index),
             scores=Scores.of(chosen),
             equivalent_models=[
                 self.with_telling_poses(chosen, alternative)
@@ -274,7 +274,7 @@ class Diagnosis:
         self.fitted_errors[self.measure_index] = measured.items_and_prediction()[1].error
         interval = bootstrap_reductions(measured, self.significant_axes, seed=self.settings.seed)
         return Combined(
-            configurations=len(self.measure_index),
+            items=len(self.measure_index),
             scores=Scores.of(measured),
             pose_gap_reduction_interval_90=interval.pose_gap,
             evidence_reduction_interval_90=interval.evidence,
@@ -309,8 +309,7 @@ def diagnose(
     progress : ProgressCallback, optional
         Told the progress of every step after the simulation (whose progress is the
         simulator's): ``fitting candidates`` (one unit per candidate), ``model search`` (one per
-        model fitted, total unknown) and ``confirmation re-render`` (one per configuration and
-        tag). Default: silent.
+        model fitted, total unknown) and ``confirmation re-render`` (one per item). Default: silent.
 
     Raises
     ------

@@ -17,10 +17,10 @@ three groups:
   ``real_error``, ``simulated_error``, ``fitted_error`` (the fast model with the selected
   effects, on the measure split; absent where nothing is selected) and ``confirmed_error``
   (every item re-rendered with them; absent without a confirmation);
-- ``gap`` (:class:`GapEvidence`): the real - simulated signed error of every configuration of
+- ``gap`` (:class:`GapEvidence`): the real - simulated signed error of every item of
   the capture's grid (tag, p, theta), as the gap heatmap draws it;
 - ``image_stats`` (:class:`ImageStatEvidence`; absent where the capture or the simulation has
-  no image statistics): per source (``real``, ``simulation``) and configuration what the image
+  no image statistics): per source (``real``, ``simulation``) and item what the image
   evidence figures draw.
 
 Schema versions: 2 (this one); 1 (the third split was called ``report``) is still read
@@ -320,7 +320,7 @@ def gap_dataset(real: xr.Dataset, sim: xr.Dataset) -> xr.Dataset:
     return both
 
 
-#: The capture's grid of configurations.
+#: The capture's grid of items (tag, p, theta).
 _GRID = ("tag", "p", "theta")
 #: The grid's coordinates, as a record on it stores them.
 _GRID_LAYOUT = {
@@ -332,7 +332,7 @@ _GRID_LAYOUT = {
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class _GridRecord(_Record):
-    """A record on the capture's grid of configurations (tag, p, theta).
+    """A record on the capture's grid of items (tag, p, theta).
 
     Attributes
     ----------
@@ -349,7 +349,7 @@ class _GridRecord(_Record):
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class GapEvidence(_GridRecord):
-    """The gap on the capture's grid of configurations, as the gap heatmap draws it.
+    """The gap on the capture's grid of items, as the gap heatmap draws it.
 
     Attributes
     ----------
@@ -366,7 +366,7 @@ class GapEvidence(_GridRecord):
     distance_m : ndarray (T, P, Θ)
         Camera-to-tag distance of the capture's expected poses (m).
     repeats : int
-        Repeats a configuration's mean is over (the ``repeats`` attr).
+        Repeats an item's mean is over (the ``repeats`` attr).
     """
 
     signed_gap: np.ndarray

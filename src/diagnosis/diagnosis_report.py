@@ -36,7 +36,7 @@ from simgap.diagnosis.where_report import where_markdown
 
 
 def _render_seeds_sentence(result: DiagnosisResult) -> str:
-    """How the simulation was rendered and each configuration's pose noise measured."""
+    """How the simulation was rendered and each item's pose noise measured."""
     rendered = f" Simulated {result.simulation_render}." if result.simulation_render else ""
     cfa = result.demosaicing
     if cfa is not None:
@@ -67,13 +67,13 @@ def _noise_shift_sentence(result: DiagnosisResult) -> str:
 
 
 def _pose_noise_sentence(result: DiagnosisResult) -> str:
-    """How each configuration's pose noise was measured (or "" where by the per-axis noise)."""
+    """How each item's pose noise was measured (or "" where by the per-axis noise)."""
     seeds = result.render_seeds
     if result.propagated_corner_noise_px is not None:
         frames = f" at {seeds} seeds per configuration (all the capture's frames a pose)"
         return (
             " The simulation is converged" + (frames if seeds > 1 else "") + ": each "
-            "configuration's pose noise is the larger of the per-axis noise and the pose's "
+            "item's pose noise is the larger of the per-axis noise and the pose's "
             f"response to {result.propagated_corner_noise_px:.2f} px of corner noise a "
             "coordinate (the corner channel's unit over sqrt 2: the capture's and the "
             "simulation's, one frame each), propagated through PnP."
@@ -82,7 +82,7 @@ def _pose_noise_sentence(result: DiagnosisResult) -> str:
         return ""
     return (
         f" The capture is small: its simulation was rendered at {seeds} seeds per configuration, "
-        "and each configuration's pose noise is the larger of its own spread over them and the "
+        "and each item's pose noise is the larger of its own spread over them and the "
         "per-axis noise."
     )
 
@@ -96,7 +96,7 @@ def which_markdown(result: DiagnosisResult) -> list[str]:
         "## Which",
         "",
         "Each effect fitted on the fit split and scored on the choose split "
-        f"({split.fit} / {split.choose} configurations; the {split.measure} of the measure split "
+        f"({split.fit} / {split.choose} items; the {split.measure} of the measure split "
         "are kept for 'how far'). Ranked by the combined misfit of all evidence on the choose "
         "split, each channel in units of the smallest difference that matters: detected corners "
         "(px over the capture's corner noise), pose (per axis the median of ((real - predicted "
@@ -228,7 +228,7 @@ def how_far_markdown(result: DiagnosisResult) -> list[str]:
     lines = [
         "## How far it shrinks",
         "",
-        f"On the measure split ({c.configurations} configurations that neither "
+        f"On the measure split ({c.items} items that neither "
         "fitted nor chose the model): pose gap "
         f"{s.pose_gap_before:.2f} -> {s.pose_gap_after:.2f} "
         f"({s.pose_gap_reduction:.0%} reduction, 90 % bootstrap interval "
@@ -242,7 +242,7 @@ def how_far_markdown(result: DiagnosisResult) -> list[str]:
         lines.append(
             f"Confirmed by a full re-run of the pipeline with the fitted effects: "
             f"{f.pose_gap_after:.2f} ({f.pose_gap_reduction:.0%} reduction, "
-            f"{f.configurations} measure-split configurations, {f.seconds:.0f} s)."
+            f"{f.items} measure-split items, {f.seconds:.0f} s)."
         )
     lines += [
         "",

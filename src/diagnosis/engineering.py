@@ -7,8 +7,8 @@ flips (the IPPE ambiguity of a square marker: the two poses whose normals mirror
 the line of sight, a rotation error of tens to hundreds of mrad that no effect explains); and the
 paper's figure, absolute error against distance with the mission thresholds.
 
-Inputs are per comparable item (tag, configuration): real, simulated and fitted errors (m, rad)
-and the camera-to-tag distance (m). Robust statistics throughout: a median is called a median.
+Inputs are per comparable item (a tag at a configuration): real, simulated and fitted errors (m,
+rad) and the camera-to-tag distance (m). Robust statistics throughout: a median is called a median.
 """
 
 from __future__ import annotations
@@ -295,7 +295,7 @@ def plot_gap_by_distance(
         ax.set_xlabel(DISTANCE_LABEL)
         ax.grid(alpha=0.3)
     handles = [
-        Line2D([], [], color="tab:purple", marker="o", ls="none", label="one configuration"),
+        Line2D([], [], color="tab:purple", marker="o", ls="none", label="one item"),
         Line2D([], [], color="k", lw=2.5, label="median per distance third (the table's gap)"),
     ]
     if has_fit:
@@ -317,7 +317,7 @@ def verdict(rows: list[RegionRow], selected: str, fitted_on: str) -> list[str]:
     selected : str
         The selected effects in words (``-`` for none).
     fitted_on : str
-        Which configurations the "after" values come from (e.g. "the measure split, re-rendered").
+        Which items the "after" values come from (e.g. "the measure split, re-rendered").
     """
     floor = PRACTICAL_FLOOR
     finite = [r for r in rows if np.isfinite(r.gap_before)]
@@ -370,16 +370,16 @@ def engineering_markdown(items: ItemEvidence, selected: str) -> list[str]:
     fitted = items.with_fitted_effects
     rows = region_rows(items.p, items.distance_m, items.real_error, items.simulated_error, fitted)
     fitted_on = (
-        "every configuration re-rendered with the fitted effects; the "
+        "every item re-rendered with the fitted effects; the "
         f"{items.measure_items} of the measure split neither fitted nor chose them"
         if items.confirmed_error is not None
-        else f"fast model, the {items.measure_items} measure-split configurations"
+        else f"fast model, the {items.measure_items} measure-split items"
     )
     lines = ["## In mm and mrad", ""]
     lines += verdict(rows, selected, fitted_on)
     lines += [
         "",
-        "Median |error| per axis and distance third over every comparable configuration (real, "
+        "Median |error| per axis and distance third over every comparable item (real, "
         f"simulated; fitted: {fitted_on}), and the median gap real - simulated before -> after "
         "the fitted effects. Planar flips are left out.",
         "",

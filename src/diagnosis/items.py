@@ -1,4 +1,4 @@
-"""The diagnosis' items: the real dataset's visible configurations, their simulation, their splits.
+"""The diagnosis' items: the real dataset's visible tags at its configurations, simulated, split.
 
 An item is one visible (tag, p, theta) with the real and simulated errors, corners, image
 statistics and detection outcomes (:class:`simgap.analysis.gap.Items`). Candidates are fitted
@@ -92,8 +92,8 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
 def with_render_seeds(exp: Experiment, seeds: int) -> Experiment:
     """``exp`` with at least ``seeds`` repeats, each rendered with its own seed (one: unchanged).
 
-    Path traced, the simulation's render noise at each configuration is then measured by its
-    repeats (:func:`simgap.analysis.gap.configuration_noise`), and their mean carries less of
+    Path traced, the simulation's render noise at each item is then measured by its
+    repeats (:func:`simgap.analysis.gap.item_noise`), and their mean carries less of
     it; converged, its repeats differ little, and the capture keeps as many frames a pose
     (:func:`repeats_of_simulation`).
     """
@@ -131,7 +131,7 @@ def repeat_mean_corners(ds: xr.Dataset) -> xr.DataArray:
 
     Dimensions (tag, p, theta, corner, uv); NaN where never detected.
     """
-    with warnings.catch_warnings():  # never-detected configurations are all-NaN
+    with warnings.catch_warnings():  # never-detected items are all-NaN
         warnings.simplefilter("ignore", RuntimeWarning)
         corners = ds.corners.isel(variant=0).mean("repeat", skipna=True)
     return corners.transpose("tag", "p", "theta", "corner", "uv")
@@ -145,7 +145,7 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
     :data:`~simgap.analysis.thresholds.FLIP_RAD`); such items still carry corners, image
     statistics and detection outcomes. Each item's scale (N, 6) is the per-axis gap noise, at
     least :data:`simgap.analysis.thresholds.PRACTICAL_FLOOR`, or the item's own noise measured by
-    the repeats when larger (:func:`simgap.analysis.gap.configuration_noise`).
+    the repeats when larger (:func:`simgap.analysis.gap.item_noise`).
     """
     real, sim = gapmod.align(real, sim)
     visible = field.real_detection.notnull()
@@ -163,8 +163,8 @@ def build_items(real: xr.Dataset, sim: xr.Dataset, field: gapmod.GapField) -> It
     r_c, s_c = repeat_mean_corners(real).values, repeat_mean_corners(sim).values
     floors = np.array([PRACTICAL_FLOOR[axis_unit(a)] for a in AXES])
     scale = np.maximum(field.sigma.values, floors)
-    # a configuration whose repeats show more noise than the per-axis level gets its own
-    noise = gapmod.configuration_noise(real, sim).transpose("tag", "p", "theta", "axis").values
+    # an item whose repeats show more noise than the per-axis level gets its own
+    noise = gapmod.item_noise(real, sim).transpose("tag", "p", "theta", "axis").values
     scale = np.fmax(scale, noise[at])
     stats = {}
     for name, ds in (("real", real), ("sim", sim)):
@@ -195,7 +195,7 @@ def item_distances(items: Items, rig: Rig) -> np.ndarray:
 
 
 def with_propagated_noise(items: Items, sigma_px: float, rig: Rig, base: VariantState) -> Items:
-    """``items`` whose scale is at least each configuration's propagated pose noise.
+    """``items`` whose scale is at least each item's propagated pose noise.
 
     For a simulation whose repeats measure no noise (a converged render): corner noise of
     ``sigma_px`` per coordinate (the diagnosis takes the corner channel's unit, the gap's corner
@@ -266,7 +266,7 @@ class NoiseShift:
         Parameters
         ----------
         items : Items
-            Items on configurations of :attr:`shift` (their tag, p and theta).
+            Items on the grid of :attr:`shift` (their tag, p and theta).
 
         Returns
         -------
@@ -288,7 +288,7 @@ def with_noise_shift(
 
     At a far, oblique tag PnP turns corner noise into a one-sided shift of the pose
     (:func:`simgap.analysis.gap.noise_shift`): the capture's pose there carries it, a
-    noise-free simulation's does not. Each simulated configuration's error (every variant and
+    noise-free simulation's does not. Each simulated item's error (every variant and
     repeat) is moved by the median shift under the capture's corner noise beyond the
     simulation's own, both from their median PnP reprojection errors (sqrt(real^2 - sim^2),
     :func:`simgap.analysis.gap.frame_corner_noise`), with as many frames a draw as the
@@ -310,7 +310,7 @@ def with_noise_shift(
     xarray.Dataset
         ``sim`` aligned to ``real`` (:func:`simgap.analysis.gap.align`), its errors shifted.
     NoiseShift
-        The noise used and the shift per configuration.
+        The noise used and the shift per item.
     """
     real, sim = gapmod.align(real, sim)
     real_px = frame_corner_noise(real.reproj_px.isel(variant=0).values)

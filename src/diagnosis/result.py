@@ -2,13 +2,14 @@
 
 :class:`DiagnosisResult` is what :func:`simgap.diagnosis.diagnose.diagnose` returns and what
 ``result.json`` holds (:meth:`DiagnosisResult.to_json`, :meth:`DiagnosisResult.from_json`;
-docs/diagnosis.md documents the schema). Three splits of the comparable configurations, one name
-each:
+docs/diagnosis.md documents the schema). Three splits of the comparable items (a tag at a
+configuration, docs/conventions.md §7), one name each:
 *fit* (the effects' parameters are fitted), *choose* (models are ranked, combined, simplified and
 pruned: :class:`RankedEffect`, :class:`Selection`) and *measure* (the chosen model is measured:
 :class:`Combined`, :class:`Confirmed`).
 
-Schema versions: 3 (this one); 2 (the measure split was ``report``) and 1 (no ``schema_version``
+Schema versions: 3 (this one); 2 (the measure split was ``report``, counts of items were
+``configurations``) and 1 (no ``schema_version``
 key: the splits were ``train`` / ``heldout`` / ``report`` and most scores had a ``heldout_`` prefix
 whatever their split) are still read (:func:`upgrade_v2`, :func:`upgrade_v1` then
 :func:`upgrade_v2`).
@@ -51,7 +52,7 @@ class Where:
     scatter_tests: list[ScatterTest] = field(default_factory=list)
     detection_tests: list[DetectionTest] = field(default_factory=list)
     image_tests: list[ImageTest] = field(default_factory=list)
-    comparable_configurations: int = 0
+    comparable_items: int = 0
 
 
 @dataclass(kw_only=True)
@@ -184,8 +185,8 @@ class Selection:
 
     findings: list[Finding]
     n_params: int
-    #: configurations of the choose split
-    configurations: int
+    #: items of the choose split
+    items: int
     scores: Scores
     equivalent_models: list[EquivalentModel] = field(default_factory=list)
 
@@ -197,7 +198,8 @@ class Combined:
     The intervals are 90 % bootstrap intervals ([low, high]) of the scores' reductions.
     """
 
-    configurations: int
+    #: items of the measure split
+    items: int
     scores: Scores
     pose_gap_reduction_interval_90: tuple[float, float]
     evidence_reduction_interval_90: tuple[float, float]
@@ -207,7 +209,8 @@ class Combined:
 class Confirmed:
     """The measure split re-run through the full pipeline (re-rendered) with the fitted effects."""
 
-    configurations: int
+    #: items of the measure split
+    items: int
     pose_gap_after: float
     pose_gap_reduction: float
     median_abs_gap_after: dict[str, float]
@@ -343,13 +346,36 @@ def upgrade_v1(data: dict[str, Any]) -> dict[str, Any]:
 def upgrade_v2(data: dict[str, Any]) -> dict[str, Any]:
     """Schema-2 ``result.json`` data in the schema-3 layout.
 
-    Renamed: ``split.report`` (``split.measure``).
+    Renamed (:data:`_V2_RENAMED`, :data:`_V2_DETECTION`): ``split.report`` (``split.measure``)
+    and the counts of items, ``where.comparable_configurations`` (``where.comparable_items``),
+    ``where.detection.visible_configurations`` (``visible_items``) and the ``configurations`` of
+    ``selection``, ``combined`` and ``confirmed`` (``items``).
     """
     out = dict(data, schema_version=3)
-    if out.get("split") is not None:
-        split = out["split"]
-        out["split"] = {("measure" if k == "report" else k): v for k, v in split.items()}
+    for key, names in _V2_RENAMED.items():
+        if out.get(key) is not None:
+            out[key] = _renamed(out[key], names)
+    detection = out.get("where", {}).get("detection")
+    if detection is not None:
+        out["where"] = out["where"] | {"detection": _renamed(detection, _V2_DETECTION)}
     return out
+
+
+#: Schema 2 keys renamed in schema 3, per top-level record of ``result.json``.
+_V2_RENAMED = {
+    "split": {"report": "measure"},
+    "where": {"comparable_configurations": "comparable_items"},
+    "selection": {"configurations": "items"},
+    "combined": {"configurations": "items"},
+    "confirmed": {"configurations": "items"},
+}
+#: Schema 2 keys of ``where.detection`` renamed in schema 3.
+_V2_DETECTION = {"visible_configurations": "visible_items"}
+
+
+def _renamed(record: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
+    """``record`` with its keys renamed by ``names``."""
+    return {names.get(k, k): v for k, v in record.items()}
 
 
 @dataclass(kw_only=True)
@@ -391,7 +417,7 @@ class DiagnosisResult(VersionedRecord):
     demosaicing: Demosaicing | None = None
     #: what the capture and the simulation show of each stage of a camera's own pipeline
     camera_pipeline: list[PipelineSignature] = field(default_factory=list)
-    #: corner noise (px per coordinate) propagated through PnP to each configuration's pose
+    #: corner noise (px per coordinate) propagated through PnP to each item's pose
     #: noise, where the simulation's repeats measure none (a converged render); None otherwise
     propagated_corner_noise_px: float | None = None
     #: corner noise (px per coordinate of one frame) of the capture beyond the simulation's,

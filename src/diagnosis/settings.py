@@ -18,17 +18,17 @@ PATH_SIMULATION_SPP = DEFAULT_SPP["path"]
 class DiagnoseSettings:
     """Settings of the diagnosis (the defaults are the diagnosis's; see each attribute)."""
 
-    #: Share of the visible configurations used to fit effects (the fit split).
+    #: Share of the comparable items used to fit effects (the fit split).
     fit_fraction: float = 0.5
     #: Share used to rank, add, simplify and prune effects (the choose split). The rest is the
-    #: measure split: the reduction is measured there only, never on configurations that fitted
+    #: measure split: the reduction is measured there only, never on items that fitted
     #: or chose the model.
     choose_fraction: float = 0.25
     #: Seed of the split and the subsamples.
     seed: int = 0
-    #: Configurations used when fitting a candidate by simulation (a subsample of the fit split).
+    #: Items used when fitting a candidate by simulation (a subsample of the fit split).
     max_sim_fit_items: int = 40
-    #: Most configurations of the choose split (all candidates are scored on them).
+    #: Most items of the choose split (all candidates are scored on them).
     max_choose_items: int = 80
     #: Pose-gap reduction (choose split) below which a significant pose gap is reported as
     #: unexplained.
@@ -43,7 +43,7 @@ class DiagnoseSettings:
     #: docs/results/sample_focal_render_seeds.md); converged, the seeds keep the capture's frames
     #: a pose (:meth:`render_seeds`). Larger captures are simulated with the experiment's own
     #: repeats (usually one); their medians over many items are robust to one noisy
-    #: configuration.
+    #: item.
     min_simulated_frames: int = 36
     #: Most render seeds per configuration.
     max_render_seeds: int = 4
@@ -74,7 +74,7 @@ class DiagnoseSettings:
         docs/results/converged_render_step8.md#step-4): a capture's frames are compared with as many
         simulated repeats only (:func:`simgap.diagnosis.items.repeats_of_simulation`), and one
         seed would keep only the first of the public sample-focal's 4 frames a pose. Its
-        per-configuration pose noise comes from the corners instead
+        per-item pose noise comes from the corners instead
         (:func:`simgap.diagnosis.items.with_propagated_noise`). A capture of 36 configurations
         or more gets one seed.
         """

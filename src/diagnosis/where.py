@@ -50,7 +50,7 @@ def where_summary(
         scatter_tests=scatter,
         detection_tests=detection,
         image_tests=image,
-        comparable_configurations=int(field.comparable.sum()),
+        comparable_items=int(field.comparable.sum()),
     )
 
 

@@ -16,8 +16,8 @@ def where_markdown(where: Where) -> list[str]:
     lines = [
         "## Where",
         "",
-        f"Comparable configurations (visible, detected in both): "
-        f"{where.comparable_configurations}. "
+        f"Comparable items (a tag at a configuration, visible and detected in both): "
+        f"{where.comparable_items}. "
         f"Significant gap: **{'yes' if where.significant else 'no'}**.",
         "",
         "| axis | n | median gap | RMS gap | trend per pin hole | noise | z (median) | z (trend) "
@@ -42,8 +42,8 @@ def where_markdown(where: Where) -> list[str]:
         raise ValueError("the 'where' part has no detection rates")
     lines += [
         "",
-        f"Detection rate over visible configurations: real {det.real:.1%}, "
-        f"simulation {det.sim:.1%} ({det.visible_configurations} configurations).",
+        f"Detection rate over visible items: real {det.real:.1%}, "
+        f"simulation {det.sim:.1%} ({det.visible_items} items).",
         "",
     ]
     lines += evidence_markdown(where)

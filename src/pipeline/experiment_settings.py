@@ -47,7 +47,7 @@ class RenderSettings:
     #: detector finds the same corners (0 px change) from 4 px up, on the same render; 24 px
     #: keeps the diagnosis of the 9-configuration public samples as it was (at 8 px, sample-focal
     #: read as camera_mount at two render seeds, where 24 px gave focal_length at both; since the
-    #: diagnosis measures each configuration's own noise, 8 px gives focal_length too).
+    #: diagnosis measures each item's own noise, 8 px gives focal_length too).
     margin_px: int = 24
     #: Maximum path length of the path tracer.
     max_depth: int = 3

@@ -82,7 +82,7 @@ def project_items(rig: Rig, camera, errors, tag_scale: float, items: Items) -> n
     tag_scale : float
         Printed size over nominal size.
     items : Items
-        Configurations (tag, p, theta).
+        Items (tag, p, theta).
 
     Returns
     -------

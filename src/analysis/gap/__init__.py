@@ -3,7 +3,7 @@
 The gap field of a real dataset against its simulation, its noise and significant regions
 (``_gap``); robust sizes of a gap (``_gap_size``) and the paired test of per-item residuals
 (``_paired``); the scatter, detection and image-evidence tests (``_evidence``) and the image
-evidence of result datasets (``_image_evidence``); each configuration's pose noise
+evidence of result datasets (``_image_evidence``); each item's pose noise
 (``_pose_noise``); the comparable items a fit and a score read (``_items``) and the evidence
 channels that measure a prediction against them (``_channels``); the gap of a board's real photos
 (``_photo_gap``).
@@ -45,10 +45,10 @@ from simgap.analysis.gap._gap import (
     RegionGap,
     align,
     axis_summary,
-    configuration_noise,
     detection_summary,
     distance_thirds,
     gap_field,
+    item_noise,
     mean_error,
     region_summary,
 )
@@ -91,7 +91,6 @@ __all__ = [
     "channel_misfits",
     "clearly_lower",
     "compare_stat",
-    "configuration_noise",
     "corner_unit",
     "detection_groups",
     "detection_pvalue",
@@ -109,6 +108,7 @@ __all__ = [
     "image_stat_view",
     "image_tests",
     "item_centre_residuals_px2",
+    "item_noise",
     "item_residuals_px2",
     "line_residuals",
     "mean_error",

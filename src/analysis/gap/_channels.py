@@ -219,7 +219,7 @@ def detection_unit(n_items: int | np.ndarray) -> float | np.ndarray:
     :data:`~simgap.analysis.thresholds.DETECTION_UNIT` (5 %), or one item's share where the
     items are fewer than twenty: the smallest rate difference the items can show. A tag near the
     detector's limit is kept or lost by a hair (one render of it, one frame), and on a choose
-    split of 7 configurations one such tag lost by a correct JPEG model was 2.9 units, more than
+    split of 7 items one such tag lost by a correct JPEG model was 2.9 units, more than
     its blockiness explained, and the JPEG went unnamed. The unit follows the items compared:
     two splits of 7 and 8 items, or bootstrap resamples with missing detections, are each in
     their own; so is the laminate's choice of intensity

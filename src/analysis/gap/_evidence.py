@@ -1,11 +1,11 @@
 """Where the gap lies beyond the pose means: pose scatter, detection rate and image evidence.
 
-Three families of tests compare a real dataset with its simulation (aligned configurations):
+Three families of tests compare a real dataset with its simulation (aligned items):
 
 scatter
-    Per axis, over all configurations and per distance region, the spread of the pose error
+    Per axis, over all items and per distance region, the spread of the pose error
     around its smooth course. With
-    repeats, the deviations of each repeat from its configuration's mean; otherwise the residual
+    repeats, the deviations of each repeat from its item's mean; otherwise the residual
     of each value from the straight line through its two neighbours along the carriage (exact
     for any linear trend, also for unevenly spaced pin holes), scaled to unit noise. Real and
     simulated residuals are compared with the Brown-Forsythe test (``scipy.stats.levene`` with
@@ -106,7 +106,7 @@ class DetectionTest(EvidenceTest):
     #: tests); empty in results written before the exact tests were corrected this way (Fisher's
     #: test, Bonferroni over all seven)
     test: str = ""
-    #: detections and attempts (visible configurations times repeats) of each side
+    #: detections and attempts (visible items times repeats) of each side
     real_detected: int
     real_attempts: int
     sim_detected: int
@@ -164,7 +164,7 @@ def _variant(ds: xr.Dataset, name: str) -> xr.Dataset:
 
 
 def noise_residuals(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
-    """Pose noise samples per configuration (repeat or neighbour residuals), see module docstring.
+    """Pose noise samples per item (repeat or neighbour residuals), see module docstring.
 
     Returns
     -------

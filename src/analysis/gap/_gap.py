@@ -1,7 +1,7 @@
 """Where the sim-to-real gap lies: the gap field, its noise, and its significant regions.
 
-The gap field is ``real error - simulated error`` per tag, configuration and axis
-(docs/conventions.md §5), on configurations where the tag is visible and both the real and the
+The gap field is ``real error - simulated error`` per item (tag, configuration) and axis
+(docs/conventions.md §5), on items where the tag is visible and both the real and the
 simulated estimator returned a pose. Its noise is taken from repeats when there are any (the
 spread of the repeat means) and otherwise from the roughness of each error field along the
 carriage axis (a robust scale of its second differences), which is what a single-repeat capture
@@ -45,22 +45,22 @@ def _roughness(field: np.ndarray) -> float:
 
 
 def frame_noise(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
-    """Noise of one frame's error at each configuration (tag, p, theta, axis) (m, rad).
+    """Noise of one frame's error at each item (tag, p, theta, axis) (m, rad).
 
     The standard deviation over repeats (one degree of freedom less than the repeats that
     detected the tag); NaN with fewer than two.
     """
     err = ds.error.sel(variant=variant) if variant else ds.error.isel(variant=0)
     n = err.notnull().sum("repeat")
-    with warnings.catch_warnings():  # configurations detected once or never
+    with warnings.catch_warnings():  # items detected once or never
         warnings.simplefilter("ignore", RuntimeWarning)
         return err.std("repeat", ddof=1, skipna=True).where(n >= 2)
 
 
 def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
-    """Per-axis noise (m, rad) of one dataset's repeat-mean error at a single configuration.
+    """Per-axis noise (m, rad) of one dataset's repeat-mean error at a single item.
 
-    With repeats: the median over configurations of their frame noise (:func:`frame_noise`)
+    With repeats: the median over items of their frame noise (:func:`frame_noise`)
     over the square root of the repeats; with one, the error field's roughness along p.
     """
     err = ds.error.sel(variant=variant) if variant else ds.error.isel(variant=0)
@@ -73,22 +73,22 @@ def noise_scale(ds: xr.Dataset, variant: str | None = None) -> xr.DataArray:
             s = float(np.nanmedian(sd) / np.sqrt(repeats)) if np.isfinite(sd).any() else np.nan
         else:
             e = err.sel(axis=axis).values  # (repeat, tag, p, theta)
-            with warnings.catch_warnings():  # configurations never detected are all-NaN
+            with warnings.catch_warnings():  # items never detected are all-NaN
                 warnings.simplefilter("ignore", RuntimeWarning)
                 s = _roughness(np.moveaxis(np.nanmean(e, axis=0), 1, -1))  # p last
         out.append(s if np.isfinite(s) else DEFAULT_NOISE[axis_unit(axis)])
     return xr.DataArray(out, coords={"axis": list(AXES)}, dims="axis", attrs={"units": "m or rad"})
 
 
-def configuration_noise(
+def item_noise(
     real: xr.Dataset, sim: xr.Dataset, sim_variant: str | None = None
 ) -> xr.DataArray:
-    """Noise of the gap of each configuration (tag, p, theta, axis) (m, rad), from repeats.
+    """Noise of the gap of each item (tag, p, theta, axis) (m, rad), from repeats.
 
     Each side's repeat mean carries its frame noise (:func:`frame_noise`) over the square root
     of its repeats. A side with one frame is taken to be as noisy as one frame of the other: a
     capture's single frame at a pose is assumed no quieter than one simulated frame there. The
-    noise differs much between configurations (a far, oblique tag's depth and rotation move
+    noise differs much between items (a far, oblique tag's depth and rotation move
     several millimetres with a tenth of a pixel of corner noise, a near one's do not), which a
     per-axis noise level does not show. NaN where neither side has repeats. ``sim`` is aligned
     to ``real`` (:func:`align`).
@@ -219,11 +219,11 @@ class RegionGap:
 
 @dataclass(frozen=True, kw_only=True)
 class DetectionRates:
-    """Detection rate of the real data and of the simulation over the visible configurations."""
+    """Detection rate of the real data and of the simulation over the visible items."""
 
     real: float
     sim: float
-    visible_configurations: int
+    visible_items: int
 
 
 def axis_summary(field: GapField) -> dict[str, AxisGap]:
@@ -337,12 +337,12 @@ def region_summary(field: GapField) -> list[RegionGap]:
 
 
 def detection_summary(field: GapField) -> DetectionRates:
-    """Detection rate of the real data and of the simulation over visible configurations."""
+    """Detection rate of the real data and of the simulation over visible items."""
     r = field.real_detection.values
     s = field.sim_detection.values
     ok = np.isfinite(r) & np.isfinite(s)
     return DetectionRates(
         real=float(np.mean(r[ok])) if ok.any() else float("nan"),
         sim=float(np.mean(s[ok])) if ok.any() else float("nan"),
-        visible_configurations=int(ok.sum()),
+        visible_items=int(ok.sum()),
     )

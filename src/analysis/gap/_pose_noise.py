@@ -1,9 +1,9 @@
-"""Each configuration's pose noise from its corners' noise, propagated through PnP.
+"""Each item's pose noise from its corners' noise, propagated through PnP.
 
 How far a tag's pose moves with a tenth of a pixel of corner noise differs much between
-configurations: a far, oblique tag's depth and rotation move millimetres, a near, frontal one's
+items: a far, oblique tag's depth and rotation move millimetres, a near, frontal one's
 do not. A simulation rendered at several render seeds measures it by its repeats
-(:func:`simgap.analysis.gap.configuration_noise`): their spread is the pose's response to the
+(:func:`simgap.analysis.gap.item_noise`): their spread is the pose's response to the
 render's Monte Carlo noise. A converged render (``render.mode: converged``) has almost none
 (two render seeds of the baseline differ by 0.09 mm in ty, docs/results/
 converged_render_step8.md#step-4), so its repeats measure next to nothing, and the far, oblique tags
@@ -12,7 +12,7 @@ public ``sample-focal`` simulated converged: camera_mount chosen over focal_leng
 docs/results/converged_render_step8.md#step-5). Here the response is propagated instead: the pose is
 solved again from the corners plus :data:`DRAWS` Gaussian draws of the capture's corner noise
 (the same solver and calibration as the pipeline's), and the spread of the poses is that
-configuration's noise.
+item's noise.
 
 The same draws also move the pose's centre: at a far, oblique tag PnP turns corner noise into a
 one-sided error in depth and height (ty +10 mm at 16 spp where the 1024-spp reference is within
@@ -34,13 +34,13 @@ from simgap.core.rig import Rig
 from simgap.effects.state import VariantState
 from simgap.pose.estimate import estimate_pose, pose_error
 
-#: Draws of the corner noise per configuration: the standard deviation of 32 draws is within
+#: Draws of the corner noise per item: the standard deviation of 32 draws is within
 #: 13 % of the true one (one standard error, sqrt(1 / (2 (n - 1)))), small beside the factor of
-#: 10-100 between near and far configurations.
+#: 10-100 between near and far items.
 DRAWS = 32
 #: Seed of the draws (any fixed value: same capture, same noise).
 SEED = 28
-#: Draws of the corner noise per configuration for :func:`noise_shift`: the median of 64 draws
+#: Draws of the corner noise per item for :func:`noise_shift`: the median of 64 draws
 #: has a standard error of about 0.16 of the pose's spread (1.25 / sqrt(64)), 0.5 mm in ty at a
 #: far, oblique tag whose shift is 2 mm (sample-focal, tag 1 at p 14).
 SHIFT_DRAWS = 64
@@ -62,7 +62,7 @@ def pose_draws(
     Parameters
     ----------
     corners : ndarray (N, 4, 2)
-        Detected corners of each configuration (px); NaN where none (the result is NaN there).
+        Detected corners of each item (px); NaN where none (the result is NaN there).
     sigma_px : float
         Standard deviation of each corner coordinate in one frame (px).
     rig : Rig
@@ -70,7 +70,7 @@ def pose_draws(
     base : VariantState
         The simulation's state: its assumed calibration and PnP settings solve the poses.
     draws : int
-        Draws per configuration.
+        Draws per item.
     seed : int
         Seed of the draws.
     frames : int
@@ -132,7 +132,7 @@ def propagated_pose_noise(
     """
     moved = pose_draws(corners, sigma_px, rig, base, DRAWS, SEED)
     n = np.isfinite(moved).all(-1).sum(-1)
-    with warnings.catch_warnings():  # configurations with no corners are all-NaN
+    with warnings.catch_warnings():  # items with no corners are all-NaN
         warnings.simplefilter("ignore", RuntimeWarning)
         std = np.nanstd(moved, axis=1, ddof=1)
     return np.where((n >= 2)[:, None], std, np.nan)
@@ -160,6 +160,6 @@ def noise_shift(
     if sigma_px <= 0.0:
         return np.where(np.isfinite(corners).all(axis=(1, 2))[:, None], 0.0, np.full(6, np.nan))
     moved = pose_draws(corners, sigma_px, rig, base, SHIFT_DRAWS, SHIFT_SEED, frames)
-    with warnings.catch_warnings():  # configurations with no corners are all-NaN
+    with warnings.catch_warnings():  # items with no corners are all-NaN
         warnings.simplefilter("ignore", RuntimeWarning)
         return np.nanmedian(moved, axis=1)

@@ -1,7 +1,7 @@
 """Compare the variants of a result dataset (rendering/estimation options) with a reference variant.
 
 The reference is the variant named ``baseline`` (or the first), unless another is named; every
-other variant is compared with it over *paired* configurations (both have an estimate of every
+other variant is compared with it over *paired* items (both have an estimate of every
 axis), with the spread over repeats as the noise level
 (:mod:`simgap.analysis.report._comparisons` says how).
 

@@ -3,12 +3,12 @@
 A *variant* is one rendering or estimation option (``baseline``, ``distortion``, ``glossy_tags``,
 ``defocus``, ``noise``, ...). The *reference* is the variant named ``baseline``, or the first
 variant if none is, unless another is named. Every other variant is compared with it,
-configuration by configuration:
+item by item:
 
 1. each variant is reduced by :func:`simgap.analysis.report.summarize_variant` (errors
-   averaged over repeats with NaN skipped, visible configurations only);
-2. a configuration ``(tag, p, theta)`` is *paired* when both the variant and the reference have an
-   estimate of every axis there; all error statistics use paired configurations only, so a change
+   averaged over repeats with NaN skipped, visible items only);
+2. an item ``(tag, p, theta)`` is *paired* when both the variant and the reference have an
+   estimate of every axis there; all error statistics use paired items only, so a change
    of detection does not masquerade as a change of error (detection rates are reported apart);
 3. the spread over repeats (sample standard deviation, ``ddof=1``) is the noise level.
 
@@ -166,7 +166,7 @@ def _repeat_spread(ds_variant: xr.Dataset) -> xr.DataArray:
 
 
 def _compare_one(ds: xr.Dataset, reference: str, variant: str, pitch_m: float) -> xr.Dataset:
-    """Paired per-configuration comparison of one variant with the reference (SI units)."""
+    """Paired per-item comparison of one variant with the reference (SI units)."""
     ref = summarize_variant(ds.sel(variant=reference), pitch_m)
     var = summarize_variant(ds.sel(variant=variant), pitch_m)
     paired = (ref.abs_error.notnull() & var.abs_error.notnull()).all("axis")
@@ -193,7 +193,7 @@ def compare_variants(
     *,
     facing_theta_rad: Mapping[int, float] | None = None,
 ) -> xr.Dataset:
-    """Compare every variant of a result dataset with the reference, configuration by configuration.
+    """Compare every variant of a result dataset with the reference, item by item.
 
     Parameters
     ----------
@@ -249,7 +249,7 @@ def compare_variants(
     out.attrs.update(
         baseline=reference,
         n_repeat=int(ds.sizes["repeat"]),
-        description="variants compared with attrs['baseline'] over paired configurations",
+        description="variants compared with attrs['baseline'] over paired items",
         pin_holes=[int(p) for p in rig.grid.p],
         facing_theta_deg={int(t): float(np.degrees(a)) for t, a in facing.items()},
     )
@@ -282,9 +282,9 @@ def change_by_p(data: xr.Dataset, baseline: str | None = None) -> xr.DataArray:
     -------
     xarray.DataArray
         Dims ``(variant, p, axis)``: mean over paired ``(tag, theta)`` of variant - reference
-        ``|error|``, mm for ``t*`` and mrad for ``r*``; NaN where no configuration is paired.
+        ``|error|``, mm for ``t*`` and mrad for ``r*``; NaN where no item is paired.
         Coordinate ``distance_m`` (variant, p): mean camera-to-tag distance (m) of the paired
-        configurations averaged, the x of the change-by-distance figure.
+        items averaged, the x of the change-by-distance figure.
     """
     cmp = as_comparison(data, baseline)
     with np.errstate(invalid="ignore"):

@@ -247,7 +247,7 @@ def plot_change_by_distance(
     matplotlib.figure.Figure
         2x3 panels (tx, ty, tz / rx, ry, rz): variant - reference mean ``|error|`` (mm or mrad)
         over paired (tag, theta) of each pin hole, against the mean camera-to-tag distance (m)
-        of those configurations (:func:`~simgap.analysis.report.change_by_p`), with
+        of those items (:func:`~simgap.analysis.report.change_by_p`), with
         a zero line.
     """
     cmp = as_comparison(data, baseline)
@@ -255,7 +255,7 @@ def plot_change_by_distance(
     fig, axes = new_figure_grid(
         title
         or f"Change of mean |error| vs camera-to-tag distance (variant − "
-        f"{cmp.attrs['baseline']!r}, paired configurations, both tags, all view angles)"
+        f"{cmp.attrs['baseline']!r}, paired items, both tags, all view angles)"
     )
     for ax, axis in zip(axes.flat, AXES, strict=True):
         for variant in change["variant"].values:
@@ -319,7 +319,7 @@ def plot_change_heatmap(data: xr.Dataset, variant: str, baseline: str | None = N
         the camera) and pin hole (rows ticked with their median camera-to-tag distance, m);
         diverging colours centred on 0 with a robust limit shared by the tags of an axis
         (:func:`robust_colour_limit`; cells beyond it hatched, counted in the panel's title);
-        grey where the configuration is not paired.
+        grey where the item is not paired.
     """
     return plot_comparison_heatmap(as_comparison(data, baseline), variant)
 

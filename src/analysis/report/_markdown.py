@@ -274,7 +274,7 @@ def _axis_rows(table: pd.DataFrame, variant: str, axes: Sequence[str]) -> list[l
 def _axis_header(unit: str) -> list[str]:
     return [
         "Axis",
-        "Paired configurations",
+        "Paired items",
         f"Reference mean abs [{unit}]",
         f"Reference max abs [{unit}]",
         f"Variant mean abs [{unit}]",
@@ -308,7 +308,7 @@ def _detection_lines(cmp: xr.Dataset, variant: str) -> list[str]:
 
 
 def _binned_lines(binned: pd.DataFrame, variant: str) -> list[str]:
-    header = ["Bin", "Paired configurations"] + [f"{a} [{display_unit(a)[0]}]" for a in AXES]
+    header = ["Bin", "Paired items"] + [f"{a} [{display_unit(a)[0]}]" for a in AXES]
     rows = [
         [str(label), str(int(row["n"])), *(signed(row[a]) for a in AXES)]
         for label, row in binned.loc[variant].iterrows()
@@ -346,11 +346,11 @@ def comparison_markdown(cmp: xr.Dataset, figures: Sequence[Path] = ()) -> str:
         "",
         f"Compared variants: {', '.join(f'`{v}`' for v in variants)}. Errors are first averaged "
         f"over {cmp.attrs['n_repeat']} repeat(s) (NaN skipped); every statistic uses the "
-        "configurations (tag, p, theta) that are visible and have an estimate in both the variant "
+        "items (tag, p, theta) that are visible and have an estimate in both the variant "
         "and the reference (paired). abs = mean over repeats of |error|. Change = variant - "
         "reference. Mean signed shift = mean of (variant - reference) signed error; its sign "
         "carries the direction. Noise = standard deviation over repeats (ddof 1), averaged over "
-        "configurations. Translation in mm, rotation in mrad. View angle = turntable angle "
+        "items. Translation in mm, rotation in mrad. View angle = turntable angle "
         f"relative to the tag facing the camera ({facing}), wrapped to [-180, 180] deg.",
         "",
         "## What each variant moves most (largest relative change of mean |error|)",

@@ -129,7 +129,7 @@ def check_report_dataset(ds: xr.Dataset) -> None:
 
 
 def dataset_distance_m(ds: xr.Dataset) -> xr.DataArray:
-    """Camera-to-tag distance of every configuration of a result dataset (m).
+    """Camera-to-tag distance of every item (tag, p, theta) of a result dataset (m).
 
     Parameters
     ----------
@@ -208,8 +208,8 @@ def summarize_variant(ds_variant: xr.Dataset, pin_pitch_m: float | None = None) 
     Returns
     -------
     VariantSummary
-        Errors averaged over repeats with NaN skipped, restricted to visible configurations; a
-        configuration counts as detected where its tag was detected in at least one repeat.
+        Errors averaged over repeats with NaN skipped, restricted to visible items; an
+        item counts as detected where its tag was detected in at least one repeat.
 
     Raises
     ------

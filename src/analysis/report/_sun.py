@@ -2,13 +2,13 @@
 
 A dataset whose variants set the ``sun`` effect from a grid of directions (read from its own
 experiment, ``experiment_yaml``; ``experiments/orbital_lighting.yaml``) is reduced per direction
-over every visible configuration and repeat (:func:`summarize_sun`): the detection rate, the
+over every visible item (tag, p, theta) and repeat (:func:`summarize_sun`): the detection rate, the
 largest absolute error per axis (mm, mrad) and the share of detections outside the paper's
 high-precision envelope (:data:`~simgap.analysis.paper.TRANSLATION_THRESHOLD_M`,
 :data:`~simgap.analysis.paper.ROTATION_THRESHOLD_RAD`). :func:`plot_sun_polar` draws them as polar
 heatmaps over the sky: the sun's azimuth around (0 at the top: the rail's +Y, towards the node;
 90 to the right: +X) and its zenith angle outwards (the centre is straight up, the outer ring
-the horizon). :func:`envelope_rows` lists the configurations that leave the envelope and
+the horizon). :func:`envelope_rows` lists the detections that leave the envelope and
 :func:`worst_directions` the directions where the camera fares worst, whose frames
 :func:`plot_frames` shows.
 """
@@ -87,7 +87,7 @@ def sun_variants(ds: xr.Dataset) -> dict[str, tuple[float, float]]:
 
 @dataclass(frozen=True)
 class SunSweep:
-    """Per sun direction, over every visible configuration and repeat of a dataset.
+    """Per sun direction, over every visible item and repeat of a dataset.
 
     Attributes
     ----------
@@ -96,7 +96,7 @@ class SunSweep:
     azimuth_deg, elevation_deg : ndarray (V,)
         The sun's direction (deg, rail frame; :class:`simgap.effects.scene.Sun`).
     visible : ndarray of int (V,)
-        Visible tag configurations times repeats: what the rates are out of.
+        Visible items (tag, p, theta) times repeats: what the rates are out of.
     detection_rate : ndarray (V,)
         Share of them detected.
     outside_rate : ndarray (V,)
@@ -126,7 +126,7 @@ def _outside(error: xr.DataArray) -> xr.DataArray:
 
 
 def _detections(sub: xr.Dataset) -> tuple[xr.DataArray, xr.DataArray, xr.DataArray]:
-    """Visible configurations (on the detections' dims), visible detections, and their errors."""
+    """Visible items (on the detections' dims), visible detections, and their errors."""
     visible = as_bool(sub.visible).broadcast_like(sub.detected)
     detected = as_bool(sub.detected) & visible
     return visible, detected, sub.error.where(detected)
@@ -230,7 +230,7 @@ def plot_sun_polar(sweep: SunSweep, title: str) -> Figure:
 
 @dataclass(frozen=True)
 class EnvelopeRow:
-    """One detection (configuration and repeat) whose estimate leaves the envelope."""
+    """One detection (item and repeat) whose estimate leaves the envelope."""
 
     variant: str
     azimuth_deg: float
@@ -298,8 +298,8 @@ def plot_frames(frames: list[tuple[str, np.ndarray]], title: str) -> Figure:
     return fig
 
 
-def _worst_configuration(ds: xr.Dataset, name: str) -> tuple[int, int, float, str]:
-    """(tag, p, theta rad, what) of a variant's worst visible configuration in repeat 0.
+def _worst_item(ds: xr.Dataset, name: str) -> tuple[int, int, float, str]:
+    """(tag, p, theta rad, what) of a variant's worst visible item in repeat 0.
 
     A lost tag first, then the detection whose error is the largest share of the envelope.
     """
@@ -322,7 +322,7 @@ def _worst_configuration(ds: xr.Dataset, name: str) -> tuple[int, int, float, st
 def worst_frames(
     ds: xr.Dataset, sweep: SunSweep, cache_dir, count: int = 3
 ) -> list[tuple[str, np.ndarray]]:
-    """The frames of the worst directions' worst configurations: (caption, RGB crop).
+    """The frames of the worst directions' worst items: (caption, RGB crop).
 
     Rebuilt from the dataset's own experiment (its ``experiment_yaml`` attribute) through the
     cached pipeline in ``cache_dir`` (the frames of the run that wrote the dataset are read
@@ -338,7 +338,7 @@ def worst_frames(
     out = []
     for k in worst_directions(sweep, count):
         name = sweep.variants[k]
-        tag, p, theta, what = _worst_configuration(ds, name)
+        tag, p, theta, what = _worst_item(ds, name)
         frame = simulator.frame(exp, states[name], p, theta, 0)
         if frame is None:
             continue
@@ -399,8 +399,8 @@ def sun_markdown(
     lines = [
         f"# By the sun's direction: {title}",
         "",
-        f"{n_dir} sun directions, each over {int(sweep.visible[0])} visible tag configurations "
-        "x repeats. Envelope: the paper's high-precision thresholds, "
+        f"{n_dir} sun directions, each over {int(sweep.visible[0])} visible items "
+        "(tag x configuration) x repeats. Envelope: the paper's high-precision thresholds, "
         f"{TRANSLATION_THRESHOLD_M * 1e3:g} mm and {ROTATION_THRESHOLD_RAD * 1e3:g} mrad per axis.",
         "",
         *(f"![{f}]({f})" for f in figures[:1]),

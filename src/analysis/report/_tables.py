@@ -80,13 +80,13 @@ def variant_summary_table(data: xr.Dataset, baseline: str | None = None) -> pd.D
     -------
     pandas.DataFrame
         Index ``(variant, axis)``. Columns: ``unit`` (``"mm"`` or ``"mrad"``), ``n_paired``
-        (configurations), ``reference_mean_abs``, ``reference_max_abs``, ``variant_mean_abs``,
-        ``variant_max_abs`` (mean and max over paired configurations of the repeat-mean
+        (items), ``reference_mean_abs``, ``reference_max_abs``, ``variant_mean_abs``,
+        ``variant_max_abs`` (mean and max over paired items of the repeat-mean
         ``|error|``), ``change_mean_abs`` (variant - reference), ``relative_change``
         (``change_mean_abs / reference_mean_abs``, dimensionless), ``mean_signed_shift`` (mean of
         variant - reference signed error), ``reference_noise`` and ``variant_noise`` (mean std
         over repeats), ``reference_detection_rate`` and ``variant_detection_rate`` (detected /
-        visible configuration x repeat, all tags, dimensionless, repeated on each axis row).
+        visible item x repeat, all tags, dimensionless, repeated on each axis row).
     """
     cmp = as_comparison(data, baseline)
     dims = ("tag", "p", "theta")
@@ -185,13 +185,13 @@ def binned_change_table(
     baseline : str, optional
         Reference variant.
     variable : str, optional
-        Per-configuration change to average: ``"abs_change"`` (change of ``|error|``, default) or
+        Per-item change to average: ``"abs_change"`` (change of ``|error|``, default) or
         ``"signed_shift"``.
 
     Returns
     -------
     pandas.DataFrame
-        Index ``(variant, bin)``; column ``n`` (paired configurations in the bin) and one column
+        Index ``(variant, bin)``; column ``n`` (paired items in the bin) and one column
         per axis: the mean change in mm (``t*``) or mrad (``r*``), NaN for an empty bin.
     """
     cmp = as_comparison(data, baseline)

@@ -56,7 +56,7 @@ def geometry_unexplained(
     Parameters
     ----------
     corner_gap_px : float
-        The corner gap the model leaves (px, RMS over the choose split's configurations).
+        The corner gap the model leaves (px, RMS over the choose split's items).
     pose_gap_reduction : float
         Share of the pose gap it explains (0: none).
     significant_axes : ndarray of bool (6,)

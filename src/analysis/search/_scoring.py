@@ -57,7 +57,7 @@ def corner_residuals(
     ``cross_fitted``, followed by the other split's items predicted by the model refitted on the
     scored ones (:attr:`~simgap.analysis.search.Scored.cross_fit_difference`; a ValueError for a
     model that was not cross-fitted): every item is then held out once (two-fold cross-fitting).
-    A choose split of 6-10 configurations alone could not show a lens distortion that moves the
+    A choose split of 6-10 items alone could not show a lens distortion that moves the
     corners by a tenth of a pixel (the paired test missed correctly fitted lenses on blind
     captures: docs/results/design_evidence.md#scoring). Only the admission of a geometric effect
     (:func:`~simgap.analysis.search.seen_in_corners`,
@@ -116,7 +116,7 @@ def as_good_held_out(a: Scored, b: Scored) -> bool:
 
     What a simpler model must be to replace ``b``
     (:meth:`~simgap.analysis.search.ModelSearch.simplify`): a tag offset that explained a
-    choose split of six configurations as well as a camera mount replaced it by parsimony
+    choose split of six items as well as a camera mount replaced it by parsimony
     (measured on a blind capture: docs/results/design_evidence.md#scoring).
     """
     return as_good(a, b) and not generalises_better(b, a)
@@ -169,7 +169,7 @@ def generalises_better(a: Scored, b: Scored) -> bool:
 
     Two models with the same appearance effects and other projection effects, both
     cross-fitted: ``a``'s cross-fitted corner residuals are clearly lower item by item
-    (:func:`corners_clearly_lower`). A choose split of a few configurations cannot tell a
+    (:func:`corners_clearly_lower`). A choose split of a few items cannot tell a
     camera mount from a tag offset (their evidence tied and parsimony named the offset); the
     offset refitted on those few items did not predict the others, where the mount's did
     (measured on a blind capture: docs/results/design_evidence.md#scoring).

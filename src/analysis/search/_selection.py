@@ -64,7 +64,7 @@ class ModelSearch:
     base : VariantState
         The simulation's state, to which effects are added.
     items : Items
-        Comparable configurations with their real and simulated errors and corners.
+        Comparable items with their real and simulated errors and corners.
     fit_index, choose_index, sim_fit_index : ndarray of int
         Item indices: the fit split, the choose split (models are scored and chosen on it) and
         the subsample of the fit split used for simulation fits.
