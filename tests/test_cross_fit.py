@@ -1,4 +1,4 @@
-"""Held-out corner evidence: two-fold cross-fitted residuals, the paired test, nested lens fits."""
+"""Cross-fitted corner evidence: the two folds' residuals, the paired test, nested lens fits."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from simgap.analysis.gap import (
 from simgap.analysis.search import (
     ModelSearch,
     as_good,
-    as_good_held_out,
+    as_good_cross_fitted,
     corner_residuals,
     generalises_better,
     improves_on_nothing,
@@ -49,7 +49,7 @@ def test_clearly_lower_needs_a_consistent_improvement():
     assert clearly_lower(a, b)
 
 
-def test_every_searched_item_is_held_out_once():
+def test_every_searched_item_is_predicted_by_the_other_folds_fit():
     """A searched model's corner residuals cover the choose split (model fitted on the fit split)
     and then the fit split, predicted by the model refitted on the choose split."""
     rig = load_rig()
@@ -209,12 +209,13 @@ def test_a_corner_effect_displaces_a_look_alike_that_sorts_after_it():
     assert model.effects == ["lens_distortion"]
 
 
-def test_a_lens_the_held_out_corners_show_is_found_where_nothing_starts_the_search():
+def test_a_lens_the_cross_fitted_corners_show_is_found_where_nothing_starts_the_search():
     """Blind seed 46 trial 33: a lens (k1 0.082) the cross-fitted corners singled out
     (p = 0.0004, 27 items) lowered the evidence of a 9-item choose split too little to start
     the search, and nothing was named. Here k1 0.05 under 0.1 px of corner noise, a choose
     split of every fourth item (10 of 38): the lens alone does not improve on nothing on it, the
-    held-out corners single it out, and it is the answer (measured k1 0.0493; tolerance 10 %)."""
+    cross-fitted corners single it out, and it is the answer (measured k1 0.0493; tolerance
+    10 %)."""
     rig = load_rig()
     items, base = _items(rig, {"lens_distortion": {"k1": 0.05}}, noise_px=0.1, seed=1)
     idx = np.arange(len(items))
@@ -228,7 +229,7 @@ def test_a_lens_the_held_out_corners_show_is_found_where_nothing_starts_the_sear
     assert chosen.fits[0][1].params["k1"] == pytest.approx(0.05, rel=0.1)
 
 
-def test_a_geometry_that_predicts_held_out_corners_better_is_not_tied():
+def test_a_geometry_that_predicts_cross_fitted_corners_better_is_not_tied():
     """Blind seed 46 trial 38: on six items a tag offset explained the choose split as
     well as the true camera mount (evidence 4.50 against 4.51) and parsimony named it; refitted
     on those few items it did not predict the others (median 0.60 px^2 against 0.08). Here a
@@ -257,9 +258,9 @@ def test_a_geometry_that_predicts_held_out_corners_better_is_not_tied():
         prediction=mount.prediction,
     )
     assert as_good(tied, mount)
-    assert not as_good_held_out(tied, mount)
+    assert not as_good_cross_fitted(tied, mount)
     assert parsimonious([mount, tied]) is mount
-    # not cross-fitted (a measure split's score), or the same geometry: no held-out comparison
+    # not cross-fitted (a measure split's score), or the same geometry: no cross-fitted comparison
     assert not generalises_better(dataclasses.replace(mount, cross_fit_difference=None), offset)
     assert not generalises_better(mount, mount)
 

@@ -142,7 +142,7 @@ def _scored(effect: str, n_params: int, corner_after: float) -> Scored:
 
 
 def test_parsimony_prefers_the_simpler_of_equivalent_explanations():
-    # held-out corner residuals (px) of blind-validation trial 13 (seed 0): a hidden principal-
+    # choose-split corner residuals (px) of blind-validation trial 13 (seed 0): a hidden principal-
     # point shift; the 6-DOF camera mount (a small rotation) fits it 0.012 px better
     tie = [_scored("camera_mount", 6, 0.347), _scored("principal_point", 2, 0.359)]
     assert parsimonious(tie).effects == ["principal_point"]
@@ -174,7 +174,7 @@ def test_selection_finds_a_pair_a_richer_effect_would_mimic():
 
 def test_a_geometric_effect_that_moves_the_pose_away_never_starts_the_selection():
     """Regression (blind seed 23): a tag print scale that followed the corners of a motion blur
-    (outside the catalogue) lowered the held-out corner residual but left every pose 1-5 %
+    (outside the catalogue) lowered the choose split's corner residual but left every pose 1-5 %
     further from the real one, and was reported instead of "unexplained"."""
     rig = load_rig()
     items, base = _items(rig, {"tag_scale": {"scale": 0.01}}, noise_px=0.1, seed=2)
@@ -204,7 +204,7 @@ def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():
     """Regression (issue 8): a -3 % focal length seen through a detector edge bias (corners
     0.6 px inside the true ones). The greedy search finds focal_length + tag_scale; the old
     relevance rule refitted the model without focal_length, let tag_scale absorb its pose change,
-    judged focal_length irrelevant and reported tag_scale alone (held-out corners 4.26 px
+    judged focal_length irrelevant and reported tag_scale alone (choose-split corners 4.26 px
     instead of 0.19 px). Since seed 32 a print scale must change the sizes in proportion
     (:mod:`simgap.analysis.candidates._size_signature`): the edge offset (measured -0.593 px on
     every tag, slope 0.1 standard errors) is left unexplained, not read as a -1 % print."""
@@ -223,7 +223,7 @@ def test_pose_relevance_never_swaps_the_explanation_the_corners_single_out():
     assert chosen.fits[0][1].params["scale"] == pytest.approx(-0.03, rel=0.05)
     # measured 0.56 px: the 0.6 px edge offset is left (tag_scale alone gives 4.26 px)
     assert chosen.corner_gap_after_px < 0.7
-    # without refit, the focal length moves the held-out depth by ~28 noise units
+    # without refit, the focal length moves the choose split's depth by ~28 noise units
     assert search.contributions(chosen)["focal_length"] > 10
 
 

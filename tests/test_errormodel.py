@@ -1,6 +1,7 @@
 """Tests of the error model (simgap.analysis.errormodel): fitted to synthetic result datasets built
 with the dataset contract (errors drawn from a known model over the rig's full grid, no
-rendering), the honest held-out check, the runtime API, the files and ``simgap errormodel``."""
+rendering), the honest check on the check half, the runtime API, the files and
+``simgap errormodel``."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from simgap.analysis.errormodel import (
     TagPoses,
     check_error_model,
     covariates,
-    evaluate_held_out,
+    evaluate_check_half,
     fit_error_model,
     perturb,
 )
@@ -104,7 +105,7 @@ def test_perturb_inverts_pose_error(rig):
     np.testing.assert_allclose(pose_error(perturb(exp, err), exp), err, atol=1e-12)
 
 
-def test_held_out_coverage_and_detection_calibration(synthetic):
+def test_check_half_coverage_and_detection_calibration(synthetic):
     result = check_error_model(synthetic, seed=0)
     cover = np.array([result["coverage"][a] for a in AXES])
     # measured on synthetic datasets and splits of seeds 0..4: pooled 0.89..0.90 (seed 0: 0.903),
@@ -218,7 +219,7 @@ def test_cli_errormodel(synthetic, tmp_path):
     res = CliRunner().invoke(app, ["errormodel", str(nc), "-o", str(tmp_path / "m.nc")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "m.nc").is_file() and (tmp_path / "m.json").is_file()
-    assert "held-out half: 90 % interval coverage" in res.output
+    assert "check half: 90 % interval coverage" in res.output
     # -o NAME.json writes the JSON there and the netCDF beside it (it had written the netCDF to
     # NAME.json, then the JSON over it, printing one path twice; issue 51)
     res = CliRunner().invoke(app, ["errormodel", str(nc), "-o", str(tmp_path / "j.json")])
@@ -276,7 +277,7 @@ def test_small_dataset_is_pooled_with_t_intervals(rig):
     for seed in range(10):
         fitted = fit_error_model(smoke_dataset(rig, seed))
         new = synthetic_dataset(rig, repeats=5, seed=1000 + seed).sel(p=[0, 7, 14])
-        r = evaluate_held_out(fitted, new.isel(theta=[0, 3, 18]), np.ones((3, 3), bool))
+        r = evaluate_check_half(fitted, new.isel(theta=[0, 3, 18]), np.ones((3, 3), bool))
         inside.append(np.mean(list(r["coverage"].values())))
     assert 0.84 <= np.mean(inside) <= 0.96, inside
 

@@ -102,7 +102,8 @@ def test_pooled_variants_keep_every_draw(sweep):
 def test_a_pooled_model_is_checked_on_the_variants_it_did_not_see(sweep):
     """Fitted on every other sun direction (the baseline's eclipse among them), tested on the
     others at the same poses. Six detections of tag 0 give a pooled fit (constant bias and
-    spread, t intervals): the held-out draws' errors all lie in its range."""
+    spread, t intervals): the check half's errors (the other directions' draws) all lie in its
+    range."""
     from simgap.analysis.errormodel import check_pooled_model
 
     ds, _ = sweep

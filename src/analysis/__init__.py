@@ -5,7 +5,7 @@ below it). Each has a public face: its ``__init__`` re-exports under ``__all__``
 packages use, and its modules are private (``_name``, imported only inside it).
 
 ``search`` | ``report``
-    The model search: which candidates explain a gap, chosen on held-out items | reports and
+    The model search: which candidates explain a gap, chosen on the choose split | reports and
     figures of result datasets (the paper-style report, variant comparison, error-model bands).
 ``candidates`` | ``errormodel``
     The candidate effects, their fits and the registry keyed by effect name | error models for

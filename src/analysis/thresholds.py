@@ -108,7 +108,7 @@ CORNER_UNIT_PX: Final[float] = 0.2
 #: Smallest difference of detection rates that matters (share of tags): the unit of the
 #: detection channel and the practical floor of the detection tests.
 DETECTION_UNIT: Final[float] = 0.05
-#: Held-out corner residuals closer than this are indistinguishable (px): a quarter of the
+#: Corner residuals (of scored items) closer than this are indistinguishable (px): a quarter of the
 #: detector's own corner bias (:data:`CORNER_UNIT_PX`), ...
 EQUIVALENT_PX: Final[float] = 0.05
 #: ... or closer than this share of the smaller residual (any channel).

@@ -92,16 +92,16 @@ def errormodel(
     ):
         typer.echo(f"tag {tag}: {int(n)} detections, {described[FIT_METHODS[int(how)]]}")
     if skipped:
-        typer.echo(f"held-out check skipped: on half the configurations {skipped}")
+        typer.echo(f"check skipped: on half the configurations {skipped}")
     if summary is not None and summary["n_errors"] == 0:
         typer.echo(
-            f"held-out check: none of the other half's errors lies inside the range the fitted "
+            f"check half: none of its errors lies inside the range the fit "
             f"half spans ({summary['n_outside']} outside it): nothing to check"
         )
     elif summary is not None:
         cover = ", ".join(f"{a} {v:.0%}" for a, v in summary["coverage"].items())
         det = summary["detection"]
-        half = "held-out variants" if pool else "held-out half"
+        half = "check half (variants)" if pool else "check half"
         typer.echo(
             f"{half}: 90 % interval coverage {cover} ({summary['n_errors']} errors, "
             f"{summary['n_outside']} outside the range); detection predicted "

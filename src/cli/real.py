@@ -91,8 +91,8 @@ def ingest(
         "--simulate",
         help="With --board: render each photo at its reference pose, fit the camera's exposure "
         "and blur on the markers' image statistics, and print the gap before and after "
-        "(held-out photos); the dataset gains an image dimension (real, simulated, "
-        "simulated_fitted).",
+        "(cross-fitted: each photo with the camera fitted on the other half); the dataset "
+        "gains an image dimension (real, simulated, simulated_fitted).",
     ),
     spp: int = typer.Option(
         PHOTO_SPP, "--spp", help="With --simulate: samples per pixel of the renders.", min=1

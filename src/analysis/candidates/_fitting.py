@@ -140,9 +140,9 @@ class ProjectionCandidate:
         residual and at p < 0.01; an in-sample test, so on fewer than 7 items nothing is
         released). A lens's k2 beside k1 on tags that span a small part of the image radius is
         nearly degenerate with it: fitted always, it traded k1 for k2 on a lens without
-        distortion and its corners on held-out items were worse (measured on a development
-        capture: docs/results/design_evidence.md#fitting). :attr:`n_params` still counts every
-        parameter (parsimony charges a lens for k2 whether or not it was released).
+        distortion and its corners on items it was not fitted on were worse (measured on a
+        development capture: docs/results/design_evidence.md#fitting). :attr:`n_params` still counts
+        every parameter (parsimony charges a lens for k2 whether or not it was released).
     """
 
     kind = "projection"

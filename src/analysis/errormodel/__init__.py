@@ -46,7 +46,7 @@ Files: :meth:`ErrorModel.save` writes netCDF (grid, units, provenance) and JSON 
 docs/errormodel.md, readable by a controller without simgap).
 
 Modules (private, in ``simgap.analysis.errormodel``): ``_fit`` (fitting), ``_model`` (the query
-API), ``_io`` (files), ``_check`` (the held-out check), ``_geometry`` (covariates) and
+API), ``_io`` (files), ``_check`` (the check on the check half), ``_geometry`` (covariates) and
 ``_smoothing`` (the local-linear smoother); the public names are re-exported here (``__all__``).
 """
 
@@ -55,7 +55,7 @@ from __future__ import annotations
 from simgap.analysis.errormodel._check import (
     check_error_model,
     check_pooled_model,
-    evaluate_held_out,
+    evaluate_check_half,
     split_configurations,
 )
 from simgap.analysis.errormodel._fit import FitSettings, fit_error_model
@@ -76,7 +76,7 @@ __all__ = [
     "check_error_model",
     "check_pooled_model",
     "covariates",
-    "evaluate_held_out",
+    "evaluate_check_half",
     "fit_error_model",
     "model_paths",
     "perturb",

@@ -1,4 +1,4 @@
-"""The honest check of an error model: fit on half the configurations, predict the other half."""
+"""The honest check of an error model: fit on half the configurations, predict the check half."""
 
 from __future__ import annotations
 
@@ -12,26 +12,26 @@ from simgap.core.axes import AXES
 
 
 def split_configurations(ds: xr.Dataset, seed: int = 0) -> np.ndarray:
-    """A random half of the (p, theta) configurations: bool (p, theta), True = training."""
+    """A random half of the (p, theta) configurations: bool (p, theta), True = the fit half."""
     rng = np.random.default_rng(seed)
     n = ds.sizes["p"] * ds.sizes["theta"]
-    train = np.zeros(n, bool)
-    train[rng.permutation(n)[: n // 2]] = True
-    return train.reshape(ds.sizes["p"], ds.sizes["theta"])
+    fit_half = np.zeros(n, bool)
+    fit_half[rng.permutation(n)[: n // 2]] = True
+    return fit_half.reshape(ds.sizes["p"], ds.sizes["theta"])
 
 
-def evaluate_held_out(
-    model: ErrorModel, ds: xr.Dataset, held_out: np.ndarray, variant: str | None = None
+def evaluate_check_half(
+    model: ErrorModel, ds: xr.Dataset, check_half: np.ndarray, variant: str | None = None
 ) -> dict:
-    """Coverage of the 90 % intervals and detection calibration on held-out configurations.
+    """Coverage of the 90 % intervals and detection calibration on the check half.
 
     Parameters
     ----------
     model : ErrorModel
-        Fitted on the other configurations.
+        Fitted on the other configurations (or variants): the fit half.
     ds : xarray.Dataset
         The result dataset.
-    held_out : ndarray of bool (p, theta)
+    check_half : ndarray of bool (p, theta)
         The configurations to predict.
     variant : str, optional
         Default: the model's variant.
@@ -39,9 +39,9 @@ def evaluate_held_out(
     Returns
     -------
     dict
-        ``coverage`` (per axis: fraction of held-out detected errors inside the 90 % interval),
-        ``coverage_by_tag``, ``n_errors`` (held-out detections inside the model's range),
-        ``n_outside`` (held-out detections outside it: not predicted, counted),
+        ``coverage`` (per axis: fraction of the check half's detected errors inside the 90 %
+        interval), ``coverage_by_tag``, ``n_errors`` (its detections inside the model's range),
+        ``n_outside`` (its detections outside it: not predicted, counted),
         ``detection`` (``bins``: predicted-probability bins with mean predicted, observed rate
         and count; ``brier``; ``n``; ``n_outside``).
     """
@@ -56,7 +56,7 @@ def evaluate_held_out(
         errs = sub.sel(tag=tag).error.transpose("repeat", "p", "theta", "axis").values
         poses = np.broadcast_to(exp, det.shape + (6,))
         _, o = covariates(exp)
-        trials = np.broadcast_to(held_out & (np.abs(o) < np.pi / 2), det.shape)
+        trials = np.broadcast_to(check_half & (np.abs(o) < np.pi / 2), det.shape)
         q = TagPoses(np.full(int(trials.sum()), tag), poses[trials])
         p = model.detection_probability(q, outside="nan")
         ok = np.isfinite(p)
@@ -91,7 +91,7 @@ def evaluate_held_out(
         "coverage_by_tag": {
             int(t): {a: float(c[:, k].mean()) for k, a in enumerate(AXES)}
             for t, c in cover.items()
-            if len(c)  # a tag with no held-out error in range has no coverage
+            if len(c)  # a tag with no check-half error in range has no coverage
         },
         "n_errors": int(len(allc)),
         "n_outside": n_outside,
@@ -112,22 +112,23 @@ def check_error_model(
     seed: int = 0,
     variant: str | None = None,
 ) -> dict:
-    """Fit on a random half of the configurations, evaluate on the other half.
+    """Fit on a random half of the configurations, evaluate on the other: the check half.
 
-    Returns :func:`evaluate_held_out`'s mapping; ``settings`` default to :class:`FitSettings`.
+    Returns :func:`evaluate_check_half`'s mapping; ``settings`` default to :class:`FitSettings`.
     """
-    train = split_configurations(ds, seed)
-    model = fit_error_model(ds, settings, variant, config_mask=train)
-    return evaluate_held_out(model, ds, ~train, variant)
+    fit_half = split_configurations(ds, seed)
+    model = fit_error_model(ds, settings, variant, config_mask=fit_half)
+    return evaluate_check_half(model, ds, ~fit_half, variant)
 
 
 def check_pooled_model(ds: xr.Dataset, settings: FitSettings | None = None) -> dict:
     """Fit on every other variant pooled, evaluate on the others at every configuration.
 
-    The held-out check of a model pooled over variants
+    The check of a model pooled over variants, whose check half is the variants it was not
+    fitted on
     (:func:`simgap.results.dataset.pooled_variants`): its draws are the variants (the sun's
     directions of an orbital sweep), so the question is whether the intervals fitted on some
-    draws cover the errors of others at the same poses. Returns :func:`evaluate_held_out`'s
+    draws cover the errors of others at the same poses. Returns :func:`evaluate_check_half`'s
     mapping.
     """
     from simgap.results.dataset import POOLED, pooled_variants
@@ -136,6 +137,6 @@ def check_pooled_model(ds: xr.Dataset, settings: FitSettings | None = None) -> d
     if len(names) < 2:
         raise ValueError(f"a pooled check needs two variants or more, got {len(names)}")
     model = fit_error_model(pooled_variants(ds.sel(variant=names[0::2])), settings)
-    held = pooled_variants(ds.sel(variant=names[1::2]))
+    check = pooled_variants(ds.sel(variant=names[1::2]))
     every = np.ones((ds.sizes["p"], ds.sizes["theta"]), bool)
-    return evaluate_held_out(model, held, every, POOLED)
+    return evaluate_check_half(model, check, every, POOLED)

@@ -164,7 +164,7 @@ def _fit_tag(x, err, xd, flags, settings: FitSettings, grid_d, grid_o, tag: int)
     if len(x) < settings.min_detections:
         return out
     k_data, _ = smoothing.kernel(x, x, h)
-    np.fill_diagonal(k_data, 0.0)  # each point's spread from its neighbours only (held-out-like)
+    np.fill_diagonal(k_data, 0.0)  # each point's spread from its neighbours only (leave-one-out)
     z = np.empty_like(err)
     for j in range(6):
         w, loo = smoothing.robust_local_linear(x, err[:, j], h, settings.robust_iterations)
@@ -206,7 +206,7 @@ def fit_error_model(
     variant : str, optional
         Variant to model (default: the first).
     config_mask : ndarray of bool (p, theta), optional
-        Use only these configurations (e.g. a training half).
+        Use only these configurations (e.g. the fit half of :func:`check_error_model`).
     source : str
         Where ``ds`` came from, for the provenance attrs.
 

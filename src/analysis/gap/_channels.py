@@ -175,7 +175,7 @@ def channel_misfits(
 
 
 def image_misfits(real: np.ndarray | None, pred: np.ndarray | None) -> np.ndarray:
-    """Held-out image-evidence misfit per statistic (floors), capped (in floors).
+    """Image-evidence misfit per statistic of the scored items (floors), capped (in floors).
 
     Per statistic of :data:`simgap.analysis.thresholds.IMAGE_FLOORS` that has a floor, the
     absolute median over tags of ``compare_stat(real, pred) / floor`` (a bias, robust to

@@ -12,8 +12,8 @@ out), the blur from the edge width (the catalogue's blur whose simulated median 
 the real one, :func:`fit_photo_camera`). Both are the catalogue's image effects
 (``exposure``, ``blur``) run on the renders (:func:`simgap.effects.image.run_pipeline`).
 
-How far, held out: the frames are split in two folds (even and odd positions); each fold is
-simulated with the camera fitted on the other fold's statistics, so no frame's gap after is
+How far, cross-fitted: the frames are split in two cross-fit folds (even and odd positions); each
+fold is simulated with the camera fitted on the other fold's statistics, so no frame's gap after is
 measured with effects fitted on that frame.
 """
 
@@ -161,9 +161,9 @@ class PhotoDiagnosis:
     before, after : dict of str to list of BandGap
         Real - simulated in thirds of each covariate (distance, view angle, image radius:
         :data:`simgap.results.photo_summary.COVARIATES`): the nominal simulation, and each
-        frame simulated with the camera fitted on the other fold (held out).
+        frame simulated with the camera fitted on the other cross-fit fold.
     edge_width_after_px : float
-        Median edge width of the held-out fitted simulation (px), against ``fit``'s real one.
+        Median edge width of the cross-fitted simulation (px), against ``fit``'s real one.
     dataset : xarray.Dataset
         The photo datasets along ``image`` (:data:`IMAGES`), with the fit in its attributes.
     """

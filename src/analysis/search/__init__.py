@@ -1,9 +1,9 @@
-"""The model search: which candidate effects explain a gap, scored on held-out items, and chosen.
+"""The model search: which candidate effects explain a gap, scored on the choose split, and chosen.
 
 ``ModelSearch`` (``_selection``) fits models of one or more candidates, scores each on the evidence
 of a set of items (``Scored``, ``_scored``) and chooses one by the decision rules of ``_scoring``:
 an effect enters only where it may (``_admission``), two geometric effects at once where no single
-one explains what the model leaves (``_pair_step``), corners cross-fitted on held-out items
+one explains what the model leaves (``_pair_step``), corners cross-fitted in two folds
 (``_cross_fit``), effects that move no pose pruned (``_pruning``), each effect's share of the pose
 predictions (``_contributions``) and the calibration effects the corners single out
 (``_corner_findings``). The candidates and the ``Runner`` come from
@@ -31,7 +31,7 @@ from simgap.analysis.search._pruning import pruned
 from simgap.analysis.search._scored import Scored, bootstrap_reductions
 from simgap.analysis.search._scoring import (
     as_good,
-    as_good_held_out,
+    as_good_cross_fitted,
     corner_residuals,
     equivalent_models,
     generalises_better,
@@ -45,7 +45,7 @@ __all__ = [
     "ModelSearch",
     "Scored",
     "as_good",
-    "as_good_held_out",
+    "as_good_cross_fitted",
     "at_bound",
     "bootstrap_reductions",
     "clearly_smaller",

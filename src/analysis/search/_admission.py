@@ -101,9 +101,9 @@ def seen_in_centres(scored: Scored, reference: Scored | None) -> bool:
     """Whether a model's one new geometric effect moves the tag centres as they moved.
 
     The cross-fitted centre residuals (the mean of each tag's four corners, every searched item
-    held out once: :func:`~simgap.analysis.search.corner_residuals` with ``centres``) of
-    ``scored`` are consistently lower item by item than ``reference``'s (or the simulation's)
-    (:func:`~simgap.analysis.search._scoring.corners_clearly_lower`).
+    predicted by a fit on the other cross-fit fold: :func:`~simgap.analysis.search.corner_residuals`
+    with ``centres``) of ``scored`` are consistently lower item by item than ``reference``'s (or the
+    simulation's) (:func:`~simgap.analysis.search._scoring.corners_clearly_lower`).
 
     Why the pose does not decide here: a single tag's depth comes from its apparent size, and
     a camera whose edges differ from the simulation's (exposure, softness) moves every side of

@@ -1,7 +1,7 @@
 """Calibration effects the corners single out: beside a chosen model, or alone.
 
 An effect with a corner signature of its own (a lens distortion: a radial pattern no pose,
-exposure or softness change makes) is a finding wherever the held-out corners single it out
+exposure or softness change makes) is a finding wherever the cross-fitted corners single it out
 (:func:`~simgap.analysis.search.seen_in_corners`), even when it moves no pose beyond the floor
 (it is then minor, never silently dropped). The greedy search of
 :meth:`simgap.analysis.search.ModelSearch.select` adds the effect that lowers the combined
@@ -37,8 +37,8 @@ def with_corner_effects(
 
     One at a time, the one whose model explains the evidence best first, while the model may
     grow (``max_effects``): the effect may enter beside the model (:func:`admissible`) and
-    the held-out corners single it out (:func:`seen_in_corners`). A geometric effect of the model
-    that could no longer enter beside it leaves (:func:`without_displaced`).
+    the cross-fitted corners single it out (:func:`seen_in_corners`). A geometric effect of the
+    model that could no longer enter beside it leaves (:func:`without_displaced`).
     """
     while len(scored.fits) < max_effects:
         model = tuple(c for c, _ in scored.fits)
@@ -85,8 +85,8 @@ def corner_effect_alone(ranking: Sequence[Scored]) -> Scored | None:
     ``ranking``: single-effect models (:meth:`~simgap.analysis.search.ModelSearch.rank`).
     For a capture where no evidence family differs significantly, or where the model search
     finds no effect to start from: only an effect with a corner signature of its own,
-    admissible alone and seen in the held-out corners, is a finding: a true lens can be seen
-    clearly in the held-out corners yet lower the evidence of a small choose split too little to
+    admissible alone and seen in the cross-fitted corners, is a finding: a true lens can be seen
+    clearly in the cross-fitted corners yet lower the evidence of a small choose split too little to
     start the search (docs/results/design_evidence.md#corner_findings).
     """
     seen = [

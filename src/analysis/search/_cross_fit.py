@@ -1,4 +1,4 @@
-"""Two-fold cross-fitting of a model's corners: every searched item held out once.
+"""Two-fold cross-fitting of a model's corners: each fold predicted by a fit on the other.
 
 Models are fitted on the fit split and scored on the choose split
 (:mod:`simgap.analysis.search._selection`). For the corner evidence the folds are also swapped: the

@@ -51,12 +51,13 @@ def corner_gap_lower(after_px: float, before_px: float, unit_px: float) -> bool:
 def corner_residuals(
     scored: Scored, before: bool = False, cross_fitted: bool = False, centres: bool = False
 ) -> np.ndarray | None:
-    """Per held-out item, the mean squared corner distance real - predicted (px^2).
+    """Per scored item, the mean squared corner distance real - predicted (px^2).
 
     The scored items, each predicted by the model fitted on the other split; with
     ``cross_fitted``, followed by the other split's items predicted by the model refitted on the
     scored ones (:attr:`~simgap.analysis.search.Scored.cross_fit_difference`; a ValueError for a
-    model that was not cross-fitted): every item is then held out once (two-fold cross-fitting).
+    model that was not cross-fitted): the two splits are then the two cross-fit folds, every item
+    predicted by a fit on the other fold (two-fold cross-fitting).
     A choose split of 6-10 items alone could not show a lens distortion that moves the
     corners by a tenth of a pixel (the paired test missed correctly fitted lenses on blind
     captures: docs/results/design_evidence.md#scoring). Only the admission of a geometric effect
@@ -111,8 +112,8 @@ def as_good(a: Scored, b: Scored) -> bool:
     return a.evidence_after <= b.evidence_after or equivalent_models(a, b)
 
 
-def as_good_held_out(a: Scored, b: Scored) -> bool:
-    """:func:`as_good`, and ``b``'s geometry no better held out (:func:`generalises_better`).
+def as_good_cross_fitted(a: Scored, b: Scored) -> bool:
+    """:func:`as_good`, and ``b``'s geometry no better cross-fitted (:func:`generalises_better`).
 
     What a simpler model must be to replace ``b``
     (:meth:`~simgap.analysis.search.ModelSearch.simplify`): a tag offset that explained a
@@ -128,7 +129,7 @@ def parsimonious(options: list[Scored]) -> Scored:
     Ties within :func:`equivalent_models` are not evidence: a richer effect (a 6-DOF camera
     mount) reproduces a simpler one (a principal-point shift is a small camera rotation) and also
     soaks up unrelated nuisance, so it wins by a hair unless parsimony decides. A tied model
-    whose geometry another tied one predicts distinguishably better on held-out items
+    whose geometry another tied one predicts distinguishably better on the cross-fit folds
     (:func:`generalises_better`) is not tied.
     """
     best = min(options, key=lambda s: s.evidence_after)
@@ -144,7 +145,7 @@ def worsens_pose(
 
     Larger by more than ``tolerance`` (relative; all axes,
     :attr:`~simgap.analysis.search.Scored.pose_gap_all_axes_after`). A geometric
-    effect that does so, and that neither the held-out corners nor the tag centres single out
+    effect that does so, and that neither the cross-fitted corners nor the tag centres single out
     (:func:`~simgap.analysis.search._admission.admissible`), is no explanation of the gap: it is
     a look-alike absorbing an image effect outside the catalogue (motion blur shifts the corners
     the detector finds; a tag print scale follows them and moves every pose further away).
@@ -165,7 +166,7 @@ def improves_on_nothing(scored: Scored) -> bool:
 
 
 def generalises_better(a: Scored, b: Scored) -> bool:
-    """Whether ``a``'s geometry predicts held-out corners consistently better than ``b``'s.
+    """Whether ``a``'s geometry predicts cross-fitted corners consistently better than ``b``'s.
 
     Two models with the same appearance effects and other projection effects, both
     cross-fitted: ``a``'s cross-fitted corner residuals are clearly lower item by item

@@ -36,7 +36,7 @@ from simgap.analysis.search._pair_step import pair_start, pair_step
 from simgap.analysis.search._pruning import pruned
 from simgap.analysis.search._scored import Scored
 from simgap.analysis.search._scoring import (
-    as_good_held_out,
+    as_good_cross_fitted,
     improves,
     improves_on_nothing,
     parsimonious,
@@ -231,7 +231,7 @@ class ModelSearch:
         Effects are dropped, or projection effects swapped for ones with fewer parameters that
         could enter the model in their place (:func:`admissible`: a carriage pitch of -0.2 %
         that moved no pose replaced a lens distortion whose corners it nearly matched on 13
-        items), while the model stays as good as ``scored`` (:func:`as_good_held_out`).
+        items), while the model stays as good as ``scored`` (:func:`as_good_cross_fitted`).
         Where nothing simpler is as good, a projection effect is swapped for one with as many
         parameters that explains the evidence distinguishably better (:func:`improves`): the
         greedy search keeps the effect it started with, and a look-alike that led alone stays
@@ -267,7 +267,7 @@ class ModelSearch:
                         swapped, scored
                     ):
                         better.append(swapped)
-            ok = [o for o in options if as_good_held_out(o, reference)]
+            ok = [o for o in options if as_good_cross_fitted(o, reference)]
             if ok:
                 scored = min(ok, key=lambda s: (s.n_params, s.evidence_after))
             elif better:
@@ -282,9 +282,9 @@ class ModelSearch:
 
         A geometric effect enters a model (starts the search, or is added to it) only when it
         brings the pose at least :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer
-        to the real one than the model without it (:func:`worsens_pose`), when the held-out
+        to the real one than the model without it (:func:`worsens_pose`), when the cross-fitted
         corners single out an effect with a corner signature of its own (a lens distortion), or
-        when the held-out tag centres show it
+        when the cross-fitted tag centres show it
         (:func:`~simgap.analysis.search._admission.admissible`; a lens that moved no pose beyond the
         floor, or carriage pitches whose depth another camera's edges hid, were left out). One that
         follows the corners without moving the poses closer or the centres is a look-alike of an
@@ -328,7 +328,7 @@ class ModelSearch:
             # nothing alone: perhaps two geometric effects that hide each other (pair_step)
             starts = pair_start(ranking, pool, self, max_effects)
             if not starts or not improves_on_nothing(starts[0]):
-                # as where nothing differs: a lens seen only in the held-out corners
+                # as where nothing differs: a lens seen only in the cross-fitted corners
                 return corner_effect_alone(ranking)
         current = self.simplify(starts[0], pool)
         seen = {frozenset(current.effects)}
