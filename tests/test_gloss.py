@@ -203,3 +203,50 @@ def test_too_few_unclipped_papers_leave_the_glint_to_the_level_model():
         np.zeros(len(levels), bool), levels.eye_from_tag,
     )  # fmt: skip
     assert fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M) is None
+
+
+class _Items:
+    """The image statistics of comparable tags, as :class:`~simgap.analysis.gap.Items`."""
+
+    def __init__(self, real_stats: np.ndarray, sim_stats: np.ndarray) -> None:
+        self.real_stats, self.sim_stats = real_stats, sim_stats
+
+    def required(self, name: str) -> np.ndarray:
+        return getattr(self, name)
+
+
+class _Runner:
+    """The one method of the :class:`~simgap.analysis.candidates.Runner` the signature needs."""
+
+    def __init__(self, eye_from_tag: np.ndarray) -> None:
+        self._eye = eye_from_tag
+
+    def eye_from_tag(self, items: object) -> np.ndarray:
+        return self._eye
+
+
+@pytest.mark.parametrize("veil", [0.0, 0.004])
+def test_a_laminate_whose_ink_median_stays_under_its_floor_is_a_candidate(veil):
+    """A veil of 0.004 full scale behind a darker ink (0.85x, as a black level pulls it) lifts
+    the oblique tags' ink, but the ink's median difference over every tag stays under its
+    0.5-stop floor and no laminate statistic is significant; the ink-to-paper ratios still call
+    for a laminate (gain 0.56 floors), so it is a candidate. The same capture without the veil
+    is not (gain 0.00). Measured: the ink's median difference +0.31 stop with the veil, -0.19
+    without."""
+    from simgap.analysis.gap import paired_test
+
+    eye_from_tag = _grid()
+    base = _lit_otherwise(eye_from_tag, 0.0, np.random.default_rng(5))
+    added = veil * fresnel_veil(lobe_geometry(eye_from_tag, 0.0)[1])
+    real = _stats(0.85 * (base.real_ink + added), base.real_paper + added)
+    sim = _stats(base.sim_ink, base.sim_paper)
+    tests = [
+        t
+        for stat in ("ink_linear", "paper_linear", "contrast", "highlight_fraction")
+        if (t := paired_test(stat, real[:, STAT_INDEX[stat]], sim[:, STAT_INDEX[stat]]))
+    ]
+    ink = next(t for t in tests if t.stat == "ink_linear")
+    assert abs(ink.median_difference) < ink.floor
+    assert not any(t.significant for t in tests if t.stat in GlossCandidate().fit_stats)
+    shown = GlossCandidate().signature_shown(tests, _Runner(eye_from_tag), _Items(real, sim))
+    assert shown is (veil > 0)

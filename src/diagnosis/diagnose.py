@@ -32,7 +32,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.candidates import CANDIDATES, Candidate, signature_significant
+from simgap.analysis.candidates import CANDIDATES, AppearanceCandidate, Candidate
 from simgap.analysis.gap import corner_unit, gap_score, median_abs_gap
 from simgap.analysis.search import (
     ModelSearch,
@@ -304,8 +304,8 @@ def diagnose(
     candidates : list, optional
         Candidate effects, projection or appearance (default: the whole catalogue,
         :data:`simgap.analysis.candidates.CANDIDATES`). An appearance effect is kept only where
-        one of its own image statistics differs significantly
-        (:func:`simgap.analysis.candidates.signature_significant`).
+        the capture shows its signature
+        (:meth:`simgap.analysis.candidates.AppearanceCandidate.signature_shown`).
     progress : ProgressCallback, optional
         Told the progress of every step after the simulation (whose progress is the
         simulator's): ``fitting candidates`` (one unit per candidate), ``model search`` (one per
@@ -328,10 +328,16 @@ def diagnose(
     where = where_summary(d.real, d.sim, d.field, d.axis_gaps)
     if candidates is None:
         candidates = list(CANDIDATES.values())
-    # an appearance effect is a candidate only where one of its own image statistics differs
-    # significantly (the where step, over every comparable tag; the measure split's pose gap,
-    # on which the reduction is measured, plays no part in it)
-    candidates = [c for c in candidates if signature_significant(c, where.image_tests)]
+    # an appearance effect is a candidate only where the capture shows its signature: one of
+    # its own image statistics differs significantly (the where step, over every comparable
+    # tag; the measure split's pose gap, on which the reduction is measured, plays no part in
+    # it), or for a laminate the ink-to-paper ratios of those tags call for one
+    candidates = [
+        c
+        for c in candidates
+        if not isinstance(c, AppearanceCandidate)
+        or c.signature_shown(where.image_tests, d.runner, d.items)
+    ]
     ranking = d.search.rank(candidates, where.significant) if len(d.items) >= 2 else []
     # where nothing differs significantly, only an effect the corners single out is a finding
     # (a calibration file's wrong distortion that moves no pose beyond its noise)

@@ -175,6 +175,15 @@ class AppearanceCandidate(SimulationCandidate):
         self.fit_stats = fit_stats
         self.param, self.bounds, self.xatol = param, bounds, xatol
 
+    def signature_shown(self, image_tests: list[ImageTest], runner: Runner, items: Items) -> bool:
+        """Whether the capture shows this effect's signature, so that it is a candidate.
+
+        ``image_tests`` are the where step's tests over every comparable tag and ``items`` those
+        tags; by default one of the effect's own statistics differs significantly
+        (:func:`signature_significant`).
+        """
+        return signature_significant(self, image_tests)
+
     def params(self, x: float) -> dict[str, Any]:
         """Effect parameters for a value of the fitted parameter."""
         return {self.param: float(x)}

@@ -33,7 +33,7 @@ from simgap.analysis.candidates._appearance import capped_rms
 from simgap.analysis.candidates._lobe import MIN_COS, beckmann, fresnel_veil, lobe_geometry
 from simgap.analysis.candidates._subset_fit import fit_subset
 from simgap.analysis.candidates._tag_levels import TagLevels
-from simgap.analysis.thresholds import IMAGE_FLOORS
+from simgap.analysis.thresholds import IMAGE_FLOORS, SIGNATURE_MIN_GAIN
 
 #: Fewest tags with unclipped ink and paper for the ratio model: its five fitted parameters and
 #: three more. Below it (an overexposed capture whose papers clip) the level model decides.
@@ -75,6 +75,15 @@ class RatioFit:
     def gain(self) -> float:
         """What the laminate (glint and veil) explains beyond flare and a flat ratio (floors)."""
         return self.rms_flat - self.rms_glint
+
+    @property
+    def supported(self) -> bool:
+        """Whether the laminate is called for, with a glint or a veil.
+
+        Its gain reaches the signature's smallest gain
+        (:data:`~simgap.analysis.thresholds.SIGNATURE_MIN_GAIN`, floors).
+        """
+        return self.gain >= SIGNATURE_MIN_GAIN and (self.glint_scale > 0 or self.veil > 0)
 
     @property
     def geometry(self) -> tuple[float, float, float]:

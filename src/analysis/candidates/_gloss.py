@@ -69,7 +69,7 @@ from simgap.analysis.candidates._lobe import LAMINATE_IOR, MIN_COS, beckmann, lo
 from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._subset_fit import fit_subset
 from simgap.analysis.candidates._tag_levels import TagLevels
-from simgap.analysis.gap import Items, detection_groups, detection_score
+from simgap.analysis.gap import ImageTest, Items, detection_groups, detection_score
 from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
 from simgap.effects import make_effect
 from simgap.effects.state import VariantState
@@ -220,6 +220,28 @@ class GlossCandidate(AppearanceCandidate):
         stats = ("ink_linear", "contrast", "highlight_fraction")
         super().__init__("tag_gloss", stats, "alpha", ROUGHNESS_RANGE, 0.0)
 
+    def signature_shown(self, image_tests: list[ImageTest], runner: Runner, items: Items) -> bool:
+        """Whether the capture shows a laminate, so that it is a candidate.
+
+        One of its statistics differs significantly
+        (:func:`~simgap.analysis.appearance.signature_significant`), or the ink-to-paper ratios
+        of every comparable tag call for one (:attr:`RatioFit.supported`).
+
+        A laminate lifts the ink only where the view meets a light's glint or grazes its veil;
+        the ink's median over every tag can then stay under its floor (a crushing black level
+        pulls the other way), while the ratios, which the capture's own lights, exposure and
+        tone leave alone, show the pattern of the view (docs/results/laminate.md).
+        """
+        if super().signature_shown(image_tests, runner, items):
+            return True
+        if items.real_stats is None or items.sim_stats is None:
+            return False
+        levels = TagLevels.of(
+            items.required("real_stats"), items.required("sim_stats"), runner.eye_from_tag(items)
+        )
+        ratio = fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M)
+        return ratio is not None and ratio.supported
+
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
         """The state with the laminate and the light beside the lens."""
         state = base
@@ -319,7 +341,7 @@ class GlossCandidate(AppearanceCandidate):
         if ratio is None:
             supported = fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
         else:
-            supported = ratio.gain >= GLINT_MIN_GAIN and (ratio.glint_scale > 0 or ratio.veil > 0)
+            supported = ratio.supported
         if supported:
             params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit, ratio)
         top = INTENSITY_W_SR[1]
