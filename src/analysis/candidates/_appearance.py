@@ -34,8 +34,10 @@ Image-stage effects (blur, exposure, black level, noise, JPEG) re-process the ca
 defocus and the laminate are fitted on the evidence with a physical model and then rendered for
 scoring (their change of corners, pose, statistics and detections comes from the full pipeline, like
 every candidate's). This module holds the generic one-parameter candidate (a bounded scalar search)
-and the gates every appearance candidate passes: its own statistics must differ significantly
-(:func:`signature_significant`) and its fit must explain them (:func:`signature_supported`).
+and the gates every appearance candidate passes: the capture must show its signature
+(:meth:`AppearanceCandidate.signature_shown`; by default its own statistics differ
+significantly, :func:`signature_significant`) and its fit must explain them
+(:func:`signature_supported`).
 """
 
 from __future__ import annotations

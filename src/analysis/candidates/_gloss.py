@@ -224,7 +224,7 @@ class GlossCandidate(AppearanceCandidate):
         """Whether the capture shows a laminate, so that it is a candidate.
 
         One of its statistics differs significantly
-        (:func:`~simgap.analysis.appearance.signature_significant`), or the ink-to-paper ratios
+        (:func:`~simgap.analysis.candidates.signature_significant`), or the ink-to-paper ratios
         of every comparable tag call for one (:attr:`RatioFit.supported`).
 
         A laminate lifts the ink only where the view meets a light's glint or grazes its veil;

@@ -8,8 +8,9 @@ the image statistics named with them (:mod:`simgap.analysis.candidates._appearan
 :mod:`simgap.analysis.candidates._exposure`, :mod:`simgap.analysis.candidates._black_level`,
 :mod:`simgap.analysis.candidates._sensor_noise`, :mod:`simgap.analysis.candidates._defocus`,
 :mod:`simgap.analysis.candidates._gloss`); those statistics are also
-their signature: an appearance effect is a candidate only where one of them differs
-significantly (:func:`simgap.analysis.candidates.signature_significant`).
+their signature: an appearance effect is a candidate only where the capture shows it
+(:meth:`simgap.analysis.candidates.AppearanceCandidate.signature_shown`: one of them differs
+significantly, or for the laminate the ink-to-paper ratios call for one).
 
 A new candidate is one entry here. The order of the table is the order in which candidates are
 fitted and, among equally good ones, ranked.

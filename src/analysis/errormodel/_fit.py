@@ -206,7 +206,8 @@ def fit_error_model(
     variant : str, optional
         Variant to model (default: the first).
     config_mask : ndarray of bool (p, theta), optional
-        Use only these configurations (e.g. the fit half of :func:`check_error_model`).
+        Use only these configurations (e.g. the fit half of
+        :func:`~simgap.analysis.errormodel.check_error_model`).
     source : str
         Where ``ds`` came from, for the provenance attrs.
 
