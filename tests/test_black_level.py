@@ -36,7 +36,10 @@ def _candidate() -> BlackLevelCandidate:
     return BlackLevelCandidate((ExposureCandidate(), SensorNoiseCandidate()))
 
 
-@pytest.mark.parametrize(("ev", "level"), [(-0.8, 0.03), (0.5, 0.05)])
+# the brighter camera runs with the slow tests (15 s): the darker one runs the same code by default
+@pytest.mark.parametrize(
+    ("ev", "level"), [(-0.8, 0.03), pytest.param(0.5, 0.05, marks=pytest.mark.slow)]
+)
 def test_the_black_level_is_recovered_under_the_cameras_exposure_and_noise(setting, ev, level):
     """Converged renders of 16 configurations through a camera exposed ``ev`` stops from the
     simulation, with a sensor's noise (3000 e-, 4 e-) and a black level, against the nominal

@@ -337,7 +337,8 @@ def test_a_distortion_the_corners_show_is_not_refused_for_pose_noise():
     assert not seen_in_corners(beyond, None)
 
 
-@pytest.mark.parametrize("smear_px", [2.0, 3.0])
+# the 2 px smear runs with the slow tests (20 s): the 3 px one runs the same code by default
+@pytest.mark.parametrize("smear_px", [pytest.param(2.0, marks=pytest.mark.slow), 3.0])
 def test_geometry_fitted_to_corners_something_else_moved_is_refused(smear_px):
     """A one-sided horizontal smear of the corners is no geometry: the model the search finds
     leaves them more than GEOMETRY_CORNER_GAP_PX off, is refused, and nothing is selected.
@@ -538,7 +539,8 @@ def test_a_size_change_tells_a_print_scale_from_an_edge_offset():
     assert abs(crossing.slope_z) > 4 and crossing.zero_share > 1.0
 
 
-@pytest.mark.parametrize("shrink_px", [0.3, 0.6])
+# the 0.6 px shrink runs with the slow tests (10 s): the 0.3 px one runs the same code by default
+@pytest.mark.parametrize("shrink_px", [0.3, pytest.param(0.6, marks=pytest.mark.slow)])
 def test_a_print_scale_does_not_follow_an_edge_offset(shrink_px):
     """Issue 25: a softer camera moves every detected corner towards the tag's centre by about
     the same pixels; a print scale fitted to it (-0.6 % for 0.3 px here) is no finding, while a
