@@ -44,7 +44,7 @@ from simgap.analysis.report import compare_variants
 from simgap.core.atomic import atomic_write
 from simgap.core.axes import AXES
 from simgap.diagnosis.result import DiagnosisResult
-from simgap.diagnosis.result_json import versions_read, write_json
+from simgap.diagnosis.result_json import lift_schema, write_json
 from simgap.pose.image_stats import STATS
 from simgap.results.cf import ERROR_UNITS, decode_cf, encode_cf
 from simgap.results.contract import COORD_ATTRS
@@ -559,12 +559,14 @@ class DiagnosisEvidence(_Record):
                 f"{path}: cannot read the diagnosis evidence (expected a netCDF4 file written "
                 f"by simgap diagnose): {type(exc).__name__}: {exc}"
             ) from exc
-        version = root.attrs.get("schema_version")
-        if version in UPGRADES:
-            root = UPGRADES[version](root)
-        elif version != SCHEMA_VERSION:
-            readable = versions_read(UPGRADES, SCHEMA_VERSION)
-            raise ValueError(f"{where}: schema_version: expected {readable}, got {version!r}")
+        root = lift_schema(
+            root,
+            root.attrs.get("schema_version"),
+            UPGRADES,
+            SCHEMA_VERSION,
+            lambda ds: ds.attrs["schema_version"],
+            where,
+        )
         if "gap" not in groups:
             raise ValueError(f"{where}: missing group 'gap'")
         image_stats = groups.get("image_stats")
@@ -583,7 +585,8 @@ _V1_SPLITS = {"report": "measure"}
 
 def upgrade_v1(root: xr.Dataset) -> xr.Dataset:
     """A schema-1 root group in the schema-2 layout: its split ``report`` is ``measure``."""
-    return root.assign_coords(split=[_V1_SPLITS.get(str(s), str(s)) for s in root.split.values])
+    out = root.assign_coords(split=[_V1_SPLITS.get(str(s), str(s)) for s in root.split.values])
+    return out.assign_attrs(schema_version=2)
 
 
 #: The older schema versions of ``evidence.nc`` still read, and what lifts each to the current.

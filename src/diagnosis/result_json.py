@@ -108,14 +108,44 @@ class VersionedRecord:
         source = source or cls.json_source
         if not isinstance(data, dict):
             raise ValueError(f"{source}: expected a mapping, got {type(data).__name__}")
-        version = data.get("schema_version", 1)
-        while version in cls.json_upgrades:
-            data = cls.json_upgrades[version](data)
-            version = data["schema_version"]
-        if version != cls.json_schema:
-            readable = versions_read(cls.json_upgrades, cls.json_schema)
-            raise ValueError(f"{source}: schema_version: expected {readable}, got {version!r}")
+        data = lift_schema(
+            data,
+            data.get("schema_version", 1),
+            cls.json_upgrades,
+            cls.json_schema,
+            lambda d: d["schema_version"],
+            source,
+        )
         return from_jsonable(cast(Any, cls), data, source)
+
+
+D = TypeVar("D")
+
+
+def lift_schema(
+    data: D,
+    version: Any,
+    upgrades: Mapping[int, Callable[[D], D]],
+    current: int,
+    version_of: Callable[[D], Any],
+    source: str,
+) -> D:
+    """``data`` of schema ``version`` lifted to ``current`` by ``upgrades``, applied in turn.
+
+    Each upgrade returns data of a later version, which ``version_of`` reads from it.
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` where the version is neither current nor lifted to it.
+    """
+    while version in upgrades:
+        data = upgrades[version](data)
+        version = version_of(data)
+    if version != current:
+        readable = versions_read(upgrades, current)
+        raise ValueError(f"{source}: schema_version: expected {readable}, got {version!r}")
+    return data
 
 
 def versions_read(upgrades: Mapping[int, Any], current: int) -> str:
