@@ -250,3 +250,35 @@ def test_a_laminate_whose_ink_median_stays_under_its_floor_is_a_candidate(veil):
     assert not any(t.significant for t in tests if t.stat in GlossCandidate().fit_stats)
     shown = GlossCandidate().signature_shown(tests, _Runner(eye_from_tag), _Items(real, sim))
     assert shown is (veil > 0)
+
+
+def test_the_laminate_is_rendered_with_the_ink_it_was_fitted_with():
+    """A fitted ink factor ``h`` below 1 is rendered as the print's ink albedo times ``h``.
+
+    Without it the rendered glint lifts ink that the capture's camera took back and a right
+    laminate scored worse than none (docs/results/laminate.md).
+    """
+    eye_from_tag = _grid()
+    rng = np.random.default_rng(1)
+    # a print 4x darker than the simulation's (or a black level that darkens its ink as much)
+    truth = np.array([-0.5, -2.0, 0.01, 2e-3, 0.1, 0.05, 0.02])
+    fit = fit_levels(_levels(eye_from_tag, truth, rng))
+    # measured: log2 h -1.992 (a tenth of a stop of ink noise over 104 tags)
+    assert fit.x[1] == pytest.approx(-2.0, abs=0.1)
+
+    base = load_experiment("experiments/baseline.yaml").variant_states()[0][1]
+    tag = base.scene.spec.tag
+    params = {
+        "alpha": 0.1,
+        "light_intensity_w_sr": 0.3,
+        "light_offset_x_m": 0.05,
+        "light_offset_z_m": 0.02,
+        "ev": -0.5,
+        "ink_factor": 2.0 ** fit.x[1],
+    }
+    rendered = GlossCandidate().apply(base, params).scene.spec.tag
+    assert rendered.ink == pytest.approx(tag.ink * 2.0 ** fit.x[1], rel=1e-12)
+    assert rendered.paper == tag.paper and rendered.coating is not None
+    # an ink brighter than simulated is the laminate's own veil (or flare): not rendered twice
+    brighter = GlossCandidate().apply(base, dict(params, ink_factor=1.8)).scene.spec.tag
+    assert brighter.ink == tag.ink

@@ -43,7 +43,15 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
    glint and a light are linear in the intensity; the ratios' glint scale gives a third), and a
    few renders around the estimates pick the intensity whose levels and detections match
    (:meth:`GlossCandidate.intensity`).
-6. **Exposure.** The candidate carries the exposure ``G`` it was fitted with (``ev``).
+6. **Exposure and ink.** The candidate carries the exposure ``G`` it was fitted with (``ev``)
+   and the ink factor ``h`` (``ink_factor``). Where ``h`` is below 1 it is rendered as the
+   print's ink albedo times ``h``: in the levels a darker print, a black level and a tone curve
+   that darkens the ink look alike, and the albedo is the one of them that lowers the ink and
+   leaves the glint on top of it. Without it the rendered glint lifts ink that the capture's
+   camera took back, and a right laminate scored worse than none (docs/results/laminate.md). An
+   ``h`` above 1 (ink brighter than simulated) is what a veil, flare or transfer curve adds; the
+   laminate's render adds its own veil, so it is not rendered (a brighter ink would stand in for
+   the glint). The laminate is thus judged with the camera's nuisance it was fitted with.
 
 Only tags near the half-angle's zero (the frontal stops) sample the lobe's width: with few of
 them roughness, offset and intensity trade off (development captures: roughness within 1.6x).
@@ -243,12 +251,20 @@ class GlossCandidate(AppearanceCandidate):
         return ratio is not None and ratio.supported
 
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
-        """The state with the laminate and the light beside the lens."""
+        """The state with the laminate, the light beside the lens and the fitted nuisance.
+
+        The nuisance: the exposure (``ev``) and the ink factor (``ink_factor``: the print's ink
+        albedo over the simulation's, only where it darkens the ink, module docstring step 6)
+        the levels were fitted with.
+        """
         state = base
         effects = laminate_effects(params)
         # the exposure the levels were fitted with: a light beside the lens brightens near tags,
         # so an exposure fitted without it is another (and added to it, counts that twice)
         effects["exposure"] = {"ev": float(params.get("ev", 0.0))}
+        tag = base.scene.spec.tag
+        ink_factor = min(float(params.get("ink_factor", 1.0)), 1.0)
+        effects["tag_material"] = {"ink": tag.ink * ink_factor, "paper": tag.paper}
         for name, values in effects.items():
             state = make_effect(name, values).apply(state)
         return state
@@ -337,6 +353,7 @@ class GlossCandidate(AppearanceCandidate):
             "light_offset_x_m": fit.offset_x_m,
             "light_offset_z_m": fit.offset_z_m,
             "ev": float(fit.x[0]),
+            "ink_factor": float(2.0 ** fit.x[1]),
         }
         if ratio is None:
             supported = fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
