@@ -76,8 +76,8 @@ def ingest(
     calibration: Path | None = typer.Option(
         None,
         "--calibration",
-        help="Calibration file under any name (ROS ost.yaml / camera_info YAML or OpenCV YAML); "
-        "wins over camera.yaml and a bag's CameraInfo.",
+        help="Calibration file under any name (ROS ost.yaml / camera_info YAML, OpenCV YAML or "
+        "Kalibr camchain, FILE:cam1 for its cam1); wins over camera.yaml and a bag's CameraInfo.",
     ),
     max_pixels: int = typer.Option(
         MAX_PIXELS,
