@@ -55,8 +55,9 @@ QUATERNION_NORM_TOLERANCE = 1e-3
 #: above the median deviation from the first mean are left out of the solved rotation: the
 #: three-sigma outlier cut (keeps 99.7 % of a Gaussian scatter).
 BOARD_IN_BASE_CUT_SIGMAS = 3.0
-#: Attribute ``reference`` of a photo dataset measured against each external reference.
+#: Attribute ``reference`` of a photo dataset measured against a poses file.
 POSES_REFERENCE = "poses file"
+#: Attribute ``reference`` of a photo dataset measured against robot poses and a hand-eye.
 ROBOT_REFERENCE = "robot poses and hand-eye"
 
 
