@@ -106,7 +106,8 @@ def ingest(
         "--board",
         help="Board file (YAML: kind charuco or grid, columns, rows, marker_m, square_m or "
         "separation_m, dictionary): CAPTURE is then a folder of photos of it, each marker's "
-        "pose measured against the board's own (needs --calibration).",
+        "pose measured against the board's own, or --poses / --robot-poses (needs "
+        "--calibration).",
     ),
     poses: Path | None = typer.Option(
         None,
