@@ -10,7 +10,6 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 import xarray as xr
@@ -34,6 +33,7 @@ from simgap.pose.board_pose import BoardView, marker_error, view_board
 from simgap.pose.calibration_check import check_calibration
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.results.photo_summary import errors_by_distance, gap_by
+from tests.board_views import synthetic_view
 from tests.cf_check import cf_check
 
 REAL = Path(__file__).resolve().parents[1] / "assets" / "real" / "opencv_charuco"
@@ -48,24 +48,6 @@ def board() -> Board:
 @pytest.fixture(scope="module")
 def photos(board) -> xr.Dataset:
     return measure_photos(PHOTOS, board, read_calibration(CALIBRATION))
-
-
-def _synthetic_view(board: Board, camera: CameraModel, r: np.ndarray, t: np.ndarray):
-    """An antialiased image of ``board`` at pose (r, t) through a pinhole ``camera``.
-
-    The board's print (8000 px/m) is warped at 4x the camera's resolution and averaged down
-    (INTER_AREA), so every camera pixel integrates its footprint as a sensor does.
-    """
-    ppm, k = 8000, 4
-    cols = board.columns * (board.square_m or 0.0)
-    rows = board.rows * (board.square_m or 0.0)
-    src = board.opencv.generateImage((int(cols * ppm), int(rows * ppm)), marginSize=0)
-    to_m = np.array([[1 / ppm, 0, 0.5 / ppm], [0, 1 / ppm, 0.5 / ppm], [0, 0, 1]])
-    up = np.array([[k, 0, (k - 1) / 2], [0, k, (k - 1) / 2], [0, 0, 1]])
-    rot = tf.rotvec_to_matrix(r)
-    h = up @ camera.matrix @ np.column_stack([rot[:, 0], rot[:, 1], t]) @ to_m
-    big = cv2.warpPerspective(src, h, (camera.width * k, camera.height * k), borderValue=255)
-    return cv2.resize(big, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
 
 
 def test_board_frames_follow_opencv(board):
@@ -104,7 +86,7 @@ def test_reference_and_markers_on_a_synthetic_board(board):
     """
     camera = CameraModel(width=640, height=480, fx=600.0, fy=600.0, cx=319.5, cy=239.5)
     r, t = np.array([0.3, -0.2, 0.05]), np.array([-0.1, -0.14, 0.45])
-    gray = _synthetic_view(board, camera, r, t)
+    gray = synthetic_view(board, camera, r, t)
     view = view_board(gray, board, camera, Detector(DetectorSettings(board.dictionary)))
     assert len(view.markers) == 17 and view.points == 24 and view.reproj_px < 0.1
     assert np.abs(view.tvec_cv - t).max() < 0.5e-3

@@ -36,8 +36,9 @@ VariantOption = Annotated[
     str | None, typer.Option("--variant", help="Variant of the dataset (default: the first).")
 ]
 CALIBRATION_HELP = (
-    "Camera calibration file (ROS camera_info YAML or OpenCV FileStorage; plumb_bob, "
-    "rational_polynomial, thin prism, tilted or equidistant/fisheye): the simulated camera."
+    "Camera calibration file (ROS camera_info YAML, OpenCV FileStorage or Kalibr camchain, "
+    "FILE:cam1 for its cam1; plumb_bob, rational_polynomial, thin prism, tilted or "
+    "equidistant/fisheye): the simulated camera."
 )
 #: ``--calibration FILE`` (default ``None``: the experiment's camera).
 CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help=CALIBRATION_HELP)]

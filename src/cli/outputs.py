@@ -216,6 +216,10 @@ def check_outputs(
         As :func:`simgap.core.outputs.check_output`, when two outputs are one path, or when a
         file's path was given with a trailing ``/`` (a folder's).
     """
+    from simgap.pipeline.capture.calibration import calibration_source
+
+    # a calibration named FILE:camN (one camera of a Kalibr camchain) is the input FILE
+    inputs = [(label, None if p is None else calibration_source(p)[0]) for label, p in inputs]
     seen: dict[Path, str] = {}
     for option, path, kind in outputs:
         if path is None:

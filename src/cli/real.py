@@ -5,7 +5,7 @@ from __future__ import annotations
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -37,6 +37,9 @@ from simgap.cli.outputs import (
     simulation_inputs,
 )
 from simgap.core.limits import MAX_PIXELS, PHOTO_SPP
+
+if TYPE_CHECKING:
+    from simgap.pipeline.photo_references import PhotoReference
 
 
 @app.command()
@@ -76,8 +79,8 @@ def ingest(
     calibration: Path | None = typer.Option(
         None,
         "--calibration",
-        help="Calibration file under any name (ROS ost.yaml / camera_info YAML or OpenCV YAML); "
-        "wins over camera.yaml and a bag's CameraInfo.",
+        help="Calibration file under any name (ROS ost.yaml / camera_info YAML, OpenCV YAML or "
+        "Kalibr camchain, FILE:cam1 for its cam1); wins over camera.yaml and a bag's CameraInfo.",
     ),
     max_pixels: int = typer.Option(
         MAX_PIXELS,
@@ -103,22 +106,54 @@ def ingest(
         "--board",
         help="Board file (YAML: kind charuco or grid, columns, rows, marker_m, square_m or "
         "separation_m, dictionary): CAPTURE is then a folder of photos of it, each marker's "
-        "pose measured against the board's own (needs --calibration).",
+        "pose measured against the board's own, or --poses / --robot-poses (needs "
+        "--calibration).",
+    ),
+    poses: Path | None = typer.Option(
+        None,
+        "--poses",
+        help="With --board: CSV image,tx,ty,tz,qx,qy,qz,qw giving each photo's reference "
+        "camera_from_board (the board in the OpenCV camera frame; m, quaternion x y z w) "
+        "instead of the board's pose from its points.",
+    ),
+    robot_poses: Path | None = typer.Option(
+        None,
+        "--robot-poses",
+        help="With --board and --hand-eye: CSV image,tx,ty,tz,qx,qy,qz,qw of base_from_flange "
+        "(the robot flange in its base frame) per photo; the reference is the robot's chain.",
+    ),
+    hand_eye: Path | None = typer.Option(
+        None,
+        "--hand-eye",
+        help="With --robot-poses: YAML flange_from_camera (the OpenCV camera frame in the "
+        "flange's): translation [x, y, z] (m) and quaternion [qx, qy, qz, qw], or a 4x4 matrix.",
+    ),
+    board_in_base: Path | None = typer.Option(
+        None,
+        "--board-in-base",
+        help="With --robot-poses: YAML base_from_board, as --hand-eye; default: solved from the "
+        "photos' board poses (per-axis median and rotation mean).",
     ),
     overwrite: OverwriteOption = False,
 ) -> None:
     """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset.
 
     With --board, a folder of photos of a board of markers: each marker's single-marker pose
-    error against the board's pose from all its points, printed near / mid / far.
+    error against the board's pose from all its points, or against the poses of --poses or
+    --robot-poses with --hand-eye, printed near / mid / far.
     """
     experiment = one_experiment(experiment, experiment_alias, "--experiment")
+    reference = _ReferenceFiles(poses, robot_poses, hand_eye, board_in_base)
     if board is not None:
-        photo_options = _PhotoOptions(calibration, experiment, max_pixels, simulate, spp, seed)
+        photo_options = _PhotoOptions(
+            calibration, experiment, max_pixels, simulate, spp, seed, reference
+        )
         _ingest_photos(capture, output, board, photo_options, progress, overwrite)
         return
     if simulate:
         fail("--simulate: only with --board (a folder of board photos)")
+    if reference.given:
+        fail(f"{reference.given[0][0]}: only with --board (a folder of board photos)")
     from simgap.core.outputs import claimed_folder
     from simgap.pipeline.bag import ingest_bag, is_bag
     from simgap.pipeline.capture import ingest as ingest_capture
@@ -156,6 +191,49 @@ def ingest(
 
 
 @dataclass(frozen=True)
+class _ReferenceFiles:
+    """The reference options of ``ingest --board`` (see :func:`ingest`)."""
+
+    poses: Path | None
+    robot_poses: Path | None
+    hand_eye: Path | None
+    board_in_base: Path | None
+
+    @property
+    def given(self) -> list[tuple[str, Path]]:
+        """The options given, with their paths (the command's inputs)."""
+        named = (
+            ("--poses", self.poses),
+            ("--robot-poses", self.robot_poses),
+            ("--hand-eye", self.hand_eye),
+            ("--board-in-base", self.board_in_base),
+        )
+        return [(option, path) for option, path in named if path is not None]
+
+    def read(self) -> PhotoReference | None:
+        """The external reference the options name (None: the board's own pose).
+
+        Exits with code 2 for options that do not go together; the files' errors are
+        ConfigErrors naming the file and row or key.
+        """
+        from simgap.pipeline.photo_references import PosesReference, RobotReference
+
+        if self.poses is not None and self.robot_poses is not None:
+            fail("--poses, --robot-poses: two references; give one")
+        if self.robot_poses is None:
+            for option, path in self.given:
+                if option in ("--hand-eye", "--board-in-base"):
+                    fail(f"{option} {path}: only with --robot-poses (the robot's flange poses)")
+        if self.poses is not None:
+            return PosesReference.read(self.poses)
+        if self.robot_poses is not None and self.hand_eye is not None:
+            return RobotReference.read(self.robot_poses, self.hand_eye, self.board_in_base)
+        if self.robot_poses is not None:
+            fail("--robot-poses: needs --hand-eye FILE (the camera in the flange frame)")
+        return None
+
+
+@dataclass(frozen=True)
 class _PhotoOptions:
     """The options of ``ingest --board`` (see :func:`ingest`)."""
 
@@ -165,6 +243,7 @@ class _PhotoOptions:
     simulate: bool
     spp: int
     seed: int
+    reference: _ReferenceFiles
 
 
 def _ingest_photos(
@@ -180,17 +259,24 @@ def _ingest_photos(
 
     if opts.calibration is None:
         fail("--board: the photos' calibration is needed (--calibration FILE)")
+    if opts.simulate and opts.reference.given:
+        fail(
+            f"--simulate, {opts.reference.given[0][0]}: the simulation measures its renders "
+            "against the board's own pose; simulate without an external reference"
+        )
     inputs = [("CAPTURE", photos), ("--board", board_file), ("--calibration", opts.calibration)]
+    inputs += list(opts.reference.given)
     if opts.experiment is not None:
         inputs += experiment_inputs(opts.experiment, "EXPERIMENT")
     check_outputs([(OUTPUT, output, PHOTO_DATASET)], inputs, overwrite)
     board = read_board(board_file)
     camera = read_calibration(opts.calibration)
+    reference = opts.reference.read()
     exp = read_experiment(opts.experiment) if opts.experiment is not None else None
     pnp = exp.pnp if exp is not None else None
     with StepBars(progress) as bars:
         ds = measure_photos(photos, board, camera, pnp=pnp, max_pixels=opts.max_pixels,
-                            progress=bars)  # fmt: skip
+                            progress=bars, reference=reference)  # fmt: skip
         diagnosis = None
         if opts.simulate:
             from simgap.analysis.gap import diagnose_photos
@@ -199,9 +285,18 @@ def _ingest_photos(
             diagnosis = diagnose_photos(ds, board, camera, spec, opts.spp, opts.seed, bars)
     write_photo_dataset(diagnosis.dataset if diagnosis is not None else ds, output)
     seen = int(ds.detected.sum())
+    against = f"the board's {ds.attrs['reference']}"
+    if reference is not None:
+        against = f"the {ds.attrs['reference']}"
+        if "board_in_base_spread_m" in ds.attrs:
+            against += (
+                f" (the board's pose in the robot base {ds.attrs['board_in_base']}; they "
+                f"scatter by {1e3 * ds.attrs['board_in_base_spread_m']:.2f} mm, "
+                f"{1e3 * ds.attrs['board_in_base_spread_rad']:.2f} mrad)"
+            )
     typer.echo(
         f"wrote {output}: {ds.attrs['frames']} photo(s), {ds.attrs['frames_unreadable']} "
-        f"unreadable; {seen} marker sightings against the board's {ds.attrs['reference']}"
+        f"unreadable; {seen} marker sightings against {against}"
     )
     typer.echo(errors_table(errors_by_distance(ds)))
     if diagnosis is not None:

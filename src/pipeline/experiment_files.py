@@ -53,12 +53,13 @@ def with_calibration_file(path: Path, data: dict[str, Any]) -> dict[str, Any]:
     if camera is None or "calibration" not in camera:
         return data
     from simgap.pipeline.capture import read_calibration  # the formats register on import
+    from simgap.pipeline.capture.calibration import calibration_source
 
     name = camera["calibration"]
     if not isinstance(name, str):
         raise ConfigError(f"{path}: rig.camera.calibration: expected a file path, got {name!r}")
     file = (path.parent / name).resolve()
-    if not file.is_file():
+    if not calibration_source(file)[0].is_file():
         raise ConfigError(f"{path}: rig.camera.calibration: {file} not found")
     others = {k: v for k, v in camera.items() if k != "calibration"}
     resolved = {**camera_mapping(read_calibration(file)), **others}
@@ -98,12 +99,17 @@ def merge_chain(chain: list[tuple[Path, dict[str, Any]]]) -> dict[str, Any]:
 
 
 def calibration_files(chain: list[tuple[Path, dict[str, Any]]]) -> list[Path]:
-    """The calibration files the chain's ``rig.camera.calibration`` keys name (resolved)."""
+    """The calibration files the chain's ``rig.camera.calibration`` keys name (resolved).
+
+    A ``FILE:camN`` (one camera of a Kalibr camchain) is its ``FILE``.
+    """
+    from simgap.pipeline.capture.calibration import calibration_source
+
     out = []
     for path, data in chain:
         camera = _camera_section(data)
         if camera is not None and isinstance(camera.get("calibration"), str):
-            out.append((path.parent / camera["calibration"]).resolve())
+            out.append(calibration_source((path.parent / camera["calibration"]).resolve())[0])
     return out
 
 

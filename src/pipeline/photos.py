@@ -2,9 +2,10 @@
 
 The rig beyond PASS (docs/conventions.md §6): photos of a planar board of markers
 (:class:`simgap.core.board.Board`) taken by a calibrated camera from any poses. Each photo's
-reference is the board's pose from all its points (:func:`simgap.pose.board_pose.view_board`);
-each detected marker is then posed from its own four corners, as a robot that sees one marker
-would, and compared with it (:func:`simgap.pose.board_pose.marker_error`).
+reference is the board's pose from all its points (:func:`simgap.pose.board_pose.view_board`), or
+one an external source gives (:mod:`simgap.pipeline.photo_references`: a poses file, or robot
+poses and a hand-eye); each detected marker is then posed from its own four corners, as a robot
+that sees one marker would, and compared with it (:func:`simgap.pose.board_pose.marker_error`).
 
 The dataset (:func:`measure_photos`) has a ``frame`` dimension (the photo's file name) and a
 ``marker`` dimension (board marker id); the board's reference pose per frame is a variable.
@@ -15,6 +16,7 @@ Every label dimension is indexed, so plain ``xarray.open_dataset`` selects by na
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -32,8 +34,9 @@ from simgap.core.rig import CameraModel
 from simgap.effects.image import ImageContext, run_pipeline
 from simgap.effects.state import ImageState
 from simgap.pipeline.capture.folder import check_pixel_budget, frame_size, read_image
+from simgap.pipeline.photo_references import PhotoReference, ResolvedReference
 from simgap.pose.board_calibration import PhotoCalibration, board_points, calibrate_from_photos
-from simgap.pose.board_pose import marker_error, view_board
+from simgap.pose.board_pose import BoardView, marker_error, view_board
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.image_stats import STAT_INDEX, MarkerLayout, tag_stats
@@ -145,6 +148,7 @@ def measure_photos(
     pnp: PnPSettings | None = None,
     max_pixels: int = MAX_PIXELS,
     progress: ProgressCallback | None = None,
+    reference: PhotoReference | None = None,
 ) -> xr.Dataset:
     """Every marker's single-marker pose error against its board, photo by photo.
 
@@ -164,6 +168,10 @@ def measure_photos(
         Pixel budget checked from each file's header before decoding (px).
     progress : ProgressCallback, optional
         Told of each photo measured (step ``"photos"``).
+    reference : PhotoReference, optional
+        Where each photo's reference pose comes from (:mod:`simgap.pipeline.photo_references`:
+        a poses file, or robot poses and a hand-eye); by default the board's pose from its own
+        points.
 
     Returns
     -------
@@ -172,21 +180,26 @@ def measure_photos(
         ``detected`` (0/1), ``error_translation`` (m, camera frame), ``error_rotation`` (rad),
         ``error_board_translation`` (m, board frame), ``distance`` (m), ``view_angle`` (deg),
         ``centre_u`` / ``centre_v`` (px), ``marker_reproj`` (px); per frame ``reference_points``,
-        ``reference_reproj`` (px), ``board_translation`` (m) and ``board_rotation`` (rad): the
-        board's reference pose in the camera frame. NaN where a marker was not seen or
-        a photo had no reference. A photo that cannot be decoded or is of another size is
-        listed in the ``frames_unreadable`` attribute with the reason.
+        ``reference_reproj`` (px): the board's points and their RMS reprojection through its own
+        pose, and ``board_translation`` (m) and ``board_rotation`` (rad): the board's reference
+        pose in the camera frame. With an external ``reference`` the latter two are its pose,
+        ``board_points_translation`` / ``board_points_rotation`` keep the board's pose from its
+        points, and the attributes name the reference and its files (``reference``,
+        :class:`~simgap.pipeline.photo_references.ResolvedReference`). NaN where a marker was
+        not seen or a photo had no reference. A photo that cannot be decoded or is of another
+        size is listed in the ``frames_unreadable`` attribute with the reason.
 
     Raises
     ------
     simgap.core.config.ConfigError
-        For a folder without photos or a photo over the pixel budget.
+        For a folder without photos or a photo over the pixel budget; a photo the
+        ``reference`` has no pose for (before any photo is read).
     """
     files = photo_files(folder)
     return _measure(
         [p.name for p in files],
         lambda f: _gray(files[f], camera.width, camera.height, max_pixels),
-        board, camera, detector, pnp, Steps(progress), "photos",
+        board, camera, detector, pnp, Steps(progress), "photos", reference,
     )  # fmt: skip
 
 
@@ -261,10 +274,18 @@ def _measure(
     pnp: PnPSettings | None,
     steps: Steps,
     step: str,
+    reference: PhotoReference | None = None,
 ) -> xr.Dataset:
-    """Measure frames ``names``: ``load(f)`` gives frame f as 8-bit grey, or why not."""
+    """Measure frames ``names``: ``load(f)`` gives frame f as 8-bit grey, or why not.
+
+    Two passes: each frame's board view and its markers' image statistics, then each marker's
+    error against the reference (the board's own pose, or ``reference``'s, resolved once every
+    frame's board pose is known).
+    """
     settings = detector or DetectorSettings(dictionary=board.dictionary)
     pnp = pnp or PnPSettings()
+    if reference is not None:
+        reference.check(names)
     det = Detector(settings)
     layout = MarkerLayout(marker_cells(board.dictionary), QUIET_CELLS)
     ids = sorted(board.marker_corners)
@@ -280,6 +301,8 @@ def _measure(
     ref_points = np.zeros(n_f, np.int32)
     ref_reproj = np.full(n_f, np.nan)
     board_t, board_r = np.full((n_f, 3), np.nan), np.full((n_f, 3), np.nan)
+    views: list[BoardView | None] = []
+    stats: list[dict[int, np.ndarray]] = []
     unreadable: list[str] = []
     reference_kind = ""
     steps.start(step, n_f)
@@ -287,6 +310,8 @@ def _measure(
         gray = load(f)
         if isinstance(gray, str):
             unreadable.append(f"{name}: {gray}")
+            views.append(None)
+            stats.append({})
             steps.advance()
             continue
         view = view_board(gray, board, camera, det)
@@ -294,6 +319,22 @@ def _measure(
         ref_points[f], ref_reproj[f] = view.points, view.reproj_px
         if view.rvec_cv is not None and view.tvec_cv is not None:
             board_r[f], board_t[f] = view.rvec_cv, view.tvec_cv
+        views.append(view)
+        stats.append({
+            m: tag_stats(gray, corners, layout, edge_widths=("edge_width_px",))
+            for m, corners in view.markers.items()
+        })  # fmt: skip
+        steps.advance()
+    resolved = None
+    if reference is not None:
+        resolved = reference.resolve(names, [v.camera_from_board() if v else None for v in views])
+    for f, seen in enumerate(views):
+        if seen is None:
+            continue
+        view = seen
+        if resolved is not None:  # the external reference stands in for the board's own pose
+            pose = resolved.camera_from_board[f]
+            view = replace(seen, rvec_cv=tf.matrix_to_rotvec(pose[:3, :3]), tvec_cv=pose[:3, 3])
         for m, marker in enumerate(ids):
             detected[f, m] = marker in view.markers
             err = marker_error(view, board, marker, camera, pnp)
@@ -306,14 +347,41 @@ def _measure(
             per_marker["view_angle"][f, m] = err.view_angle_deg
             per_marker["centre_u"][f, m], per_marker["centre_v"][f, m] = err.centre_px
             per_marker["marker_reproj"][f, m] = err.reproj_px
-            stats = tag_stats(gray, view.markers[marker], layout, edge_widths=("edge_width_px",))
-            for name, stat in IMAGE_STATS.items():
-                per_marker[name][f, m] = stats[STAT_INDEX[stat]]
-        steps.advance()
-    return _dataset(
+            for var, stat in IMAGE_STATS.items():
+                per_marker[var][f, m] = stats[f][marker][STAT_INDEX[stat]]
+    ds = _dataset(
         names, ids, out, per_marker, detected, ref_points, ref_reproj, board_t, board_r,
         board, camera, settings, pnp, unreadable, reference_kind,
     )  # fmt: skip
+    return ds if resolved is None else _with_reference(ds, resolved, board_t, board_r)
+
+
+def _with_reference(
+    ds: xr.Dataset, resolved: ResolvedReference, board_t: np.ndarray, board_r: np.ndarray
+) -> xr.Dataset:
+    """``ds`` with an external reference: its poses as ``board_translation`` / ``_rotation``.
+
+    The board's own poses (``board_t``, m; ``board_r``, rad) move to ``board_points_*``; the
+    attributes name the reference (:attr:`ResolvedReference.attrs`) and the points the board's
+    own pose was solved from (``board_points``).
+    """
+    poses = resolved.camera_from_board
+    ds = ds.assign(
+        board_points_translation=(("frame", "camera_axis"), board_t),
+        board_points_rotation=(("frame", "camera_axis"), board_r),
+        board_translation=(("frame", "camera_axis"), np.array([p[:3, 3] for p in poses])),
+        board_rotation=(
+            ("frame", "camera_axis"),
+            np.array([tf.matrix_to_rotvec(p[:3, :3]) for p in poses]),
+        ),
+    )
+    for name in ("board_translation", "board_rotation"):
+        units, long_name = _ATTRS[name]
+        ds[name].attrs.update(units=units, long_name=f"{long_name}: {resolved.attrs['reference']}")
+    for name, (units, long_name) in _BOARD_POINTS_ATTRS.items():
+        ds[name].attrs.update(units=units, long_name=long_name)
+    ds.attrs.update(board_points=ds.attrs["reference"], **resolved.attrs)
+    return ds
 
 
 #: long_name of each coordinate of a photo dataset.
@@ -344,6 +412,11 @@ _ATTRS = {
     "paper_level": ("1", "median linear level of the paper around the marker (of full scale)"),
     "ink_level": ("1", "median linear level of the marker's black border (of full scale)"),
     "edge_width": (PIXEL_UNITS, "10-90 % edge width of the marker's black border (px)"),
+}
+#: (units, long_name) of the board's own pose where an external reference replaces it.
+_BOARD_POINTS_ATTRS = {
+    "board_points_translation": ("m", "board origin in the camera frame from its own points"),
+    "board_points_rotation": ("rad", "board rotation vector in the camera frame from its points"),
 }
 
 

@@ -4,8 +4,9 @@ A capture folder (docs/conventions.md §3) is what a rig operator records on rea
 also what pseudo-real data is written as::
 
     capture/
-      camera.yaml     the calibration the operator believes in: ROS camera_info YAML or OpenCV
-                      FileStorage YAML (first line ``%YAML:1.0`` or ``%YAML 1.2``)
+      camera.yaml     the calibration the operator believes in: ROS camera_info YAML, OpenCV
+                      FileStorage YAML (first line ``%YAML:1.0`` or ``%YAML 1.2``) or a Kalibr
+                      camchain (its cam0)
       manifest.csv    header image,p,theta_rad (optional columns: repeat, note)
       images/...      8-bit PNG or JPEG frames, as the camera delivered them
 
@@ -23,13 +24,14 @@ Examples
 >>> ds.error.sel(axis="ty").mean().item()                   # doctest: +SKIP
 
 Modules, by job: :mod:`.calibration` (the registry of calibration formats, with
-:mod:`.ros_yaml` and :mod:`.opencv_yaml` registered in it), :mod:`.manifest` (``manifest.csv``),
-:mod:`.folder` (a folder validated against a rig), :mod:`.ingest` and :mod:`.writer`.
+:mod:`.ros_yaml`, :mod:`.opencv_yaml` and :mod:`.kalibr_yaml` registered in it),
+:mod:`.manifest` (``manifest.csv``), :mod:`.folder` (a folder validated against a rig),
+:mod:`.ingest` and :mod:`.writer`.
 """
 
 from __future__ import annotations
 
-from simgap.pipeline.capture import opencv_yaml, ros_yaml  # noqa: F401  (registration)
+from simgap.pipeline.capture import kalibr_yaml, opencv_yaml, ros_yaml  # noqa: F401  (registration)
 from simgap.pipeline.capture.calibration import (
     CALIBRATION_FORMATS,
     CalibrationFormat,

@@ -1,18 +1,25 @@
 """Calibration files: a registry of formats, each a reader, a writer and a can-open check.
 
 Like xarray's backends, every format is a small :class:`CalibrationFormat` registered under its name
-(:data:`CALIBRATION_FORMATS`); :func:`read_calibration` asks each format, in registration order,
-whether it can open a file's text and reads it with the first that can, and
-:func:`calibration_to_yaml` writes with the named one. The formats of docs/conventions.md §3 are
-:mod:`~simgap.pipeline.capture.opencv_yaml` (OpenCV FileStorage YAML, recognised by its ``%YAML``
-first line) and :mod:`~simgap.pipeline.capture.ros_yaml` (ROS camera_info YAML, everything else);
-this module holds the checks both share.
+(:data:`CALIBRATION_FORMATS`); :func:`read_calibration` asks each format whether it can open a
+file's text, in registration order with the catch-all formats (:attr:`CalibrationFormat.catch_all`)
+last, and reads it with the first that can; :func:`calibration_to_yaml` writes with the named one.
+The formats of docs/conventions.md §3 are :mod:`~simgap.pipeline.capture.opencv_yaml` (OpenCV
+FileStorage YAML, recognised by its ``%YAML`` first line),
+:mod:`~simgap.pipeline.capture.kalibr_yaml` (Kalibr camchain YAML, recognised by its ``cam0``,
+``cam1``, ... cameras) and :mod:`~simgap.pipeline.capture.ros_yaml` (ROS camera_info YAML, the
+catch-all); this module holds the checks they share.
+
+A file of several cameras (a Kalibr camchain) is read for its first, ``cam0``; the path
+``FILE:camN`` (:func:`calibration_source`) chooses camera N wherever a calibration file is named
+(``--calibration``, ``rig.camera.calibration``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -42,16 +49,28 @@ class CalibrationFormat:
         ``read(path, text, width, height) -> CameraModel``; ``width``/``height`` (px) are used
         when the file does not give the image size. Raises ConfigError naming the file and key.
     write : callable
-        ``write(calibration) -> str``: the file's text.
+        ``write(calibration) -> str``: the file's text. Raises ValueError for a camera the
+        format cannot hold.
+    catch_all : bool
+        Whether ``can_open`` takes any text (ROS camera_info YAML): such a format is asked after
+        every other, whatever the registration order.
+    read_camera : callable or None
+        For a format of several cameras in one file: ``read_camera(path, text, width, height,
+        camera) -> CameraModel`` reads the camera named ``camera`` (``FILE:camera``,
+        :func:`calibration_source`); None for a format of one camera, which refuses a choice.
     """
 
     name: str
     can_open: Callable[[str], bool]
     read: Callable[[Path, str, int | None, int | None], CameraModel]
     write: Callable[[CameraModel], str]
+    catch_all: bool = False
+    read_camera: Callable[[Path, str, int | None, int | None, str], CameraModel] | None = None
 
 
 CALIBRATION_FORMATS: dict[str, CalibrationFormat] = {}
+#: ``FILE:camN``: camera N of a file of several cameras (Kalibr's names, ``cam0``, ``cam1``, ...).
+CAMERA_SUFFIX = re.compile(r"(?P<file>.+):(?P<camera>cam[0-9]+)")
 
 
 def register_format(fmt: CalibrationFormat) -> CalibrationFormat:
@@ -60,6 +79,26 @@ def register_format(fmt: CalibrationFormat) -> CalibrationFormat:
         raise ValueError(f"calibration format {fmt.name!r} registered twice")
     CALIBRATION_FORMATS[fmt.name] = fmt
     return fmt
+
+
+def formats_in_order() -> Iterator[CalibrationFormat]:
+    """The registered formats in the order :func:`read_calibration` asks them: catch-alls last."""
+    yield from (f for f in CALIBRATION_FORMATS.values() if not f.catch_all)
+    yield from (f for f in CALIBRATION_FORMATS.values() if f.catch_all)
+
+
+def calibration_source(path: str | Path) -> tuple[Path, str | None]:
+    """The file a calibration path names, and the camera it chooses (None: the file's first).
+
+    A path that is a file is that file. Otherwise a path ending ``:camN`` (:data:`CAMERA_SUFFIX`)
+    whose part before the colon is a file names camera N of it: ``camchain.yaml:cam1``. Any other
+    path is returned as it is (reading it then says it is not found).
+    """
+    path = Path(path)
+    match = CAMERA_SUFFIX.fullmatch(str(path))
+    if path.is_file() or match is None or not Path(match["file"]).is_file():
+        return path, None
+    return Path(match["file"]), match["camera"]
 
 
 def first_line(text: str) -> str:
@@ -81,7 +120,7 @@ def numbers(values: Any, where: str, count: int | None = None) -> list[float]:
     return out
 
 
-def _size(value: Any, where: str) -> int:
+def image_side(value: Any, where: str) -> int:
     """An image side (px): a positive integer up to ``MAX_IMAGE_SIDE_PX`` (integral floats too)."""
     if isinstance(value, float) and value.is_integer():
         value = int(value)
@@ -135,8 +174,8 @@ def camera_model(
 ) -> CameraModel:
     """Validate the parts read from either format and build the camera model."""
     name, dist = distortion_model(where, model, dist)
-    w = _size(width, f"{where}image_width")
-    h = _size(height, f"{where}image_height")
+    w = image_side(width, f"{where}image_width")
+    h = image_side(height, f"{where}image_height")
     if (
         abs(k[1]) > MATRIX_TOLERANCE
         or any(abs(v) > MATRIX_TOLERANCE for v in k[3:4] + k[6:8])
@@ -162,16 +201,19 @@ def camera_model(
 def read_calibration(
     path: Path, width: int | None = None, height: int | None = None
 ) -> CameraModel:
-    """Read a calibration file: ROS camera_info YAML or OpenCV FileStorage YAML.
+    """Read a calibration file: ROS camera_info, OpenCV FileStorage or Kalibr camchain YAML.
 
     Parameters
     ----------
     path : Path
         The file. OpenCV FileStorage is recognised by its first line (``%YAML:1.0`` or
-        ``%YAML 1.2``); anything else is read as ROS camera_info YAML (``image_width``,
-        ``image_height``, ``camera_matrix{rows, cols, data}``, ``distortion_model`` (any of
-        :data:`simgap.core.lens.DISTORTION_MODELS`, e.g. ``plumb_bob``, ``rational_polynomial``,
-        ``equidistant``), ``distortion_coefficients{data: [...]}``; other keys are ignored).
+        ``%YAML 1.2``), a Kalibr camchain by its top-level ``cam0``, ``cam1``, ... mappings
+        (:mod:`~simgap.pipeline.capture.kalibr_yaml`; its ``cam0``, or camera N given as
+        ``FILE:camN``, :func:`calibration_source`); anything else is read as ROS camera_info
+        YAML (``image_width``, ``image_height``, ``camera_matrix{rows, cols, data}``,
+        ``distortion_model`` (any of :data:`simgap.core.lens.DISTORTION_MODELS`, e.g.
+        ``plumb_bob``, ``rational_polynomial``, ``equidistant``),
+        ``distortion_coefficients{data: [...]}``; other keys are ignored).
     width, height : int, optional
         Image size (px) used when the file does not give ``image_width`` / ``image_height``
         (OpenCV files often do not). The file's values win when present.
@@ -187,13 +229,22 @@ def read_calibration(
     simgap.core.config.ConfigError
         Naming the file, the key and what was expected, e.g.
         ``capture/camera.yaml: camera_matrix.data: expected 9 numbers, got 8``; also for a
-        distortion model OpenCV does not have and for a camera matrix with skew.
+        distortion model OpenCV does not have and for a camera matrix with skew; for a camera
+        chosen (``FILE:camN``) in a format of one camera or absent from the file.
     """
-    path = Path(path)
+    path, camera = calibration_source(path)
     text = read_text(path, "calibration file")
-    for fmt in CALIBRATION_FORMATS.values():
-        if fmt.can_open(text):
+    for fmt in formats_in_order():
+        if not fmt.can_open(text):
+            continue
+        if camera is None:
             return fmt.read(path, text, width, height)
+        if fmt.read_camera is None:
+            raise ConfigError(
+                f"{path}: :{camera}: expected a file of several cameras (a Kalibr camchain) to "
+                f"choose a camera from, got a {fmt.name} calibration file of one camera"
+            )
+        return fmt.read_camera(path, text, width, height, camera)
     raise ConfigError(
         f"{path}: not a calibration file of a known format (one of "
         f"{', '.join(CALIBRATION_FORMATS)})"
@@ -201,12 +252,15 @@ def read_calibration(
 
 
 def calibration_to_yaml(cal: CameraModel, fmt: str = "ros") -> str:
-    """The text of a calibration file for ``cal`` in format ``fmt`` (``"ros"`` or ``"opencv"``).
+    """The text of a calibration file for ``cal`` in format ``fmt``.
+
+    ``fmt`` is a :data:`CALIBRATION_FORMATS` name: ``"ros"``, ``"opencv"`` or ``"kalibr"``.
 
     Raises
     ------
     ValueError
-        For a format name that is not in :data:`CALIBRATION_FORMATS`.
+        For a format name that is not in :data:`CALIBRATION_FORMATS`, or a camera the format
+        cannot hold (Kalibr: a ``plumb_bob`` k3, a rational, thin-prism or tilted model).
     """
     return calibration_format(fmt).write(cal)
 
@@ -217,7 +271,7 @@ def calibration_format(name: str) -> CalibrationFormat:
     Raises
     ------
     ValueError
-        ``"fmt: expected 'ros' or 'opencv', got ..."`` (the registered names).
+        ``"fmt: expected 'kalibr' or 'opencv' or 'ros', got ..."`` (the registered names).
     """
     if name not in CALIBRATION_FORMATS:
         names = " or ".join(repr(n) for n in CALIBRATION_FORMATS)

@@ -3,7 +3,7 @@
 Keys read: ``image_width``, ``image_height``, ``camera_matrix{rows, cols, data}``,
 ``distortion_model`` (``plumb_bob``, ``rational_polynomial``, ``equidistant``, ... :
 :mod:`simgap.core.lens`), ``distortion_coefficients{data: [...]}``; other keys are ignored.
-Any file that is not OpenCV FileStorage YAML is read as this format.
+Any file that no other format opens is read as this format (the registry's catch-all).
 """
 
 from __future__ import annotations
@@ -93,4 +93,4 @@ def _write(cal: CameraModel) -> str:
     return yaml.safe_dump(data, sort_keys=False)
 
 
-ROS_YAML = register_format(CalibrationFormat("ros", _can_open, _read, _write))
+ROS_YAML = register_format(CalibrationFormat("ros", _can_open, _read, _write, catch_all=True))
