@@ -257,3 +257,21 @@ def test_photos_simulated_at_their_reference_poses(tmp_path):
     assert warnings == ["WARN: (5): Possible incorrect declaration of a coordinate variable."] * 4
     res = CliRunner().invoke(app, ["ingest", str(PHOTOS), "-o", str(out), "--simulate"])
     assert res.exit_code == 2 and "--simulate" in res.output
+
+
+def test_calibrate_says_where_a_file_folds_inside_the_image(tmp_path):
+    """A k1 of -1 folds the tutorial lens back at a distorted radius of 0.385 (measured: 175 px
+    from the principal point), inside its 640 x 480 photos (425 px): said for that file, not for
+    the fit."""
+    from simgap.pipeline.capture import calibration_to_yaml
+
+    camera = read_calibration(CALIBRATION)
+    folded = tmp_path / "folded.yaml"
+    folded.write_text(
+        calibration_to_yaml(dataclasses.replace(camera, distortion=(-1.0, 0, 0, 0, 0)))
+    )
+    args = ["calibrate", str(PHOTOS), "--board", str(BOARD), "--calibration", str(folded)]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    lines = [line for line in res.output.splitlines() if "folds back" in line]
+    assert len(lines) == 1 and lines[0].startswith(str(folded))

@@ -157,3 +157,30 @@ def test_an_experiment_takes_its_camera_from_a_calibration_file(tmp_path):
     exp_path.write_text("name: bad\nrig:\n  camera:\n    calibration: absent.yaml\n")
     with pytest.raises(ConfigError, match=rf"{exp_path}: rig.camera.calibration: .*absent.yaml"):
         load_experiment(exp_path)
+
+
+def test_a_radial_distortion_folds_where_its_derivative_vanishes():
+    """k1 = -0.3 alone: r (1 - 0.3 r^2) stops growing at r = 1 / sqrt(0.9), r_d = 0.7027."""
+    r, rd = lens.monotone_radius("plumb_bob", np.array([-0.3, 0.0, 0.0, 0.0, 0.0]))
+    # the search's grid step is 1e-4 in normalised radius (lens.RADIUS_SAMPLES)
+    assert r == pytest.approx(1 / np.sqrt(0.9), abs=2e-4)
+    assert rd == pytest.approx(2 / 3 / np.sqrt(0.9), abs=1e-6)
+    # a fisheye and a mild lens stay lenses out to 85 degrees
+    assert lens.monotone_radius("plumb_bob", np.array([0.1, -0.2, 0.0, 0.0, 0.05]))[0] == np.inf
+    assert lens.monotone_radius("equidistant", np.array([0.262, 2.52, -13.07, 21.75]))[0] == np.inf
+
+
+def test_a_rational_fit_on_a_part_of_the_image_folds_inside_it():
+    """The rational model fitted by ``simgap calibrate`` on 28 RealSense photos whose board
+    points reach 435 px (docs/results/real_photos.md): numerator and denominator cross zero
+    together near r^2 = 0.40, and the model folds back 535 px from the principal point, inside
+    a 1280 x 720 image whose farthest corner is 744 px out. A mild plumb_bob lens does not.
+    """
+    matrix = np.array([[899.50, 0.0, 649.19], [0.0, 902.32, 362.96], [0.0, 0.0, 1.0]])
+    rational = np.array([-1.250, 70.88, 0.0006, -0.0003, -185.9, -1.187, 69.08, -181.1])
+    fold = lens.fold_in_image(matrix, "rational_polynomial", rational, 1280, 720)
+    assert fold is not None
+    # measured: 535.1 px and 744.4 px
+    assert fold[0] == pytest.approx(535.1, abs=1.0) and fold[1] == pytest.approx(744.4, abs=1.0)
+    plumb = np.array([0.1, -0.2, 0.0, 0.0, 0.05])
+    assert lens.fold_in_image(matrix, "plumb_bob", plumb, 1280, 720) is None

@@ -39,6 +39,9 @@ from simgap.cli.outputs import (
 from simgap.core.limits import MAX_PIXELS, PHOTO_SPP
 
 if TYPE_CHECKING:
+    import numpy as np
+
+    from simgap.core.rig import CameraModel
     from simgap.pipeline.photo_references import PhotoReference
 
 
@@ -367,6 +370,9 @@ def calibrate(
         f"fy {cam.fy:.2f} +- {fit.std['fy']:.2f}, cx {cam.cx:.2f} +- {fit.std['cx']:.2f}, "
         f"cy {cam.cy:.2f} +- {fit.std['cy']:.2f}"
     )
+    for name, camera in (("the fitted calibration", cam), (str(calibration), given)):
+        if camera is not None:
+            _warn_fold(name, camera, points)
     if given is not None:
         typer.echo(
             f"{calibration} against the photos, each parameter corrected alone (the correction "
@@ -404,6 +410,36 @@ def calibrate(
         text = header + calibration_to_yaml(cam)
         atomic_write(output, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         typer.echo(f"wrote {output}")
+
+
+def _warn_fold(
+    name: str, camera: CameraModel, points: list[tuple[np.ndarray, np.ndarray]]
+) -> None:
+    """Say where a calibration's radial distortion folds inside the image.
+
+    :func:`simgap.core.lens.fold_in_image`, beside how far the photos' board points reach from
+    the principal point (px). Nothing where it folds beyond the image's corners.
+    """
+    import numpy as np
+
+    from simgap.core.lens import fold_in_image
+
+    fold = fold_in_image(
+        camera.matrix, camera.distortion_model, camera.dist_coeffs, camera.width, camera.height
+    )
+    if fold is None:
+        return
+    centre = np.array([camera.cx, camera.cy])
+    reach = max(
+        (float(np.max(np.linalg.norm(img.reshape(-1, 2) - centre, axis=1))) for _, img in points),
+        default=0.0,
+    )
+    typer.echo(
+        f"{name}: its radial distortion folds back {fold[0]:.0f} px from the principal point, "
+        f"inside the image (its corners are {fold[1]:.0f} px out; the photos' board points reach "
+        f"{reach:.0f} px): past the fold the model gives pixels several rays or none, so a "
+        "simulation or an undistortion there means nothing"
+    )
 
 
 @app.command("export-bag")

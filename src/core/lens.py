@@ -113,6 +113,76 @@ def normalise(uv: np.ndarray, matrix: np.ndarray, model: str, coeffs: np.ndarray
     return out.reshape(pix.shape)
 
 
+#: Largest normalised radius searched for the radial distortion's fold (:func:`monotone_radius`):
+#: tan 85 deg, a view 85 deg off the optical axis (a pinhole-family model past it is no lens).
+MAX_NORMALISED_RADIUS = float(np.tan(np.deg2rad(85.0)))
+#: Samples of that search: a step of 1e-4 in normalised radius, a tenth of a pixel at a 1000 px
+#: focal length.
+RADIUS_SAMPLES = 114_300
+
+
+def distorted_radius(r: np.ndarray, model: str, coeffs: np.ndarray) -> np.ndarray:
+    """The radial part of a model: distorted normalised radius of normalised radius ``r``.
+
+    The pinhole family's radial factor ``(1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4
+    + k6 r^6)`` times ``r``, the fisheye's ``theta_d`` (module docstring); the tangential,
+    thin-prism and tilt terms are left out.
+    """
+    r = np.asarray(r, float)
+    c = dict(zip(DISTORTION_MODELS[model], np.asarray(coeffs, float), strict=False))
+    k = [c.get(f"k{i}", 0.0) for i in range(1, 7)]
+    if is_fisheye(model):
+        t = np.arctan(r)
+        return t * (1 + k[0] * t**2 + k[1] * t**4 + k[2] * t**6 + k[3] * t**8)
+    r2 = r * r
+    num = 1 + k[0] * r2 + k[1] * r2**2 + k[2] * r2**3
+    den = 1 + k[3] * r2 + k[4] * r2**2 + k[5] * r2**3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return r * num / den
+
+
+def monotone_radius(model: str, coeffs: np.ndarray) -> tuple[float, float]:
+    """How far out a model's radial distortion is a lens: it must grow with the radius.
+
+    Returns the normalised radius ``r`` at which the distorted radius
+    (:func:`distorted_radius`) first stops growing (a fold, or a pole of a rational model's
+    denominator), and the distorted radius reached there; ``(inf, inf)`` where it grows up to
+    :data:`MAX_NORMALISED_RADIUS`. Inside it every pixel has one ray; past it pixels have
+    several or none, and neither OpenCV's undistortion nor a render through the model means
+    anything there (a calibration's polynomial fitted on points that reach only part of the
+    image can fold inside it).
+    """
+    r = np.linspace(0.0, MAX_NORMALISED_RADIUS, RADIUS_SAMPLES)
+    rd = distorted_radius(r, model, coeffs)
+    bad = ~np.isfinite(rd[1:]) | (np.diff(rd) <= 0)
+    if not bad.any():
+        return float("inf"), float("inf")
+    i = int(np.argmax(bad))
+    return float(r[i]), float(rd[i])
+
+
+def fold_in_image(
+    matrix: np.ndarray, model: str, coeffs: np.ndarray, width: int, height: int
+) -> tuple[float, float] | None:
+    """Whether a model's radial distortion folds inside the image, and where (px).
+
+    Returns ``(fold, corner)``: the distorted radius at which the model stops being a lens
+    (:func:`monotone_radius`) and that of the image's farthest corner pixel, both in px from
+    the principal point (distorted normalised radius times the mean focal length); None where
+    the fold lies beyond every corner.
+    """
+    _, fold = monotone_radius(model, coeffs)
+    fx, fy, cx, cy = matrix[0, 0], matrix[1, 1], matrix[0, 2], matrix[1, 2]
+    corners = np.array(
+        [[0.0, 0.0], [width - 1.0, 0.0], [0.0, height - 1.0], [width - 1.0, height - 1.0]]
+    )
+    corner = float(np.max(np.hypot((corners[:, 0] - cx) / fx, (corners[:, 1] - cy) / fy)))
+    if fold >= corner:
+        return None
+    focal = 0.5 * (fx + fy)
+    return fold * focal, corner * focal
+
+
 def tilt_matrix(tau_x: float, tau_y: float) -> np.ndarray:
     """OpenCV's sensor-tilt projection (3x3) for tilts about x and y (rad).
 
@@ -131,11 +201,15 @@ def tilt_matrix(tau_x: float, tau_y: float) -> np.ndarray:
 __all__ = [
     "COEFF_BOUNDS",
     "DISTORTION_MODELS",
+    "MAX_NORMALISED_RADIUS",
     "MODEL_OF_COUNT",
     "RATIONAL_MODELS",
     "UNDISTORT_CRITERIA",
     "coefficient_bound",
+    "distorted_radius",
+    "fold_in_image",
     "is_fisheye",
+    "monotone_radius",
     "normalise",
     "project",
     "tilt_matrix",
