@@ -184,3 +184,5 @@ def test_a_rational_fit_on_a_part_of_the_image_folds_inside_it():
     assert fold[0] == pytest.approx(535.1, abs=1.0) and fold[1] == pytest.approx(744.4, abs=1.0)
     plumb = np.array([0.1, -0.2, 0.0, 0.0, 0.05])
     assert lens.fold_in_image(matrix, "plumb_bob", plumb, 1280, 720) is None
+    # a D415's factory rational file balances its terms out to 85 degrees: no fold anywhere
+    assert lens.monotone_radius("rational_polynomial", np.array(D415_RATIONAL))[0] == np.inf
