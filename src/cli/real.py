@@ -262,11 +262,6 @@ def _ingest_photos(
 
     if opts.calibration is None:
         fail("--board: the photos' calibration is needed (--calibration FILE)")
-    if opts.simulate and opts.reference.given:
-        fail(
-            f"--simulate, {opts.reference.given[0][0]}: the simulation measures its renders "
-            "against the board's own pose; simulate without an external reference"
-        )
     inputs = [("CAPTURE", photos), ("--board", board_file), ("--calibration", opts.calibration)]
     inputs += list(opts.reference.given)
     if opts.experiment is not None:

@@ -59,6 +59,10 @@ BOARD_IN_BASE_CUT_SIGMAS = 3.0
 POSES_REFERENCE = "poses file"
 #: Attribute ``reference`` of a photo dataset measured against robot poses and a hand-eye.
 ROBOT_REFERENCE = "robot poses and hand-eye"
+#: The external references (a photo set measured against one is simulated against it too).
+EXTERNAL_REFERENCES = (POSES_REFERENCE, ROBOT_REFERENCE)
+#: Attribute ``reference`` of a simulated photo set measured against its render poses.
+RENDERED_REFERENCE = "the pose each frame was rendered at"
 
 
 def pose_matrix(
@@ -417,15 +421,53 @@ class RobotReference:
         return ResolvedReference([tf.invert(b) @ base_from_board for b in base_from_camera], attrs)
 
 
+@dataclass(frozen=True)
+class RenderedReference:
+    """A simulation's renders measured against the poses they were rendered at.
+
+    Photos measured against an external reference are rendered at that reference
+    (:func:`simgap.pipeline.photos.render_photos`); each render's markers are then measured
+    against the pose it was rendered at, so the real and the simulated errors share one
+    reference and their difference is what the real camera and rig add.
+
+    Attributes
+    ----------
+    camera_from_board : dict of str to numpy.ndarray
+        Frame name -> the pose the frame was rendered at (4 x 4, m; OpenCV camera frame).
+    attrs : dict of str to str or float
+        The real photo set's reference attributes, with ``reference`` saying that it is the
+        renders' own pose.
+    """
+
+    camera_from_board: dict[str, np.ndarray]
+    attrs: dict[str, str | float] = field(default_factory=dict)
+
+    def check(self, names: Sequence[str]) -> None:
+        """Raise ValueError where a frame of ``names`` was not rendered at a known pose."""
+        missing = [n for n in names if n not in self.camera_from_board]
+        if missing:
+            raise ValueError(f"frames without a render pose: {', '.join(missing)}")
+
+    def resolve(
+        self, names: Sequence[str], board_poses: Sequence[np.ndarray | None]
+    ) -> ResolvedReference:
+        """The render poses of ``names``, in their order (``board_poses`` unused)."""
+        self.check(names)
+        return ResolvedReference([self.camera_from_board[n] for n in names], dict(self.attrs))
+
+
 __all__ = [
     "BOARD_IN_BASE_CUT_SIGMAS",
+    "EXTERNAL_REFERENCES",
     "POSES_REFERENCE",
     "POSE_COLUMNS",
     "QUATERNION_NORM_TOLERANCE",
+    "RENDERED_REFERENCE",
     "ROBOT_REFERENCE",
     "BoardInBase",
     "PhotoReference",
     "PosesReference",
+    "RenderedReference",
     "ResolvedReference",
     "RobotReference",
     "pose_matrix",

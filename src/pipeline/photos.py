@@ -34,7 +34,13 @@ from simgap.core.rig import CameraModel
 from simgap.effects.image import ImageContext, run_pipeline
 from simgap.effects.state import ImageState
 from simgap.pipeline.capture.folder import check_pixel_budget, frame_size, read_image
-from simgap.pipeline.photo_references import PhotoReference, ResolvedReference
+from simgap.pipeline.photo_references import (
+    EXTERNAL_REFERENCES,
+    RENDERED_REFERENCE,
+    PhotoReference,
+    RenderedReference,
+    ResolvedReference,
+)
 from simgap.pose.board_calibration import PhotoCalibration, board_points, calibrate_from_photos
 from simgap.pose.board_pose import BoardView, marker_error, view_board
 from simgap.pose.detect import Detector, DetectorSettings
@@ -249,8 +255,11 @@ def simulate_photos(
 
     Each render goes through the camera pipeline ``image`` (:func:`simgap.effects.image.
     run_pipeline`: the catalogue's image effects, then the encoding; default: sRGB alone) and is
-    measured as a photo is: its own reference from its points, then each marker. A frame
-    without a render is listed in ``frames_unreadable``. The layout of :func:`measure_photos`.
+    measured as a photo is: its own reference from its points, then each marker; where
+    ``real`` was measured against an external reference (a poses file, a robot), each render's
+    markers against the pose it was rendered at, that reference
+    (:class:`~simgap.pipeline.photo_references.RenderedReference`). A frame without a render is
+    listed in ``frames_unreadable``. The layout of :func:`measure_photos`.
     """
     state = image or ImageState()
 
@@ -262,7 +271,19 @@ def simulate_photos(
         return to_gray(run_pipeline(hdr, state, ctx))
 
     names = [str(n) for n in real["frame"].values]
-    return _measure(names, load, board, camera, detector, pnp, Steps(progress), "measuring")
+    reference = None
+    if real.attrs.get("reference") in EXTERNAL_REFERENCES:
+        rotations, translations = real["board_rotation"].values, real["board_translation"].values
+        reference = RenderedReference(
+            {
+                n: tf.make(tf.rotvec_to_matrix(r), t)
+                for n, r, t in zip(names, rotations, translations, strict=True)
+            },
+            {"reference": f"{RENDERED_REFERENCE} ({real.attrs['reference']})"},
+        )
+    return _measure(
+        names, load, board, camera, detector, pnp, Steps(progress), "measuring", reference
+    )
 
 
 def _measure(
