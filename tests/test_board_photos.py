@@ -259,19 +259,20 @@ def test_photos_simulated_at_their_reference_poses(tmp_path):
     assert res.exit_code == 2 and "--simulate" in res.output
 
 
-def test_calibrate_says_where_a_file_folds_inside_the_image(tmp_path):
+
+def test_calibrate_says_where_a_file_folds_inside_the_image(board, capsys):
     """A k1 of -1 folds the tutorial lens back at a distorted radius of 0.385 (measured: 175 px
-    from the principal point), inside its 640 x 480 photos (425 px): said for that file, not for
-    the fit."""
-    from simgap.pipeline.capture import calibration_to_yaml
+    from the principal point), inside its 640 x 480 photos (425 px), whose board points reach
+    205 px: ``simgap calibrate`` says so for that file (``_warn_fold``, called on the file it
+    holds and on the calibration it fits), and nothing for the file as shipped."""
+    from simgap.cli.real import _warn_fold
 
     camera = read_calibration(CALIBRATION)
-    folded = tmp_path / "folded.yaml"
-    folded.write_text(
-        calibration_to_yaml(dataclasses.replace(camera, distortion=(-1.0, 0, 0, 0, 0)))
-    )
-    args = ["calibrate", str(PHOTOS), "--board", str(BOARD), "--calibration", str(folded)]
-    res = CliRunner().invoke(app, args)
-    assert res.exit_code == 0, res.output
-    lines = [line for line in res.output.splitlines() if "folds back" in line]
-    assert len(lines) == 1 and lines[0].startswith(str(folded))
+    points, _ = photo_points(PHOTOS, board)
+    _warn_fold("shipped.yaml", camera, points)
+    assert capsys.readouterr().out == ""
+    folded = dataclasses.replace(camera, distortion=(-1.0, 0, 0, 0, 0))
+    _warn_fold("folded.yaml", folded, points)
+    out = capsys.readouterr().out
+    assert out.startswith("folded.yaml: its radial distortion folds back 175 px")
+    assert "its corners are 425 px out; the photos' board points reach 205 px" in out
