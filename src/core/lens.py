@@ -124,21 +124,18 @@ RADIUS_SAMPLES = 114_300
 def distorted_radius(r: np.ndarray, model: str, coeffs: np.ndarray) -> np.ndarray:
     """The radial part of a model: distorted normalised radius of normalised radius ``r``.
 
-    The pinhole family's radial factor ``(1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4
-    + k6 r^6)`` times ``r``, the fisheye's ``theta_d`` (module docstring); the tangential,
-    thin-prism and tilt terms are left out.
+    :func:`project` of the points ``(r, 0, 1)`` through the model's radial coefficients alone
+    (``k1``-``k6``; the tangential, thin-prism and tilt terms set to 0) and the identity camera
+    matrix: the pinhole family's ``r`` times its radial factor, the fisheye's ``theta_d``
+    (module docstring).
     """
     r = np.asarray(r, float)
-    c = dict(zip(DISTORTION_MODELS[model], np.asarray(coeffs, float), strict=False))
-    k = [c.get(f"k{i}", 0.0) for i in range(1, 7)]
-    if is_fisheye(model):
-        t = np.arctan(r)
-        return t * (1 + k[0] * t**2 + k[1] * t**4 + k[2] * t**6 + k[3] * t**8)
-    r2 = r * r
-    num = 1 + k[0] * r2 + k[1] * r2**2 + k[2] * r2**3
-    den = 1 + k[3] * r2 + k[4] * r2**2 + k[5] * r2**3
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return r * num / den
+    radial = [
+        v if name[0] == "k" else 0.0
+        for name, v in zip(DISTORTION_MODELS[model], coeffs, strict=False)
+    ]
+    points = np.stack([r, np.zeros_like(r), np.ones_like(r)], axis=-1)
+    return project(points, np.eye(3), model, np.asarray(radial, float))[..., 0]
 
 
 def monotone_radius(model: str, coeffs: np.ndarray) -> tuple[float, float]:

@@ -292,18 +292,27 @@ def _check_rows(path: Path, poses: Mapping[str, np.ndarray], names: Sequence[str
 
 @dataclass(frozen=True)
 class PosesReference:
-    """``--poses CSV``: each photo's ``camera_from_board`` given (the board in the camera frame).
+    """Each photo's ``camera_from_board`` given (the board in the camera frame).
+
+    From ``--poses CSV``, or the poses a simulation rendered its frames at: photos measured
+    against an external reference are rendered at it (:func:`simgap.pipeline.photos.
+    render_photos`), and each render's markers are then measured against the pose it was
+    rendered at, so the real and the simulated errors share one reference.
 
     Attributes
     ----------
-    path : Path
-        The pose CSV (:func:`read_pose_csv`).
+    path : Path or None
+        The pose CSV (:func:`read_pose_csv`); None for render poses.
     camera_from_board : dict of str to numpy.ndarray
         Photo file name -> the board's pose in the OpenCV camera frame (4 x 4, m).
+    reference : str
+        The dataset's ``reference`` attribute: :data:`POSES_REFERENCE`, or
+        :data:`RENDERED_REFERENCE` with the real photos' reference.
     """
 
-    path: Path
+    path: Path | None
     camera_from_board: dict[str, np.ndarray]
+    reference: str = POSES_REFERENCE
 
     @classmethod
     def read(cls, path: Path) -> PosesReference:
@@ -312,17 +321,17 @@ class PosesReference:
 
     def check(self, names: Sequence[str]) -> None:
         """Raise ConfigError naming the file where a photo of ``names`` has no row."""
-        _check_rows(self.path, self.camera_from_board, names)
+        _check_rows(self.path or Path("render poses"), self.camera_from_board, names)
 
     def resolve(
         self, names: Sequence[str], board_poses: Sequence[np.ndarray | None]
     ) -> ResolvedReference:
         """The rows of ``names``, in their order (``board_poses`` unused)."""
         self.check(names)
-        return ResolvedReference(
-            [self.camera_from_board[n] for n in names],
-            {"reference": POSES_REFERENCE, "reference_poses": str(self.path)},
-        )
+        attrs: dict[str, str | float] = {"reference": self.reference}
+        if self.path is not None:
+            attrs["reference_poses"] = str(self.path)
+        return ResolvedReference([self.camera_from_board[n] for n in names], attrs)
 
 
 @dataclass(frozen=True)
@@ -421,41 +430,6 @@ class RobotReference:
         return ResolvedReference([tf.invert(b) @ base_from_board for b in base_from_camera], attrs)
 
 
-@dataclass(frozen=True)
-class RenderedReference:
-    """A simulation's renders measured against the poses they were rendered at.
-
-    Photos measured against an external reference are rendered at that reference
-    (:func:`simgap.pipeline.photos.render_photos`); each render's markers are then measured
-    against the pose it was rendered at, so the real and the simulated errors share one
-    reference and their difference is what the real camera and rig add.
-
-    Attributes
-    ----------
-    camera_from_board : dict of str to numpy.ndarray
-        Frame name -> the pose the frame was rendered at (4 x 4, m; OpenCV camera frame).
-    attrs : dict of str to str or float
-        The real photo set's reference attributes, with ``reference`` saying that it is the
-        renders' own pose.
-    """
-
-    camera_from_board: dict[str, np.ndarray]
-    attrs: dict[str, str | float] = field(default_factory=dict)
-
-    def check(self, names: Sequence[str]) -> None:
-        """Raise ValueError where a frame of ``names`` was not rendered at a known pose."""
-        missing = [n for n in names if n not in self.camera_from_board]
-        if missing:
-            raise ValueError(f"frames without a render pose: {', '.join(missing)}")
-
-    def resolve(
-        self, names: Sequence[str], board_poses: Sequence[np.ndarray | None]
-    ) -> ResolvedReference:
-        """The render poses of ``names``, in their order (``board_poses`` unused)."""
-        self.check(names)
-        return ResolvedReference([self.camera_from_board[n] for n in names], dict(self.attrs))
-
-
 __all__ = [
     "BOARD_IN_BASE_CUT_SIGMAS",
     "EXTERNAL_REFERENCES",
@@ -467,7 +441,6 @@ __all__ = [
     "BoardInBase",
     "PhotoReference",
     "PosesReference",
-    "RenderedReference",
     "ResolvedReference",
     "RobotReference",
     "pose_matrix",

@@ -38,7 +38,7 @@ from simgap.pipeline.photo_references import (
     EXTERNAL_REFERENCES,
     RENDERED_REFERENCE,
     PhotoReference,
-    RenderedReference,
+    PosesReference,
     ResolvedReference,
 )
 from simgap.pose.board_calibration import PhotoCalibration, board_points, calibrate_from_photos
@@ -228,17 +228,29 @@ def render_photos(
     from simgap.scene.spec import default_scene_spec
 
     scene = BoardScene(board, camera, spec or default_scene_spec(), spp)
-    rotations, translations = real["board_rotation"].values, real["board_translation"].values
+    poses = reference_poses(real)
     steps = Steps(progress)
-    steps.start("rendering", len(rotations))
+    steps.start("rendering", len(poses))
     out: list[np.ndarray | None] = []
-    for f, (r, t) in enumerate(zip(rotations, translations, strict=True)):
-        if not (np.isfinite(r).all() and np.isfinite(t).all()):
-            out.append(None)
-        else:
-            out.append(scene.render(tf.make(tf.rotvec_to_matrix(r), t), seed + f))
+    for f, pose in enumerate(poses):
+        out.append(None if pose is None else scene.render(pose, seed + f))
         steps.advance()
     return out
+
+
+def reference_poses(real: xr.Dataset) -> list[np.ndarray | None]:
+    """Each frame's reference ``camera_from_board`` (4 x 4, m; None where it has none).
+
+    From the dataset's ``board_rotation`` (rad) and ``board_translation`` (m)
+    (:func:`measure_photos`).
+    """
+    rotations, translations = real["board_rotation"].values, real["board_translation"].values
+    return [
+        tf.make(tf.rotvec_to_matrix(r), t)
+        if np.isfinite(r).all() and np.isfinite(t).all()
+        else None
+        for r, t in zip(rotations, translations, strict=True)
+    ]
 
 
 def simulate_photos(
@@ -258,7 +270,7 @@ def simulate_photos(
     measured as a photo is: its own reference from its points, then each marker; where
     ``real`` was measured against an external reference (a poses file, a robot), each render's
     markers against the pose it was rendered at, that reference
-    (:class:`~simgap.pipeline.photo_references.RenderedReference`). A frame without a render is
+    (:class:`~simgap.pipeline.photo_references.PosesReference`). A frame without a render is
     listed in ``frames_unreadable``. The layout of :func:`measure_photos`.
     """
     state = image or ImageState()
@@ -273,13 +285,11 @@ def simulate_photos(
     names = [str(n) for n in real["frame"].values]
     reference = None
     if real.attrs.get("reference") in EXTERNAL_REFERENCES:
-        rotations, translations = real["board_rotation"].values, real["board_translation"].values
-        reference = RenderedReference(
-            {
-                n: tf.make(tf.rotvec_to_matrix(r), t)
-                for n, r, t in zip(names, rotations, translations, strict=True)
-            },
-            {"reference": f"{RENDERED_REFERENCE} ({real.attrs['reference']})"},
+        poses = dict(zip(names, reference_poses(real), strict=True))
+        reference = PosesReference(
+            None,
+            {n: pose for n, pose in poses.items() if pose is not None},
+            f"{RENDERED_REFERENCE} ({real.attrs['reference']})",
         )
     return _measure(
         names, load, board, camera, detector, pnp, Steps(progress), "measuring", reference
@@ -518,6 +528,7 @@ __all__ = [
     "measure_photos",
     "photo_points",
     "photo_files",
+    "reference_poses",
     "render_photos",
     "simulate_photos",
     "write_photo_dataset",
