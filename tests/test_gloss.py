@@ -22,6 +22,7 @@ from simgap.analysis.candidates import (
     lobe_geometry,
     predicted_levels,
 )
+from simgap.effects import make_effect
 from simgap.pipeline.experiment import load_experiment
 from simgap.pose.image_stats import STAT_INDEX, STATS
 from tests.grid_items import grid_items
@@ -62,7 +63,7 @@ def test_the_laminate_is_recovered_and_a_matte_light_is_no_laminate():
     rng = np.random.default_rng(1)
     # exposure -0.5 EV, ink 1.2x (a transfer curve), a light beside the lens, a laminate of
     # roughness 0.1 mirroring it from 5 cm right of and 2 cm above the lens
-    truth = np.array([-0.5, np.log2(1.2), 0.01, 2e-3, 0.1, 0.05, 0.02])
+    truth = np.array([-0.5, np.log2(1.2), 0.01, 2e-3, 0.1, 0.05, 0.02, 0.0])
     fit = fit_levels(_levels(eye_from_tag, truth, rng))
     # measured: alpha 0.095, offsets 0.046 and 0.015 m, glint scale 1.78e-3 (the offsets and
     # the roughness trade off a little: all three widen or shift the lobe)
@@ -161,9 +162,7 @@ def test_the_glint_is_placed_from_ink_to_paper_ratios_whatever_the_lights():
     assert fit.gain >= GLINT_MIN_GAIN
     level = fit_levels(levels)
     assert level.rms_light - level.rms_laminate < GLINT_MIN_GAIN
-    matte = fit_ratios(
-        _lit_otherwise(eye_from_tag, 0.0, rng), ROUGHNESS_RANGE, OFFSET_M
-    )
+    matte = fit_ratios(_lit_otherwise(eye_from_tag, 0.0, rng), ROUGHNESS_RANGE, OFFSET_M)
     assert matte is not None and matte.gain < GLINT_MIN_GAIN
 
 
@@ -252,6 +251,16 @@ def test_a_laminate_whose_ink_median_stays_under_its_floor_is_a_candidate(veil):
     assert shown is (veil > 0)
 
 
+#: A laminate finding's parameters, rendered by the candidate with its fitted nuisance.
+_FOUND = {
+    "alpha": 0.1,
+    "light_intensity_w_sr": 0.3,
+    "light_offset_x_m": 0.05,
+    "light_offset_z_m": 0.02,
+    "ev": -0.5,
+}
+
+
 def test_the_laminate_is_rendered_with_the_ink_it_was_fitted_with():
     """A fitted ink factor ``h`` below 1 is rendered as the print's ink albedo times ``h``.
 
@@ -261,24 +270,52 @@ def test_the_laminate_is_rendered_with_the_ink_it_was_fitted_with():
     eye_from_tag = _grid()
     rng = np.random.default_rng(1)
     # a print 4x darker than the simulation's (or a black level that darkens its ink as much)
-    truth = np.array([-0.5, -2.0, 0.01, 2e-3, 0.1, 0.05, 0.02])
+    truth = np.array([-0.5, -2.0, 0.01, 2e-3, 0.1, 0.05, 0.02, 0.0])
     fit = fit_levels(_levels(eye_from_tag, truth, rng))
-    # measured: log2 h -1.992 (a tenth of a stop of ink noise over 104 tags)
+    # measured: log2 h -1.936, black level 1e-4 (a tenth of a stop of ink noise over 104 tags)
     assert fit.x[1] == pytest.approx(-2.0, abs=0.1)
 
     base = load_experiment("experiments/baseline.yaml").variant_states()[0][1]
     tag = base.scene.spec.tag
-    params = {
-        "alpha": 0.1,
-        "light_intensity_w_sr": 0.3,
-        "light_offset_x_m": 0.05,
-        "light_offset_z_m": 0.02,
-        "ev": -0.5,
-        "ink_factor": 2.0 ** fit.x[1],
-    }
+    params = dict(_FOUND, ink_factor=2.0 ** fit.x[1])
     rendered = GlossCandidate().apply(base, params).scene.spec.tag
     assert rendered.ink == pytest.approx(tag.ink * 2.0 ** fit.x[1], rel=1e-12)
     assert rendered.paper == tag.paper and rendered.coating is not None
     # an ink brighter than simulated is the laminate's own veil (or flare): not rendered twice
     brighter = GlossCandidate().apply(base, dict(params, ink_factor=1.8)).scene.spec.tag
     assert brighter.ink == tag.ink
+
+
+def test_a_black_level_is_fitted_beside_the_laminate_and_rendered_as_the_camera_s():
+    """A black level takes the same level off ink and paper: the glint stands on crushed ink.
+
+    The level model fits it beside the exposure (an ink factor alone had put the exposure stops
+    too low, docs/results/laminate.md); the candidate renders it as the camera's black level,
+    unless the model already holds one (the black-level candidate's).
+    """
+    eye_from_tag = _grid()
+    rng = np.random.default_rng(1)
+    truth = np.array([-0.5, 0.0, 0.01, 2e-3, 0.1, 0.05, 0.02, 0.02])
+    levels = _levels(eye_from_tag, truth, rng)
+    # the black level crushes most of the ink below a thousandth of full scale
+    assert np.count_nonzero(levels.real_ink < 1e-3) > len(levels) / 2
+    fit = fit_levels(levels)
+    # measured: black level 0.0225, exposure -0.494 EV, roughness 0.0994, glint scale 1.92e-3
+    # (0.0097 and 0.0394 for 0.01 and 0.04; the ink factor is loose where the ink is crushed)
+    assert fit.black_level == pytest.approx(0.02, abs=0.005)
+    assert fit.x[0] == pytest.approx(-0.5, abs=0.1)
+    assert fit.alpha == pytest.approx(0.1, rel=0.1)
+    assert fit.glint_scale == pytest.approx(2e-3, rel=0.15)
+
+    base = load_experiment("experiments/baseline.yaml").variant_states()[0][1]
+    params = dict(_FOUND, black_level=fit.black_level)
+    ops = dict(GlossCandidate().apply(base, params).image.ops)
+    assert ops["black_level"].level == pytest.approx(fit.black_level)
+    # a model that brings its own black level keeps it alone
+    own = make_effect("black_level", {"level": 0.03}).apply(base)
+    levels_applied = [
+        p.level
+        for name, p in GlossCandidate().apply(own, params).image.ops
+        if name == "black_level"
+    ]
+    assert levels_applied == [0.03]

@@ -14,9 +14,11 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
 1. **Levels.** Per tag of the fit split, the real and the simulated (matte, the simulation's
    lights) linear ink and paper levels (:class:`TagLevels`). A clipped real paper is a lower
    bound of its level only.
-2. **The level model** (:func:`predicted_levels`): ``paper = G (q + a L + b S)`` and
-   ``ink = G (h i (1 + a L / q) + b S)``, with ``q, i`` the simulated paper and ink, ``G`` the
-   exposure, ``h`` what a transfer curve or flare does to dark ink, ``L = cos(theta_l) / d^2`` the
+2. **The level model** (:func:`predicted_levels`): ``paper = K(G (q + a L + b S))`` and
+   ``ink = K(G (h i (1 + a L / q) + b S))``, with ``q, i`` the simulated paper and ink, ``G`` the
+   exposure, ``h`` what a transfer curve or a darker print does to dark ink, ``K(v) = max(v -
+   k, 0) / (1 - k)`` the camera's black level ``k`` (:class:`simgap.effects.camera_pipeline.
+   BlackLevel`: a median commutes with it), ``L = cos(theta_l) / d^2`` the
    light's diffuse geometry, and the glint ``S = D(theta_h; alpha) / (d^2 cos(theta_o))``: a
    mirror reflection adds the same radiance to ink and paper (Walter et al. 2007; Fresnel and
    shadowing near constant over a rough coating's lobe). ``theta_h`` is the angle between the
@@ -24,7 +26,10 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
    the view angle, ``d`` the distance to the light (nominal rig). Residuals are log levels in
    the floors of :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`; bounded robust least
    squares fit exposure alone, then a matte light (``a``), then the laminate (``b``,
-   ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`).
+   ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`); ``G``, ``h`` and
+   ``k`` are free in each. A black level takes the same level off ink and paper, so it crushes
+   the ink and leaves a glint standing on it; ``h`` alone would darken the glint with the ink and
+   an exposure stops too low would make up for it (docs/results/laminate.md).
 3. **Geometry from the ink-to-paper ratios** where at least
    :data:`~simgap.analysis.candidates.MIN_TAGS` tags have unclipped ink and paper
    (:mod:`simgap.analysis.candidates._glint_ratio`: the capture's own lights cancel in a ratio, a
@@ -43,8 +48,10 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
    glint and a light are linear in the intensity; the ratios' glint scale gives a third), and a
    few renders around the estimates pick the intensity whose levels and detections match
    (:meth:`GlossCandidate.intensity`).
-6. **Exposure and ink.** The candidate carries the exposure ``G`` it was fitted with (``ev``)
-   and the ink factor ``h`` (``ink_factor``). Where ``h`` is below 1 it is rendered as the
+6. **Exposure, ink and black level.** The candidate carries the exposure ``G`` it was fitted
+   with (``ev``), the ink factor ``h`` (``ink_factor``) and the black level ``k``
+   (``black_level``), rendered as the camera's black level where no other effect of the model
+   brings one. Where ``h`` is below 1 it is rendered as the
    print's ink albedo times ``h``: in the levels a darker print, a black level and a tone curve
    that darkens the ink look alike, and the albedo is the one of them that lowers the ink and
    leaves the glint on top of it. Without it the rendered glint lifts ink that the capture's
@@ -71,6 +78,7 @@ from simgap.analysis.candidates._appearance import (
     evidence_misfit,
     measuring_only,
 )
+from simgap.analysis.candidates._black_level import LEVEL_BOUNDS
 from simgap.analysis.candidates._fitting import Fit, on_bound
 from simgap.analysis.candidates._glint_ratio import STARTS, RatioFit, fit_ratios
 from simgap.analysis.candidates._lobe import LAMINATE_IOR, MIN_COS, beckmann, lobe_geometry
@@ -93,6 +101,10 @@ OFFSET_M: tuple[float, float] = (-0.15, 0.15)
 #: 0.45 m away gets the template key light's irradiance) and the largest intensity reported.
 REFERENCE_INTENSITY_W_SR = 0.24
 INTENSITY_W_SR: tuple[float, float] = (0.0, 5.0)
+#: Smallest black level rendered (fraction of full scale): the black-level candidate's smallest
+#: searched level (:data:`~simgap.analysis.candidates._black_level.LEVEL_BOUNDS`); below it
+#: nothing is crushed.
+MIN_BLACK_LEVEL = LEVEL_BOUNDS[0]
 #: Smallest gain (floors) of the laminate over a matte light for a supported fit.
 GLINT_MIN_GAIN = SIGNATURE_MIN_GAIN
 
@@ -113,22 +125,28 @@ def laminate_effects(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
 def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Ink and paper linear levels of the level model (module docstring, step 2) at ``x``.
 
-    ``x = (log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m)``.
+    ``x = (log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m, k)``. A level the black level
+    takes to 0 is returned as a millionth of full scale (its log stays finite).
     """
-    gain, ink_factor, a, b, alpha = 2.0 ** x[0], 2.0 ** x[1], x[2], x[3], x[4]
+    gain, ink_factor, a, b, alpha, black = 2.0 ** x[0], 2.0 ** x[1], x[2], x[3], x[4], x[7]
     cos_h, cos_o, cos_l, distance = lobe_geometry(levels.eye_from_tag, x[5], x[6])
     light = a * cos_l / distance**2
     glint = b * beckmann(cos_h, alpha) / (distance**2 * np.maximum(cos_o, MIN_COS))
     paper = gain * (levels.sim_paper + light + glint)
     ink = gain * (ink_factor * levels.sim_ink * (1.0 + light / levels.sim_paper) + glint)
-    return ink, paper
+    return _crushed(ink, black), _crushed(paper, black)
+
+
+def _crushed(level: np.ndarray, black: float) -> np.ndarray:
+    """``level`` through the black level ``black`` (module docstring, step 2), at least 1e-6."""
+    return np.maximum(level - black, 1e-6) / (1.0 - black)
 
 
 def level_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
     """Log-level residuals of ink and paper in their floors; a clipped level only from below."""
     ink, paper = predicted_levels(levels, x)
-    r_ink = np.log2(np.maximum(ink, 1e-6) / levels.real_ink) / IMAGE_FLOORS["ink_linear"][1]
-    r_paper = np.log2(np.maximum(paper, 1e-6) / levels.real_paper) / IMAGE_FLOORS["paper_linear"][1]
+    r_ink = np.log2(ink / levels.real_ink) / IMAGE_FLOORS["ink_linear"][1]
+    r_paper = np.log2(paper / levels.real_paper) / IMAGE_FLOORS["paper_linear"][1]
     r_paper = np.where(levels.clipped, np.minimum(r_paper, 0.0), r_paper)
     r_ink = np.where(levels.ink_clipped, np.minimum(r_ink, 0.0), r_ink)
     return np.concatenate([r_ink, r_paper])
@@ -140,8 +158,8 @@ class LevelFit:
 
     Attributes
     ----------
-    x : ndarray (7,)
-        ``(log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m)`` of the laminate model.
+    x : ndarray (8,)
+        ``(log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m, k)`` of the laminate model.
     rms_exposure, rms_light, rms_laminate : float
         RMS misfits (floors) of the exposure-only, the matte light and the laminate models.
     tags : int
@@ -174,6 +192,11 @@ class LevelFit:
         """``b``: the glint's scale (simulation's linear units x m^2 sr)."""
         return float(self.x[3])
 
+    @property
+    def black_level(self) -> float:
+        """``k``: the camera's black level beyond the simulation's (fraction of full scale)."""
+        return float(self.x[7])
+
 
 def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = None) -> LevelFit:
     """Robust least squares of the level model: exposure, + matte light, + laminate.
@@ -183,7 +206,7 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
     """
     if len(levels) < 4:
         nan = float("nan")
-        at_rest = np.array([0, 0, 0, 0, ROUGHNESS_RANGE[1], 0.0, 0.0])
+        at_rest = np.array([0, 0, 0, 0, ROUGHNESS_RANGE[1], 0.0, 0.0, 0.0])
         return LevelFit(at_rest, nan, nan, nan, len(levels))
 
     def solve(x0: np.ndarray, free: np.ndarray, lower, upper) -> tuple[np.ndarray, float]:
@@ -191,28 +214,33 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
         return x, capped_rms(level_residuals(levels, x))
 
     a_scale = float(np.median(levels.sim_paper)) * 0.1  # a light of a tenth of the key at 0.3 m
-    base = np.array([0.0, 0.0, 0.0, 0.0, ROUGHNESS_RANGE[1], 0.0, 0.0])
+    black_max = LEVEL_BOUNDS[1]
+    base = np.array([0.0, 0.0, 0.0, 0.0, ROUGHNESS_RANGE[1], 0.0, 0.0, 0.0])
     inf = np.inf
-    x_exp, rms_exp = solve(base, np.array([1, 1, 0, 0, 0, 0, 0], bool), (-6, -4), (6, 4))
+    # exposure without, then with the black level: started at none, the joint fit can stall
+    x_exp, _ = solve(base, np.array([1, 1, 0, 0, 0, 0, 0, 0], bool), (-6, -4), (6, 4))
+    x_exp, rms_exp = solve(
+        x_exp, np.array([1, 1, 0, 0, 0, 0, 0, 1], bool), (-6, -4, 0), (6, 4, black_max)
+    )
     start = x_exp.copy()
     start[2] = a_scale
-    scales = np.array([1, 1, 1, 0, 0, 0, 0], bool)
-    x_light, rms_light = solve(start, scales, (-6, -4, 0), (6, 4, inf))
+    scales = np.array([1, 1, 1, 0, 0, 0, 0, 1], bool)
+    x_light, rms_light = solve(start, scales, (-6, -4, 0, 0), (6, 4, inf, black_max))
     if fixed is not None:
         start = x_light.copy()
         start[4:7] = fixed
         start[3] = a_scale
         scales[3] = True
-        x, rms = solve(start, scales, (-6, -4, 0, 0), (6, 4, inf, inf))
+        x, rms = solve(start, scales, (-6, -4, 0, 0, 0), (6, 4, inf, inf, black_max))
         return LevelFit(x, rms_exp, rms_light, rms, len(levels))
     best, best_rms = x_light, rms_light
-    lower = (-6, -4, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0])
-    upper = (6, 4, inf, inf, ROUGHNESS_RANGE[1], OFFSET_M[1], OFFSET_M[1])
+    lower = (-6, -4, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0], 0)
+    upper = (6, 4, inf, inf, ROUGHNESS_RANGE[1], OFFSET_M[1], OFFSET_M[1], black_max)
     for alpha in STARTS[0]:
         for offset in STARTS[1]:
             start = x_light.copy()
             start[3], start[4], start[5], start[6] = a_scale * alpha, alpha, offset, 0.0
-            x, rms = solve(start, np.ones(7, bool), lower, upper)
+            x, rms = solve(start, np.ones(8, bool), lower, upper)
             if rms < best_rms:
                 best, best_rms = x, rms
     return LevelFit(best, rms_exp, rms_light, best_rms, len(levels))
@@ -253,12 +281,18 @@ class GlossCandidate(AppearanceCandidate):
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
         """The state with the laminate, the light beside the lens and the fitted nuisance.
 
-        The nuisance: the exposure (``ev``) and the ink factor (``ink_factor``: the print's ink
-        albedo over the simulation's, only where it darkens the ink, module docstring step 6)
-        the levels were fitted with.
+        The nuisance: the exposure (``ev``), the ink factor (``ink_factor``: the print's ink
+        albedo over the simulation's, only where it darkens the ink) and the black level
+        (``black_level``, fraction of full scale; where ``base`` has none of its own) the levels
+        were fitted with (module docstring, step 6).
         """
         state = base
         effects = laminate_effects(params)
+        black = float(params.get("black_level", 0.0))
+        if black >= MIN_BLACK_LEVEL and not any(
+            name == "black_level" for name, _ in base.image.ops
+        ):
+            effects["black_level"] = {"level": black}
         # the exposure the levels were fitted with: a light beside the lens brightens near tags,
         # so an exposure fitted without it is another (and added to it, counts that twice)
         effects["exposure"] = {"ev": float(params.get("ev", 0.0))}
@@ -354,6 +388,7 @@ class GlossCandidate(AppearanceCandidate):
             "light_offset_z_m": fit.offset_z_m,
             "ev": float(fit.x[0]),
             "ink_factor": float(2.0 ** fit.x[1]),
+            "black_level": fit.black_level,
         }
         if ratio is None:
             supported = fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
