@@ -36,6 +36,7 @@ from typing import Literal
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from simgap.effects.base import EffectParams, param
 from simgap.effects.image import METER_STRIDE_PX, ImageContext, ImageEffect
@@ -147,9 +148,18 @@ class BlackLevel(ImageEffect, name="black_level", order=42):
         )
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
-        """Subtract, clip at 0 and restore full scale."""
-        level = np.float32(self.params.level)
-        return np.maximum(img - level, np.float32(0.0)) / (np.float32(1.0) - level)
+        """Subtract, clip at 0 and restore full scale (:func:`crushed`, in float32)."""
+        return crushed(img, np.float32(self.params.level))
+
+
+def crushed(values: ArrayLike, level: float, floor: float = 0.0) -> np.ndarray:
+    """Linear values (fraction of full scale) through a black level (:class:`BlackLevel`).
+
+    ``max(v - level, floor) / (1 - level)``: the camera's clips at 0 (``floor`` 0); a model
+    that takes logs of the result keeps a crushed level finite with a small ``floor``. Monotone,
+    so a median of pixels commutes with it; a float32 ``level`` keeps float32 values float32.
+    """
+    return np.maximum(np.asarray(values) - level, floor) / (1.0 - level)
 
 
 class Bayer(ImageEffect, name="bayer", order=44):
@@ -287,4 +297,4 @@ class Sharpen(ImageEffect, name="sharpen", order=60):
         return 3.0 * self.params.radius_px
 
 
-__all__ = ["Bayer", "BlackLevel", "Denoise", "GainChange", "Sharpen", "ToneCurve"]
+__all__ = ["Bayer", "BlackLevel", "Denoise", "GainChange", "Sharpen", "ToneCurve", "crushed"]

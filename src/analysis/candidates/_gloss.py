@@ -17,8 +17,8 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
 2. **The level model** (:func:`predicted_levels`): ``paper = K(G (q + a L + b S))`` and
    ``ink = K(G (h i (1 + a L / q) + b S))``, with ``q, i`` the simulated paper and ink, ``G`` the
    exposure, ``h`` what a transfer curve or a darker print does to dark ink, ``K(v) = max(v -
-   k, 0) / (1 - k)`` the camera's black level ``k`` (:class:`simgap.effects.camera_pipeline.
-   BlackLevel`: a median commutes with it), ``L = cos(theta_l) / d^2`` the
+   k, 0) / (1 - k)`` the camera's black level ``k`` (:func:`simgap.effects.camera_pipeline.
+   crushed`: a median commutes with it), ``L = cos(theta_l) / d^2`` the
    light's diffuse geometry, and the glint ``S = D(theta_h; alpha) / (d^2 cos(theta_o))``: a
    mirror reflection adds the same radiance to ink and paper (Walter et al. 2007; Fresnel and
    shadowing near constant over a rough coating's lobe). ``theta_h`` is the angle between the
@@ -88,6 +88,7 @@ from simgap.analysis.candidates._tag_levels import TagLevels
 from simgap.analysis.gap import ImageTest, Items, detection_groups, detection_score
 from simgap.analysis.thresholds import IMAGE_FLOORS, RESIDUAL_CAP, SIGNATURE_MIN_GAIN
 from simgap.effects import make_effect
+from simgap.effects.camera_pipeline import crushed
 from simgap.effects.state import VariantState
 
 #: Searched ranges: laminate roughness (dimensionless; below 0.01 a glint is a mirror image of
@@ -126,7 +127,8 @@ def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.n
     """Ink and paper linear levels of the level model (module docstring, step 2) at ``x``.
 
     ``x = (log2 G, log2 h, a, b, alpha, offset_x_m, offset_z_m, k)``. A level the black level
-    takes to 0 is returned as a millionth of full scale (its log stays finite).
+    takes to 0 is returned as a millionth of full scale over ``1 - k`` (its log stays
+    finite).
     """
     gain, ink_factor, a, b, alpha, black = 2.0 ** x[0], 2.0 ** x[1], x[2], x[3], x[4], x[7]
     cos_h, cos_o, cos_l, distance = lobe_geometry(levels.eye_from_tag, x[5], x[6])
@@ -134,12 +136,7 @@ def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.n
     glint = b * beckmann(cos_h, alpha) / (distance**2 * np.maximum(cos_o, MIN_COS))
     paper = gain * (levels.sim_paper + light + glint)
     ink = gain * (ink_factor * levels.sim_ink * (1.0 + light / levels.sim_paper) + glint)
-    return _crushed(ink, black), _crushed(paper, black)
-
-
-def _crushed(level: np.ndarray, black: float) -> np.ndarray:
-    """``level`` through the black level ``black`` (module docstring, step 2), at least 1e-6."""
-    return np.maximum(level - black, 1e-6) / (1.0 - black)
+    return crushed(ink, black, floor=1e-6), crushed(paper, black, floor=1e-6)
 
 
 def level_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
