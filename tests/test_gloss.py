@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from simgap.analysis.candidates import (
+    CLIPPED_DN,
     GLINT_MIN_GAIN,
     HEIGHT_M,
     MIN_TAGS,
@@ -24,7 +25,7 @@ from simgap.analysis.candidates import (
 )
 from simgap.effects import make_effect
 from simgap.pipeline.experiment import load_experiment
-from simgap.pose.image_stats import STAT_INDEX, STATS
+from simgap.pose.image_stats import STAT_INDEX, STATS, linearise
 from tests.grid_items import grid_items
 
 
@@ -47,15 +48,19 @@ def _levels(eye_from_tag: np.ndarray, x: np.ndarray, rng: np.random.Generator) -
     """Real levels drawn from the level model at ``x`` over simulated ones, with noise."""
     paper = rng.uniform(0.25, 0.45, len(eye_from_tag))
     none = np.zeros(len(paper), bool)
-    sim = TagLevels(paper, paper, 0.035 * paper, paper, none, none, eye_from_tag)
+    sim = TagLevels(paper, paper, 0.035 * paper, paper, none, none, none, eye_from_tag)
     ink, real_paper = predicted_levels(sim, x)
     # noise: a tenth of a stop on ink, a twentieth on paper (the floors are 0.5 and 0.3 stop)
     ink = ink * 2.0 ** (0.1 * rng.standard_normal(ink.size))
     real_paper = real_paper * 2.0 ** (0.05 * rng.standard_normal(ink.size))
     clipped = real_paper >= 1.0
+    # an ink at or below 2 DN is crushed: its level is read as that bound (TagLevels.of)
+    bound = float(linearise(CLIPPED_DN[0]))
+    crushed = ink <= bound
     return TagLevels(
-        ink, np.minimum(real_paper, 1.0), sim.sim_ink, sim.sim_paper, clipped, none, eye_from_tag
-    )
+        np.where(crushed, bound, ink), np.minimum(real_paper, 1.0), sim.sim_ink, sim.sim_paper,
+        clipped, none, crushed, eye_from_tag,
+    )  # fmt: skip
 
 
 def test_the_laminate_is_recovered_and_a_matte_light_is_no_laminate():
@@ -139,7 +144,7 @@ def _lit_otherwise(
         0.1 * rng.standard_normal(paper.size)
     )
     none = np.zeros(len(paper), bool)
-    return TagLevels(real_ink, real_paper, ink, paper, none, none, eye_from_tag)
+    return TagLevels(real_ink, real_paper, ink, paper, none, none, none, eye_from_tag)
 
 
 def test_the_glint_is_placed_from_ink_to_paper_ratios_whatever_the_lights():
@@ -199,7 +204,7 @@ def test_too_few_unclipped_papers_leave_the_glint_to_the_level_model():
     clipped = np.arange(len(levels)) >= MIN_TAGS - 1
     levels = TagLevels(
         levels.real_ink, levels.real_paper, levels.sim_ink, levels.sim_paper, clipped,
-        np.zeros(len(levels), bool), levels.eye_from_tag,
+        np.zeros(len(levels), bool), np.zeros(len(levels), bool), levels.eye_from_tag,
     )  # fmt: skip
     assert fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M) is None
 
@@ -300,8 +305,8 @@ def test_a_black_level_is_fitted_beside_the_laminate_and_rendered_as_the_camera_
     # the black level crushes most of the ink below a thousandth of full scale
     assert np.count_nonzero(levels.real_ink < 1e-3) > len(levels) / 2
     fit = fit_levels(levels)
-    # measured: black level 0.0225, exposure -0.494 EV, roughness 0.0994, glint scale 1.92e-3
-    # (0.0097 and 0.0394 for 0.01 and 0.04; the ink factor is loose where the ink is crushed)
+    # measured: black level 0.0227, exposure -0.494 EV, roughness 0.104, glint scale 2.12e-3
+    # (0.0099 and 0.0424 for 0.01 and 0.04; the ink factor is loose where the ink is crushed)
     assert fit.black_level == pytest.approx(0.02, abs=0.005)
     assert fit.x[0] == pytest.approx(-0.5, abs=0.1)
     assert fit.alpha == pytest.approx(0.1, rel=0.1)
@@ -319,3 +324,63 @@ def test_a_black_level_is_fitted_beside_the_laminate_and_rendered_as_the_camera_
         if name == "black_level"
     ]
     assert levels_applied == [0.03]
+
+
+def _crushed_capture(
+    eye_from_tag: np.ndarray, glint: float, seed: int
+) -> tuple[np.ndarray, np.ndarray, TagLevels]:
+    """Real and simulated statistics of a black level of 0.04 that crushes most tags' ink.
+
+    With a laminate (``glint``, the level model's ``b``) its glint lifts the frontal tags' ink
+    above the black level; the others' ink medians are at 1 DN.
+    """
+    truth = np.array([-0.5, 0.0, 0.01, glint, 0.1, 0.05, 0.02, 0.04])
+    levels = _levels(eye_from_tag, truth, np.random.default_rng(seed))
+    real = _stats(levels.real_ink, levels.real_paper)
+    real[levels.ink_crushed, STAT_INDEX["ink_dn"]] = 1.0
+    return real, _stats(levels.sim_ink, levels.sim_paper), levels
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_crushed_inks_are_bounds_that_tell_a_black_level_from_a_darker_print(seed):
+    """Tags whose ink a black level crushed to 0 DN bound their level from above.
+
+    Measured (black level 0.04, 96 of 104 inks crushed): kept as bounds, the level model reads
+    the black level 0.0424 / 0.0415, the roughness 0.109 / 0.101 (truth 0.1) and the exposure
+    -0.496 / -0.500 EV at seeds 1 / 2; with the crushed tags left out (what the model read
+    before), 8 tags are left and the roughness is 0.054 / 0.446.
+    """
+    eye_from_tag = _grid()
+    real, sim, _ = _crushed_capture(eye_from_tag, 2e-3, seed)
+    levels = TagLevels.of(real, sim, eye_from_tag)
+    assert np.count_nonzero(levels.ink_crushed) == 96
+    assert levels.real_ink[levels.ink_crushed] == pytest.approx(linearise(CLIPPED_DN[0]))
+    fit = fit_levels(levels)
+    assert fit.black_level == pytest.approx(0.04, abs=0.004)
+    assert fit.alpha == pytest.approx(0.1, rel=0.1)
+    assert fit.x[0] == pytest.approx(-0.5, abs=0.05)
+    readable = ~levels.ink_crushed
+    without = fit_levels(
+        TagLevels(*(getattr(levels, f.name)[readable] for f in dataclasses.fields(levels)))
+    )
+    assert abs(without.alpha - 0.1) > 0.04
+
+
+@pytest.mark.parametrize(("glint", "shown"), [(2e-3, True), (0.0, False)])
+def test_with_too_few_readable_inks_the_level_model_makes_the_laminate_a_candidate(glint, shown):
+    """Where too few tags have readable ink and paper for the ratios, the level model decides
+    whether a laminate is a candidate, as it decides whether its fit is supported.
+
+    Black level 0.04; two of the 8 tags whose ink the glint lifted have clipped papers, so 6
+    are readable (under :data:`MIN_TAGS`). Measured at seeds 1-3: the laminate lowers the
+    level model's misfit below a matte light's by 0.65-0.69 floors with a glint, by 0.05-0.07
+    without (the support is :data:`GLINT_MIN_GAIN`, 0.25).
+    """
+    eye_from_tag = _grid()
+    for seed in (1, 2, 3):
+        real, sim, levels = _crushed_capture(eye_from_tag, glint, seed)
+        readable = np.flatnonzero(~levels.ink_crushed)
+        real[readable[:2], STAT_INDEX["paper_dn"]] = 255.0
+        assert fit_ratios(TagLevels.of(real, sim, eye_from_tag), ROUGHNESS_RANGE, OFFSET_M) is None
+        candidate = GlossCandidate()
+        assert candidate.signature_shown([], _Runner(eye_from_tag), _Items(real, sim)) is shown

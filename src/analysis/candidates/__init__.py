@@ -52,12 +52,13 @@ from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._sensor_noise import FULL_WELL_BOUNDS_E, SensorNoiseCandidate
 from simgap.analysis.candidates._simulation_chain import SimulationChain
 from simgap.analysis.candidates._size_signature import size_change
-from simgap.analysis.candidates._tag_levels import TagLevels
+from simgap.analysis.candidates._tag_levels import CLIPPED_DN, TagLevels
 
 __all__ = [
     "AppearanceCandidate",
     "BlackLevelCandidate",
     "CANDIDATES",
+    "CLIPPED_DN",
     "Candidate",
     "DISK_10_90_PER_RADIUS",
     "DefocusCandidate",

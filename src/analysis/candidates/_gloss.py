@@ -13,7 +13,8 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
 
 1. **Levels.** Per tag of the fit split, the real and the simulated (matte, the simulation's
    lights) linear ink and paper levels (:class:`TagLevels`). A clipped real paper is a lower
-   bound of its level only.
+   bound of its level only, a real ink crushed to 0 DN an upper bound: the tags a black level
+   crushed tell it from a darker print, which darkens every tag's ink by the same factor.
 2. **The level model** (:func:`predicted_levels`): ``paper = K(G (q + a L + b S))`` and
    ``ink = K(G (h i (1 + a L / q) + b S))``, with ``q, i`` the simulated paper and ink, ``G`` the
    exposure, ``h`` what a transfer curve or a darker print does to dark ink, ``K(v) = max(v -
@@ -140,12 +141,16 @@ def predicted_levels(levels: TagLevels, x: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def level_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
-    """Log-level residuals of ink and paper in their floors; a clipped level only from below."""
+    """Log-level residuals of ink and paper in their floors.
+
+    A clipped level counts only from below, a crushed ink only from above (each a bound).
+    """
     ink, paper = predicted_levels(levels, x)
     r_ink = np.log2(ink / levels.real_ink) / IMAGE_FLOORS["ink_linear"][1]
     r_paper = np.log2(paper / levels.real_paper) / IMAGE_FLOORS["paper_linear"][1]
     r_paper = np.where(levels.clipped, np.minimum(r_paper, 0.0), r_paper)
     r_ink = np.where(levels.ink_clipped, np.minimum(r_ink, 0.0), r_ink)
+    r_ink = np.where(levels.ink_crushed, np.maximum(r_ink, 0.0), r_ink)
     return np.concatenate([r_ink, r_paper])
 
 
@@ -243,6 +248,18 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
     return LevelFit(best, rms_exp, rms_light, best_rms, len(levels))
 
 
+def glint_supported(fit: LevelFit, ratio: RatioFit | None) -> bool:
+    """Whether a glint is the laminate's signature in the levels (module docstring, step 4).
+
+    With a ``ratio`` fit (enough tags with unclipped ink and paper), the ratios decide
+    (:attr:`RatioFit.supported`); without one, the level model: the laminate lowers its misfit
+    below a matte light's by :data:`GLINT_MIN_GAIN` with a glint of positive scale.
+    """
+    if ratio is not None:
+        return ratio.supported
+    return fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
+
+
 class GlossCandidate(AppearanceCandidate):
     """A laminate under a light beside the lens, fitted on the glints (see module docstring)."""
 
@@ -257,8 +274,9 @@ class GlossCandidate(AppearanceCandidate):
         """Whether the capture shows a laminate, so that it is a candidate.
 
         One of its statistics differs significantly
-        (:func:`~simgap.analysis.candidates.signature_significant`), or the ink-to-paper ratios
-        of every comparable tag call for one (:attr:`RatioFit.supported`).
+        (:func:`~simgap.analysis.candidates.signature_significant`), or the levels call for one
+        (:func:`glint_supported`, the rule the fit decides on: the ink-to-paper ratios of every
+        comparable tag, or with too few of them the level model).
 
         A laminate lifts the ink only where the view meets a light's glint or grazes its veil;
         the ink's median over every tag can then stay under its floor (a crushing black level
@@ -273,7 +291,9 @@ class GlossCandidate(AppearanceCandidate):
             items.required("real_stats"), items.required("sim_stats"), runner.eye_from_tag(items)
         )
         ratio = fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M)
-        return ratio is not None and ratio.supported
+        if ratio is not None:
+            return ratio.supported
+        return glint_supported(fit_levels(levels), None)
 
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
         """The state with the laminate, the light beside the lens and the fitted nuisance.
@@ -387,10 +407,7 @@ class GlossCandidate(AppearanceCandidate):
             "ink_factor": float(2.0 ** fit.x[1]),
             "black_level": fit.black_level,
         }
-        if ratio is None:
-            supported = fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
-        else:
-            supported = ratio.supported
+        supported = glint_supported(fit, ratio)
         if supported:
             params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit, ratio)
         top = INTENSITY_W_SR[1]

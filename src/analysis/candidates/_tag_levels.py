@@ -6,9 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simgap.pose.image_stats import STAT_INDEX
+from simgap.pose.image_stats import STAT_INDEX, linearise
 
-#: 8-bit levels at or beyond which a real tag's paper or ink is clipped (no ratio).
+#: 8-bit levels at or beyond which a real tag's paper or ink is clipped (no ratio): an ink whose
+#: median is at or below the first is crushed by the camera's black level (its level is at most
+#: that of the first), a paper or ink at or above the second saturated.
 CLIPPED_DN: tuple[float, float] = (2.0, 253.0)
 
 
@@ -25,6 +27,10 @@ class TagLevels:
     clipped, ink_clipped : ndarray of bool (N,)
         Real paper, real ink at or beyond :data:`CLIPPED_DN` (a lower bound of its level, no
         more: a glint can saturate the ink too).
+    ink_crushed : ndarray of bool (N,)
+        Real ink at or below :data:`CLIPPED_DN` ``[0]``: its ``real_ink`` is that level's, an
+        upper bound (a black level crushed it; how far is what the level model's black level
+        reads).
     eye_from_tag : ndarray (N, 4, 4)
         Each tag's pose in the eyepoint frame (m).
     """
@@ -35,6 +41,7 @@ class TagLevels:
     sim_paper: np.ndarray
     clipped: np.ndarray
     ink_clipped: np.ndarray
+    ink_crushed: np.ndarray
     eye_from_tag: np.ndarray
 
     @classmethod
@@ -45,14 +52,16 @@ class TagLevels:
             sim[:, [col["ink_linear"], col["paper_linear"]]]
         ).all(1)
         ok &= (sim[:, col["paper_linear"]] > 0) & (sim[:, col["ink_linear"]] > 0)
-        ok &= real[:, col["ink_dn"]] > CLIPPED_DN[0]
+        crushed = real[ok, col["ink_dn"]] <= CLIPPED_DN[0]
+        bound = float(linearise(CLIPPED_DN[0]))
         return cls(
-            real[ok, col["ink_linear"]],
+            np.where(crushed, bound, real[ok, col["ink_linear"]]),
             real[ok, col["paper_linear"]],
             sim[ok, col["ink_linear"]],
             sim[ok, col["paper_linear"]],
             real[ok, col["paper_dn"]] >= CLIPPED_DN[1],
             real[ok, col["ink_dn"]] >= CLIPPED_DN[1],
+            crushed,
             eye_from_tag[ok],
         )
 
