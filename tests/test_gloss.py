@@ -341,17 +341,17 @@ def _crushed_capture(
     return real, _stats(levels.sim_ink, levels.sim_paper), levels
 
 
-@pytest.mark.parametrize("seed", [1, 2])
-def test_crushed_inks_are_bounds_that_tell_a_black_level_from_a_darker_print(seed):
+def test_crushed_inks_are_bounds_that_tell_a_black_level_from_a_darker_print():
     """Tags whose ink a black level crushed to 0 DN bound their level from above.
 
     Measured (black level 0.04, 96 of 104 inks crushed): kept as bounds, the level model reads
     the black level 0.0424 / 0.0415, the roughness 0.109 / 0.101 (truth 0.1) and the exposure
     -0.496 / -0.500 EV at seeds 1 / 2; with the crushed tags left out (what the model read
-    before), 8 tags are left and the roughness is 0.054 / 0.446.
+    before), 8 tags are left and the roughness is 0.054 / 0.446. Seed 2 is asserted (seed 1's
+    fit takes three times as long).
     """
     eye_from_tag = _grid()
-    real, sim, _ = _crushed_capture(eye_from_tag, 2e-3, seed)
+    real, sim, _ = _crushed_capture(eye_from_tag, 2e-3, 2)
     levels = TagLevels.of(real, sim, eye_from_tag)
     assert np.count_nonzero(levels.ink_crushed) == 96
     assert levels.real_ink[levels.ink_crushed] == pytest.approx(linearise(CLIPPED_DN[0]))
@@ -374,13 +374,12 @@ def test_with_too_few_readable_inks_the_level_model_makes_the_laminate_a_candida
     Black level 0.04; two of the 8 tags whose ink the glint lifted have clipped papers, so 6
     are readable (under :data:`MIN_TAGS`). Measured at seeds 1-3: the laminate lowers the
     level model's misfit below a matte light's by 0.65-0.69 floors with a glint, by 0.05-0.07
-    without (the support is :data:`GLINT_MIN_GAIN`, 0.25).
+    without (the support is :data:`GLINT_MIN_GAIN`, 0.25); seed 3 is asserted.
     """
     eye_from_tag = _grid()
-    for seed in (1, 2, 3):
-        real, sim, levels = _crushed_capture(eye_from_tag, glint, seed)
-        readable = np.flatnonzero(~levels.ink_crushed)
-        real[readable[:2], STAT_INDEX["paper_dn"]] = 255.0
-        assert fit_ratios(TagLevels.of(real, sim, eye_from_tag), ROUGHNESS_RANGE, OFFSET_M) is None
-        candidate = GlossCandidate()
-        assert candidate.signature_shown([], _Runner(eye_from_tag), _Items(real, sim)) is shown
+    real, sim, levels = _crushed_capture(eye_from_tag, glint, 3)
+    readable = np.flatnonzero(~levels.ink_crushed)
+    real[readable[:2], STAT_INDEX["paper_dn"]] = 255.0
+    assert fit_ratios(TagLevels.of(real, sim, eye_from_tag), ROUGHNESS_RANGE, OFFSET_M) is None
+    candidate = GlossCandidate()
+    assert candidate.signature_shown([], _Runner(eye_from_tag), _Items(real, sim)) is shown
