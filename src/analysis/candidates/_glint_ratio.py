@@ -103,7 +103,7 @@ class RatioFit:
 
 def ratio_residuals(levels: TagLevels, x: np.ndarray) -> np.ndarray:
     """Log ratio residuals (floors of ``ink_linear``) of the unclipped tags at ``x``."""
-    ok = ~levels.clipped & ~levels.ink_clipped & ~levels.ink_crushed
+    ok = levels.readable
     r_sim = levels.sim_ink[ok] / levels.sim_paper[ok]
     paper = levels.real_paper[ok]
     cos_h, cos_o, _, distance = lobe_geometry(levels.eye_from_tag[ok], x[4], x[5])
@@ -127,7 +127,7 @@ def fit_ratios(
     and the veil are fitted (the calibration render of
     :meth:`simgap.analysis.candidates.GlossCandidate.intensity`).
     """
-    tags = int(np.count_nonzero(~levels.clipped & ~levels.ink_clipped & ~levels.ink_crushed))
+    tags = int(np.count_nonzero(levels.readable))
     if tags < MIN_TAGS:
         return None
 

@@ -65,5 +65,10 @@ class TagLevels:
             eye_from_tag[ok],
         )
 
+    @property
+    def readable(self) -> np.ndarray:
+        """Tags whose real ink and paper are both levels, neither clipped nor crushed (N,)."""
+        return ~self.clipped & ~self.ink_clipped & ~self.ink_crushed
+
     def __len__(self) -> int:
         return len(self.real_ink)
