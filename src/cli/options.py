@@ -42,6 +42,43 @@ CALIBRATION_HELP = (
 )
 #: ``--calibration FILE`` (default ``None``: the experiment's camera).
 CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help=CALIBRATION_HELP)]
+#: ``--poses CSV``: each board photo's reference pose from outside the photos.
+PosesOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--poses",
+        help="With --board: CSV image,tx,ty,tz,qx,qy,qz,qw giving each photo's reference "
+        "camera_from_board (the board in the OpenCV camera frame; m, quaternion x y z w) "
+        "instead of the board's pose from its points.",
+    ),
+]
+#: ``--robot-poses CSV``: the robot flange's pose per board photo (with ``--hand-eye``).
+RobotPosesOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--robot-poses",
+        help="With --board and --hand-eye: CSV image,tx,ty,tz,qx,qy,qz,qw of base_from_flange "
+        "(the robot flange in its base frame) per photo; the reference is the robot's chain.",
+    ),
+]
+#: ``--hand-eye FILE``: the camera in the robot flange's frame.
+HandEyeOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--hand-eye",
+        help="With --robot-poses: YAML flange_from_camera (the OpenCV camera frame in the "
+        "flange's): translation [x, y, z] (m) and quaternion [qx, qy, qz, qw], or a 4x4 matrix.",
+    ),
+]
+#: ``--board-in-base FILE``: the board in the robot base frame.
+BoardInBaseOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--board-in-base",
+        help="With --robot-poses: YAML base_from_board, as --hand-eye; default: solved from the "
+        "photos' board poses (per-axis median and rotation mean).",
+    ),
+]
 #: Help of the positional ``EXPERIMENT`` of every command that simulates (its older option
 #: spelling is kept as a hidden alias: :func:`one_experiment`).
 EXPERIMENT_HELP = "Experiment YAML (or a result .nc it was run from, where a command takes one)."

@@ -13,11 +13,15 @@ from simgap.cli.app import app, fail, read_experiment, read_result_dataset, read
 from simgap.cli.options import (
     BagFormat,
     BagStorage,
+    BoardInBaseOption,
     CacheOption,
     CalibrationOption,
+    HandEyeOption,
     ImageEncoding,
     OverwriteOption,
+    PosesOption,
     ProgressOption,
+    RobotPosesOption,
     VariantOption,
     one_experiment,
     output_option,
@@ -42,7 +46,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from simgap.core.rig import CameraModel
-    from simgap.pipeline.photo_references import PhotoReference
+    from simgap.pipeline.photo_references import PhotoReference, ResolvedReference
 
 
 @app.command()
@@ -112,31 +116,10 @@ def ingest(
         "pose measured against the board's own, or --poses / --robot-poses (needs "
         "--calibration).",
     ),
-    poses: Path | None = typer.Option(
-        None,
-        "--poses",
-        help="With --board: CSV image,tx,ty,tz,qx,qy,qz,qw giving each photo's reference "
-        "camera_from_board (the board in the OpenCV camera frame; m, quaternion x y z w) "
-        "instead of the board's pose from its points.",
-    ),
-    robot_poses: Path | None = typer.Option(
-        None,
-        "--robot-poses",
-        help="With --board and --hand-eye: CSV image,tx,ty,tz,qx,qy,qz,qw of base_from_flange "
-        "(the robot flange in its base frame) per photo; the reference is the robot's chain.",
-    ),
-    hand_eye: Path | None = typer.Option(
-        None,
-        "--hand-eye",
-        help="With --robot-poses: YAML flange_from_camera (the OpenCV camera frame in the "
-        "flange's): translation [x, y, z] (m) and quaternion [qx, qy, qz, qw], or a 4x4 matrix.",
-    ),
-    board_in_base: Path | None = typer.Option(
-        None,
-        "--board-in-base",
-        help="With --robot-poses: YAML base_from_board, as --hand-eye; default: solved from the "
-        "photos' board poses (per-axis median and rotation mean).",
-    ),
+    poses: PosesOption = None,
+    robot_poses: RobotPosesOption = None,
+    hand_eye: HandEyeOption = None,
+    board_in_base: BoardInBaseOption = None,
     overwrite: OverwriteOption = False,
 ) -> None:
     """Detect markers and estimate poses in a real capture or ROS bag; write its result dataset.
@@ -330,6 +313,10 @@ def calibrate(
     max_pixels: int = typer.Option(
         MAX_PIXELS, "--max-pixels", help="Pixel budget per photo (px).", min=1
     ),
+    poses: PosesOption = None,
+    robot_poses: RobotPosesOption = None,
+    hand_eye: HandEyeOption = None,
+    board_in_base: BoardInBaseOption = None,
     progress: ProgressOption = True,
     overwrite: OverwriteOption = False,
 ) -> None:
@@ -338,22 +325,28 @@ def calibrate(
     The fit's standard deviations are the larger of OpenCV's and the leave-one-photo-out
     jackknife's. The given file's focal length, principal point, k1 and k2 are each corrected
     alone on the photos: a correction 3 jackknife sd from zero that lowers the board points'
-    RMS by 10 % says the file does not describe the camera.
+    RMS by 10 % says the file does not describe the camera. With --poses or --robot-poses the
+    board is held at its reference pose in every photo instead of posed from its own points, so
+    the board's distance cannot absorb a focal-length error.
     """
     from simgap.core.atomic import atomic_write
     from simgap.core.board import read_board
     from simgap.pipeline.capture.calibration import calibration_to_yaml, read_calibration
-    from simgap.pipeline.photos import photo_points
+    from simgap.pipeline.photos import named_photo_points
     from simgap.pose.board_calibration import CALIBRATION_FLAGS, calibrate_from_photos
     from simgap.pose.calibration_check import DISAGREE_SIGMAS, MIN_RMS_FALL, check_calibration
 
+    references = _ReferenceFiles(poses, robot_poses, hand_eye, board_in_base)
     inputs = [("PHOTOS", photos), ("--board", board), ("--calibration", calibration)]
-    check_outputs([(OUTPUT, output, CALIBRATION_OUTPUT)], inputs, overwrite)
+    check_outputs([(OUTPUT, output, CALIBRATION_OUTPUT)], inputs + references.given, overwrite)
     if model not in CALIBRATION_FLAGS:
         fail(f"--model: expected one of {', '.join(CALIBRATION_FLAGS)}, got {model!r}")
+    if references.given and calibration is None:
+        fail(f"{references.given[0][0]}: a reference checks a file: give --calibration FILE")
     spec = read_board(board)
     given = read_calibration(calibration) if calibration is not None else None
-    points, size = photo_points(photos, spec, max_pixels)
+    reference = references.read()
+    names, points, size = named_photo_points(photos, spec, max_pixels)
     try:
         fit = calibrate_from_photos(points, size, model)
     except ValueError as exc:
@@ -369,14 +362,20 @@ def calibrate(
         if camera is not None:
             _warn_fold(name, camera, points)
     if given is not None:
+        held = None
+        against = "the photos"
+        if reference is not None:
+            held = _reference_poses(reference, names, points, given)
+            against = f"the photos, each board held at its pose from {held.attrs['reference']}"
         typer.echo(
-            f"{calibration} against the photos, each parameter corrected alone (the correction "
+            f"{calibration} against {against}, each parameter corrected alone (the correction "
             "+- its jackknife sd; the board points' RMS reprojection before -> after):"
         )
         from simgap.cli.progress import StepBars
 
         with StepBars(progress) as bars:
-            checks = check_calibration(points, given, bars)
+            poses_held = None if held is None else held.camera_from_board
+            checks = check_calibration(points, given, bars, reference=poses_held)
         for c in checks:
             flag = "  DOES NOT DESCRIBE THE PHOTOS" if c.disagrees else ""
             typer.echo(
@@ -405,6 +404,27 @@ def calibrate(
         text = header + calibration_to_yaml(cam)
         atomic_write(output, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         typer.echo(f"wrote {output}")
+
+
+def _reference_poses(
+    reference: PhotoReference,
+    names: list[str],
+    points: list[tuple[np.ndarray, np.ndarray]],
+    camera: CameraModel,
+) -> ResolvedReference:
+    """The reference poses of the photos ``names`` that show the board (``points``' order).
+
+    A robot reference without ``--board-in-base`` solves the board's place from each photo's
+    own board pose through ``camera`` (:meth:`RobotReference.resolve`).
+    """
+    from simgap.core import transforms as tf
+    from simgap.pose.board_pose import solve_board_pose
+
+    own = []
+    for obj, img in points:
+        rvec, tvec, _ = solve_board_pose(obj, img, camera)
+        own.append(tf.make(tf.rotvec_to_matrix(rvec), tvec))
+    return reference.resolve(names, own)
 
 
 def _warn_fold(

@@ -109,9 +109,20 @@ def photo_points(
 ) -> tuple[list[tuple[np.ndarray, np.ndarray]], tuple[int, int]]:
     """Each photo's board points and image points, and the photos' size (w, h px).
 
+    :func:`named_photo_points` without the names.
+    """
+    _, points, size = named_photo_points(folder, board, max_pixels)
+    return points, size
+
+
+def named_photo_points(
+    folder: Path, board: Board, max_pixels: int = MAX_PIXELS
+) -> tuple[list[str], list[tuple[np.ndarray, np.ndarray]], tuple[int, int]]:
+    """The photos that show the board, their board and image points, and their size (w, h px).
+
     :func:`simgap.pose.board_calibration.board_points` on every photo of ``folder`` that has
     the size of the first one (px) and can be decoded; simgap's detector with the board's
-    dictionary.
+    dictionary. The names are the photos' file names, in the points' order.
 
     Raises
     ------
@@ -123,8 +134,16 @@ def photo_points(
     size = frame_size(files[0])
     if size is None:
         raise ConfigError(f"{files[0]}: cannot be decoded (its size is not readable)")
-    grays = [g for g in (_gray(p, *size, max_pixels) for p in files) if not isinstance(g, str)]
-    return board_points(grays, board, Detector(DetectorSettings(board.dictionary))), size
+    detector = Detector(DetectorSettings(board.dictionary))
+    names, points = [], []
+    for path in files:
+        gray = _gray(path, *size, max_pixels)
+        if isinstance(gray, str):
+            continue
+        for found in board_points([gray], board, detector):
+            names.append(path.name)
+            points.append(found)
+    return names, points, size
 
 
 def calibrate_photos(
@@ -526,6 +545,7 @@ __all__ = [
     "PHOTO_SUFFIXES",
     "calibrate_photos",
     "measure_photos",
+    "named_photo_points",
     "photo_points",
     "photo_files",
     "reference_poses",

@@ -107,8 +107,19 @@ def solve_board_pose(
     _, rvec, tvec = cv2.solvePnP(obj, norm, k, dist, flags=cv2.SOLVEPNP_SQPNP)
     rvec, tvec = cv2.solvePnPRefineLM(obj, norm, k, dist, rvec, tvec)
     rvec, tvec = rvec.ravel(), tvec.ravel()
-    proj = camera.project(obj @ tf.rotvec_to_matrix(rvec).T + tvec).reshape(-1, 2)
-    return rvec, tvec, float(np.sqrt(np.mean(np.sum((proj - img) ** 2, axis=1))))
+    return rvec, tvec, reprojection_rms(obj, img, camera, tf.make(tf.rotvec_to_matrix(rvec), tvec))
+
+
+def reprojection_rms(
+    obj: np.ndarray, img: np.ndarray, camera: CameraModel, camera_from_board: np.ndarray
+) -> float:
+    """RMS reprojection (px) of board points ``obj`` (n, 3) m against ``img`` (n, 2) px.
+
+    Through the camera's own model, with the board at ``camera_from_board`` (4 x 4, m).
+    """
+    pose = np.asarray(camera_from_board, float)
+    proj = camera.project(obj @ pose[:3, :3].T + pose[:3, 3]).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum((proj - img) ** 2, axis=1))))
 
 
 def view_board(
@@ -195,6 +206,7 @@ __all__ = [
     "MarkerError",
     "marker_error",
     "reference_points",
+    "reprojection_rms",
     "solve_board_pose",
     "view_board",
 ]

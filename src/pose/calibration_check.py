@@ -20,14 +20,21 @@ coefficients: a rational_polynomial file fitted on 28 RealSense photos (k1-k6 la
 balanced) is no fault on 8 of them and its k1 shifted by 0.1 is corrected by -0.123 (its
 denominator divides k1's effect by up to 2.2 over the board; the jackknife sd is 2.8 times
 plumb_bob's); an equidistant (fisheye) file's (its theta^3 term) by -0.113.
+
+**Against an external reference.** Where each photo's board pose is known from outside the
+photos (a tracker's poses, a robot's chain: :mod:`simgap.pipeline.photo_references`), the poses
+are held there instead of re-solved: the board's distance is then no longer free to absorb the
+focal length, and a focal error shows as the points' scale about the principal point. The
+reference's own error (a tracker's, a robot's, a hand-eye's) enters the RMS and the jackknife
+as the photos' scatter does.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Final
+from typing import Final, TypeVar
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -35,7 +42,7 @@ from scipy.optimize import minimize_scalar
 from simgap.core.progress import ProgressCallback, Steps
 from simgap.core.rig import CameraModel
 from simgap.core.robust import jackknife_std
-from simgap.pose.board_pose import solve_board_pose
+from simgap.pose.board_pose import reprojection_rms, solve_board_pose
 
 #: A correction this many jackknife standard deviations from zero is clear: the two-sided
 #: 99.7 % level of a normal estimate.
@@ -45,6 +52,8 @@ DISAGREE_SIGMAS: Final[float] = 3.0
 MIN_RMS_FALL: Final[float] = 0.10
 #: Fewest photos for a jackknife (with fewer, no correction is called clear).
 MIN_PHOTOS: Final[int] = 4
+
+T = TypeVar("T")
 
 
 def _focal(camera: CameraModel, x: float) -> CameraModel:
@@ -109,19 +118,32 @@ class ParameterCheck:
     disagrees: bool
 
 
-def _rms(points: list[tuple[np.ndarray, np.ndarray]], camera: CameraModel) -> float:
-    """RMS reprojection (px) of all photos' points, each photo's board pose solved anew."""
+#: Each photo's board points (n, 3) m and image points (n, 2) px.
+Points = list[tuple[np.ndarray, np.ndarray]]
+
+
+def _rms(points: Points, camera: CameraModel, reference: Sequence[np.ndarray] | None) -> float:
+    """RMS reprojection (px) of all photos' points.
+
+    Each photo's board pose solved anew, or held at its ``reference`` pose (``camera_from_board``,
+    4 x 4, m) where one is given.
+    """
     total, count = 0.0, 0
-    for obj, img in points:
-        _, _, rms = solve_board_pose(obj, img, camera)
+    for i, (obj, img) in enumerate(points):
+        if reference is None:
+            _, _, rms = solve_board_pose(obj, img, camera)
+        else:
+            rms = reprojection_rms(obj, img, camera, reference[i])
         total, count = total + rms**2 * len(obj), count + len(obj)
     return float(np.sqrt(total / count))
 
 
-def _correct(points: list[tuple[np.ndarray, np.ndarray]], camera: CameraModel, check: Check):
+def _correct(
+    points: Points, camera: CameraModel, check: Check, reference: Sequence[np.ndarray] | None
+) -> tuple[float, float]:
     """The correction of one parameter minimising :func:`_rms`, and that RMS (px)."""
     res = minimize_scalar(
-        lambda x: _rms(points, check.apply(camera, x)),
+        lambda x: _rms(points, check.apply(camera, x), reference),
         bounds=(-check.bound, check.bound),
         method="bounded",
         options={"xatol": check.bound * 1e-5},
@@ -129,18 +151,39 @@ def _correct(points: list[tuple[np.ndarray, np.ndarray]], camera: CameraModel, c
     return float(res.x), float(res.fun)
 
 
+def _without(items: Sequence[T] | None, i: int) -> list[T] | None:
+    return None if items is None else [*items[:i], *items[i + 1 :]]
+
+
 def check_calibration(
-    points: list[tuple[np.ndarray, np.ndarray]],
+    points: Points,
     camera: CameraModel,
     progress: ProgressCallback | None = None,
+    reference: Sequence[np.ndarray] | None = None,
 ) -> list[ParameterCheck]:
     """Each parameter of :data:`CHECKS` of ``camera`` corrected alone on the photos' ``points``.
 
-    ``points``: each photo's board and image points
-    (:func:`simgap.pose.board_calibration.board_points`); ``progress`` is told of each parameter
-    checked (step ``"checking the file"``).
+    Parameters
+    ----------
+    points : list of (numpy.ndarray, numpy.ndarray)
+        Each photo's board and image points (:func:`simgap.pose.board_calibration.board_points`).
+    camera : CameraModel
+        The file held against them.
+    progress : callable, optional
+        Told of each parameter checked (step ``"checking the file"``).
+    reference : sequence of numpy.ndarray, optional
+        Each photo's board pose from an external reference (``camera_from_board``, 4 x 4, m;
+        the order of ``points``): the poses are held there (module doc). None: each photo's pose
+        is solved from its own points.
+
+    Raises
+    ------
+    ValueError
+        Where ``reference`` does not give one pose per photo.
     """
-    before = _rms(points, camera)
+    if reference is not None and len(reference) != len(points):
+        raise ValueError(f"{len(reference)} reference poses for {len(points)} photos")
+    before = _rms(points, camera, reference)
     n = len(points)
     out = []
     steps = Steps(progress)
@@ -149,10 +192,13 @@ def check_calibration(
         if check.name.startswith("k") and len(camera.distortion) < int(check.name[1:]):
             steps.advance()
             continue
-        correction, after = _correct(points, camera, check)
+        correction, after = _correct(points, camera, check, reference)
         std = float("nan")
         if n >= MIN_PHOTOS:
-            loo = [_correct(points[:i] + points[i + 1 :], camera, check)[0] for i in range(n)]
+            loo = [
+                _correct(points[:i] + points[i + 1 :], camera, check, _without(reference, i))[0]
+                for i in range(n)
+            ]
             std = float(jackknife_std(np.array(loo)))
         clear = bool(std > 0 and abs(correction) >= DISAGREE_SIGMAS * std)
         useful = after <= (1.0 - MIN_RMS_FALL) * before
@@ -178,5 +224,6 @@ __all__ = [
     "MIN_RMS_FALL",
     "Check",
     "ParameterCheck",
+    "Points",
     "check_calibration",
 ]
