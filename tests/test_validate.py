@@ -206,6 +206,36 @@ def test_targeted_validation_draws_only_the_named_effects(tmp_path):
     assert "got nope" in res.output and not (tmp_path / "v").exists()
 
 
+def test_a_validation_targeted_on_a_pipeline_stage_keeps_every_other_draw(tmp_path):
+    """``--stages black_level``: every other camera has a black level; every other draw of the
+    seed (hidden effects, lights, the other stages, the black level's own value where it was
+    drawn present, the total exposure) is what it was without the option; only the exposure
+    setting moves, to keep the total exposure through the black level. Unknown stages exit
+    with code 2."""
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_truth import exposure_truth
+    from simgap.diagnosis.validate import ValidateSettings, draw_trials
+
+    rig = load_rig()
+    usual = draw_trials(ValidateSettings(trials=12, seed=3), rig)
+    forced = draw_trials(ValidateSettings(trials=12, seed=3, stages=("black_level",)), rig)
+    assert all("black_level" in camera.pipeline() for _, camera in forced)
+    assert sum("black_level" in camera.pipeline() for _, camera in usual) < 12
+    for (hidden, camera), (hidden_f, camera_f) in zip(usual, forced, strict=True):
+        assert hidden == hidden_f
+        moved = ("black_level", "exposure")
+        others = {k: v for k, v in camera_f.effects.items() if k not in moved}
+        assert others == {k: v for k, v in camera.effects.items() if k not in moved}
+        # with_exposure's four fixed-point steps leave up to 0.027 EV under a black level
+        assert exposure_truth(camera_f, rig) == pytest.approx(exposure_truth(camera, rig), abs=0.05)
+        if "black_level" in camera.effects:
+            assert camera.effects["black_level"] == camera_f.effects["black_level"]
+        assert (camera.p, camera.theta_deg) == (camera_f.p, camera_f.theta_deg)
+    res = CliRunner().invoke(app, ["validate", "--stages", "nope", "-o", str(tmp_path / "v")])
+    assert res.exit_code == 2 and "--stages: expected names among" in res.output
+    assert not (tmp_path / "v").exists()
+
+
 def test_strict_accuracy_asks_for_every_hidden_effect_of_a_pair():
     from simgap.diagnosis.validation_summary import summarize_scores
 

@@ -275,6 +275,12 @@ def validate(
         "denoising, black level, tone curve, lateral colour, gain changes) and some captures "
         "mostly frontal poses (the default); --no-camera-pipeline draws cameras without them.",
     ),
+    stages: str = typer.Option(
+        "",
+        "--stages",
+        help="Comma-separated camera-pipeline stages every other camera has, e.g. black_level "
+        "(default: each drawn in some cameras): a validation targeted on a stage.",
+    ),
     overwrite: OverwriteOption = False,
 ) -> None:
     """Blind validation: hidden effects -> pseudo-real captures -> diagnosis -> scores.
@@ -297,13 +303,17 @@ def validate(
     k, _, n = shard.partition("/")
     if not (k.isdigit() and n.isdigit()):
         raise ValueError(f"--shard: expected K/N (two whole numbers, e.g. 0/4), got {shard!r}")
-    settings = ValidateSettings(
-        trials=trials,
-        seed=seed,
-        shard=(int(k), int(n)),
-        converged_simulation=converged_simulation,
-        camera_pipeline=camera_pipeline,
-    )
+    try:
+        settings = ValidateSettings(
+            trials=trials,
+            seed=seed,
+            shard=(int(k), int(n)),
+            converged_simulation=converged_simulation,
+            camera_pipeline=camera_pipeline,
+            stages=tuple(s.strip() for s in stages.split(",") if s.strip()),
+        )
+    except ValueError as exc:  # "stages: expected ...": name the option
+        raise ValueError(f"--{exc}") from exc
     if effects:
         names = tuple(e.strip() for e in effects.split(",") if e.strip())
         pair = settings.p_pair if len(names) > 1 else 0.0

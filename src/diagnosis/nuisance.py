@@ -15,7 +15,7 @@ tags, the pixel filter's width), never from the capture itself.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from typing import Any, Literal, cast
 
@@ -258,8 +258,15 @@ def _poses(rng: np.random.Generator) -> tuple[tuple[int, ...], tuple[float, ...]
     return p, tuple(float(s) for s in sorted(chosen))
 
 
-def draw_pipeline(rng: np.random.Generator) -> dict[str, dict[str, Any]]:
-    """The stages of a camera's own image pipeline, each drawn with :data:`PIPELINE_SHARE`."""
+def draw_pipeline(
+    rng: np.random.Generator, always: Collection[str] = ()
+) -> dict[str, dict[str, Any]]:
+    """The stages of a camera's own image pipeline, each drawn with :data:`PIPELINE_SHARE`.
+
+    The stages named in ``always`` (keys of :data:`PIPELINE_SHARE`) are present in every camera,
+    with their parameters drawn as usual (a targeted validation: every draw of a seed but their
+    presence stays what it was).
+    """
     samplers: dict[str, Callable[[], dict[str, Any]]] = {
         "gain_change": lambda: {"sigma_ev": _uniform(rng, GAIN_CHANGE_SIGMA_EV)},
         "black_level": lambda: {"level": _uniform(rng, BLACK_LEVEL)},
@@ -286,7 +293,8 @@ def draw_pipeline(rng: np.random.Generator) -> dict[str, dict[str, Any]]:
     }
     # every stage takes its draws whether present or not, so a share change moves no other draw
     drawn = {
-        name: (rng.uniform() < share, samplers[name]()) for name, share in PIPELINE_SHARE.items()
+        name: (rng.uniform() < share or name in always, samplers[name]())
+        for name, share in PIPELINE_SHARE.items()
     }
     return {name: params for name, (present, params) in drawn.items() if present}
 
@@ -298,7 +306,10 @@ def _frontal_heavy_stops(rng: np.random.Generator) -> tuple[float, ...]:
 
 
 def draw_nuisance(
-    rng: np.random.Generator, rig: Rig, pipeline_rng: np.random.Generator | None = None
+    rng: np.random.Generator,
+    rig: Rig,
+    pipeline_rng: np.random.Generator | None = None,
+    always: Collection[str] = (),
 ) -> NuisanceCamera:
     """Draw one other camera from the ranges of this module.
 
@@ -315,6 +326,8 @@ def draw_nuisance(
         Draws the camera's own image pipeline (:func:`draw_pipeline`) and whether its poses are
         mostly frontal (:data:`FRONTAL_HEAVY_SHARE`), from a stream of its own so that the other
         draws stay those of ``rng``. None: no pipeline stages and the usual poses.
+    always : collection of str, optional
+        Pipeline stages every camera has (:func:`draw_pipeline`); only with ``pipeline_rng``.
     """
     total_ev = _uniform(rng, EXPOSURE_EV)
     light_ev = _uniform(rng, LIGHT_EV)
@@ -345,7 +358,7 @@ def draw_nuisance(
     p, theta_deg = _poses(rng)
     frames = 2 if rng.uniform() < TWO_FRAMES_SHARE else 1
     if pipeline_rng is not None:
-        effects.update(draw_pipeline(pipeline_rng))
+        effects.update(draw_pipeline(pipeline_rng, always))
         frontal = _frontal_heavy_stops(pipeline_rng)
         if pipeline_rng.uniform() < FRONTAL_HEAVY_SHARE:
             theta_deg = frontal

@@ -40,7 +40,7 @@ from simgap.diagnosis.hidden_effects import (
     found,
     rendered_effects,
 )
-from simgap.diagnosis.nuisance import NuisanceCamera, draw_nuisance
+from simgap.diagnosis.nuisance import PIPELINE_SHARE, NuisanceCamera, draw_nuisance
 from simgap.diagnosis.result_json import jsonable, write_json
 from simgap.diagnosis.settings import DiagnoseSettings
 from simgap.diagnosis.trial import Trial, crushed_black_share
@@ -102,6 +102,10 @@ class ValidateSettings:
         Give every other camera its own image pipeline and some captures mostly frontal poses
         (:func:`simgap.diagnosis.nuisance.draw_pipeline`); False draws the cameras as before
         the pipeline stages existed (the same draws of a seed otherwise).
+    stages : tuple of str
+        Pipeline stages every other camera has (keys of
+        :data:`simgap.diagnosis.nuisance.PIPELINE_SHARE`; default none): a validation targeted
+        on a stage, e.g. a black level under JPEG. Needs ``camera_pipeline``.
     """
 
     trials: int = 30
@@ -117,11 +121,20 @@ class ValidateSettings:
     shard: tuple[int, int] = (0, 1)
     converged_simulation: bool = True
     camera_pipeline: bool = True
+    stages: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         k, n = self.shard
         if not (n >= 1 and 0 <= k < n):
             raise ValueError(f"shard: expected K/N with 0 <= K < N, got {k}/{n}")
+        unknown_stages = [s for s in self.stages if s not in PIPELINE_SHARE]
+        if unknown_stages:
+            raise ValueError(
+                f"stages: expected names among {', '.join(PIPELINE_SHARE)}, got "
+                f"{', '.join(unknown_stages)}"
+            )
+        if self.stages and not self.camera_pipeline:
+            raise ValueError("stages: only with the camera pipeline drawn")
         unknown = [e for e in self.effects if e not in HIDDEN]
         if unknown or not self.effects:
             raise ValueError(
@@ -175,7 +188,7 @@ def draw_trials(
     out = []
     for _ in range(settings.trials):
         hidden = draw_hidden(hidden_rng, settings)
-        camera = settings.camera(draw_nuisance(camera_rng, rig, pipeline_rng))
+        camera = settings.camera(draw_nuisance(camera_rng, rig, pipeline_rng, settings.stages))
         if "exposure" in hidden:
             camera = with_exposure(camera, float(hidden["exposure"]["ev"]), rig)
         out.append((hidden, camera))
