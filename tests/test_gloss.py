@@ -366,6 +366,20 @@ def test_crushed_inks_are_bounds_that_tell_a_black_level_from_a_darker_print():
     assert abs(without.alpha - 0.1) > 0.04
 
 
+def test_a_tag_whose_paper_is_crushed_too_is_left_out():
+    """A tag black through and through (its paper's median at 0 DN: a black level over an unlit
+    tag) has no level to compare: it is left out, and the level model stays finite (it raised
+    "residuals are not finite" on a validation capture with such a tag)."""
+    eye_from_tag = _grid()
+    real, sim, _ = _crushed_capture(eye_from_tag, 2e-3, 2)
+    real[:3, STAT_INDEX["paper_dn"]] = 0.0
+    real[:3, STAT_INDEX["paper_linear"]] = 0.0
+    levels = TagLevels.of(real, sim, eye_from_tag)
+    assert len(levels) == len(real) - 3
+    fit = fit_levels(levels)
+    assert np.isfinite([fit.rms_exposure, fit.rms_light, fit.rms_laminate]).all()
+
+
 @pytest.mark.parametrize(("glint", "shown"), [(2e-3, True), (0.0, False)])
 def test_with_too_few_readable_inks_the_level_model_makes_the_laminate_a_candidate(glint, shown):
     """Where too few tags have readable ink and paper for the ratios, the level model decides

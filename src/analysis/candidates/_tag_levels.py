@@ -10,7 +10,8 @@ from simgap.pose.image_stats import STAT_INDEX, linearise
 
 #: 8-bit levels at or beyond which a real tag's paper or ink is clipped (no ratio): an ink whose
 #: median is at or below the first is crushed by the camera's black level (its level is at most
-#: that of the first), a paper or ink at or above the second saturated.
+#: that of the first), a paper or ink at or above the second saturated. A tag whose paper is
+#: crushed too shows no level at all and is left out.
 CLIPPED_DN: tuple[float, float] = (2.0, 253.0)
 
 
@@ -46,12 +47,18 @@ class TagLevels:
 
     @classmethod
     def of(cls, real: np.ndarray, sim: np.ndarray, eye_from_tag: np.ndarray) -> TagLevels:
-        """From real and simulated image statistics (N, S); tags missing a level left out."""
+        """From real and simulated image statistics (N, S).
+
+        Left out: tags missing a level, and tags whose real paper is crushed (its median at or
+        below :data:`CLIPPED_DN` ``[0]``: a black tag, ink and paper alike, whose log levels
+        have nothing to compare).
+        """
         col = {k: STAT_INDEX[k] for k in ("ink_linear", "paper_linear", "paper_dn", "ink_dn")}
         ok = np.isfinite(real[:, [col["ink_linear"], col["paper_linear"]]]).all(1) & np.isfinite(
             sim[:, [col["ink_linear"], col["paper_linear"]]]
         ).all(1)
         ok &= (sim[:, col["paper_linear"]] > 0) & (sim[:, col["ink_linear"]] > 0)
+        ok &= real[:, col["paper_dn"]] > CLIPPED_DN[0]
         crushed = real[ok, col["ink_dn"]] <= CLIPPED_DN[0]
         bound = float(linearise(CLIPPED_DN[0]))
         return cls(
