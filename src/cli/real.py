@@ -293,6 +293,15 @@ def _ingest_photos(
         typer.echo("real - simulated, with the camera fitted on the other half of the photos:")
         for bands in diagnosis.after.values():
             typer.echo(gap_table(bands))
+        if diagnosis.rig is not None:
+            for line in diagnosis.rig.lines(str(ds.attrs["reference"])):
+                typer.echo(line)
+            if diagnosis.after_rig:
+                typer.echo(
+                    "real - simulated, with the camera and the rig fitted on the other half of "
+                    "the photos:"
+                )
+                typer.echo(gap_table(diagnosis.after_rig["distance"]))
 
 
 @app.command()

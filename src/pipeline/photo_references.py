@@ -38,9 +38,11 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+import yaml
 from scipy.spatial.transform import Rotation
 
 from simgap.core import transforms as tf
+from simgap.core.atomic import atomic_write
 from simgap.core.config import ConfigError, parse_yaml, read_text
 from simgap.core.robust import mad_sigma
 from simgap.pipeline.capture.calibration import numbers
@@ -147,6 +149,34 @@ def read_pose_csv(path: Path, what: str) -> dict[str, np.ndarray]:
     if not poses:
         raise ConfigError(f"{path}: no rows (expected one {what} pose per photo)")
     return poses
+
+
+def write_pose_csv(path: Path, poses: Mapping[str, np.ndarray]) -> Path:
+    """Write ``poses`` (photo file name -> 4 x 4 transform, m) as a pose CSV, atomically.
+
+    The columns of :data:`POSE_COLUMNS`, at full precision: :func:`read_pose_csv` gives the
+    transforms back to round-off.
+    """
+    lines = [",".join(POSE_COLUMNS)]
+    for name, m in poses.items():
+        q = Rotation.from_matrix(np.asarray(m, float)[:3, :3]).as_quat()
+        lines.append(",".join([name, *(repr(float(v)) for v in (*m[:3, 3], *q))]))
+    text = "\n".join(lines) + "\n"
+    atomic_write(Path(path), lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    return Path(path)
+
+
+def write_transform_file(path: Path, transform: np.ndarray) -> Path:
+    """Write a 4 x 4 transform (m) as a transform file (``translation`` + ``quaternion``).
+
+    Atomically; :func:`read_transform_file` reads it back.
+    """
+    m = np.asarray(transform, float)
+    q = Rotation.from_matrix(m[:3, :3]).as_quat()
+    data = {"translation": [float(v) for v in m[:3, 3]], "quaternion": [float(v) for v in q]}
+    text = yaml.safe_dump(data)
+    atomic_write(Path(path), lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    return Path(path)
 
 
 def read_transform_file(path: Path, what: str) -> np.ndarray:
@@ -447,4 +477,6 @@ __all__ = [
     "read_pose_csv",
     "read_transform_file",
     "solve_board_in_base",
+    "write_pose_csv",
+    "write_transform_file",
 ]

@@ -6,7 +6,8 @@ The gap field of a real dataset against its simulation, its noise and significan
 evidence of result datasets (``_image_evidence``); each item's pose noise
 (``_pose_noise``); the comparable items a fit and a score read (``_items``) and the evidence
 channels that measure a prediction against them (``_channels``); the gap of a board's real photos
-(``_photo_gap``).
+(``_photo_gap``) and the rig's own geometry fitted on it against an external reference
+(``_rig_fit``).
 
 The modules are private; other packages import the names of ``__all__`` from here.
 """
@@ -67,8 +68,21 @@ from simgap.analysis.gap._paired import (
     item_centre_residuals_px2,
     item_residuals_px2,
 )
-from simgap.analysis.gap._photo_gap import PhotoCameraFit, diagnose_photos, fit_photo_camera
+from simgap.analysis.gap._photo_gap import (
+    PhotoCameraFit,
+    diagnose_photos,
+    fit_photo_camera,
+    rig_corrected,
+)
 from simgap.analysis.gap._pose_noise import SHIFT_DRAWS, noise_shift, propagated_pose_noise
+from simgap.analysis.gap._rig_fit import (
+    RIG_MODELS,
+    RigFit,
+    RigModelFit,
+    fit_rig,
+    parameter_text,
+    rig_error,
+)
 
 __all__ = [
     "AxisGap",
@@ -81,7 +95,10 @@ __all__ = [
     "NOISE_STATS",
     "PhotoCameraFit",
     "Prediction",
+    "RIG_MODELS",
     "RegionGap",
+    "RigFit",
+    "RigModelFit",
     "SCORED_STATS",
     "SHIFT_DRAWS",
     "ScatterTest",
@@ -98,6 +115,7 @@ __all__ = [
     "detection_summary",
     "detection_tests",
     "diagnose_photos",
+    "fit_rig",
     "distance_thirds",
     "evidence_channels",
     "fit_photo_camera",
@@ -115,11 +133,14 @@ __all__ = [
     "median_abs_gap",
     "noise_shift",
     "paired_test",
+    "parameter_text",
     "plot_image_stats",
     "propagated_pose_noise",
     "region_summary",
     "repeat_median_stats",
+    "rig_corrected",
     "root_sum_square",
+    "rig_error",
     "scatter_tests",
     "tag_distance_and_view_angle",
 ]

@@ -15,22 +15,30 @@ the real one, :func:`fit_photo_camera`). Both are the catalogue's image effects
 How far, cross-fitted: the frames are split in two cross-fit folds (even and odd positions); each
 fold is simulated with the camera fitted on the other fold's statistics, so no frame's gap after is
 measured with effects fitted on that frame.
+
+Against an external reference (a robot's chain, a poses file) the rig's own geometry is fitted
+too, on the gap left after the camera (:func:`simgap.analysis.gap.fit_rig`: a camera offset such
+as a hand-eye error, a board offset, a print scale), and its gap after is cross-fitted the same
+way: each fold's predicted rig error, from the model fitted on the other fold, taken off its real
+errors.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
 from scipy.optimize import brentq
 
+from simgap.analysis.gap._rig_fit import RigFit, fit_rig, rig_error
 from simgap.core.board import Board
 from simgap.core.limits import PHOTO_SPP
 from simgap.core.progress import ProgressCallback
 from simgap.core.rig import CameraModel
 from simgap.effects import make_effect
 from simgap.effects.state import ImageState, VariantState
+from simgap.pipeline.photo_references import EXTERNAL_REFERENCES
 from simgap.pipeline.photos import render_photos, simulate_photos
 from simgap.results.photo_summary import COVARIATES, BandGap, gap_by
 from simgap.scene.spec import SceneSpec
@@ -166,6 +174,12 @@ class PhotoDiagnosis:
         Median edge width of the cross-fitted simulation (px), against ``fit``'s real one.
     dataset : xarray.Dataset
         The photo datasets along ``image`` (:data:`IMAGES`), with the fit in its attributes.
+    rig : RigFit or None
+        The rig's geometry fitted on all frames' gap after the camera; None without an external
+        reference.
+    after_rig : dict of str to list of BandGap
+        Real - simulated after the camera and the found rig model, cross-fitted (empty where
+        no rig model was found).
     """
 
     fit: PhotoCameraFit
@@ -173,6 +187,8 @@ class PhotoDiagnosis:
     after: dict[str, list[BandGap]]
     edge_width_after_px: float
     dataset: xr.Dataset
+    rig: RigFit | None = None
+    after_rig: dict[str, list[BandGap]] = field(default_factory=dict)
 
 
 def diagnose_photos(
@@ -211,13 +227,42 @@ def diagnose_photos(
         render_spp=spp,
         render_seed=seed,
     )
+    rig, after_rig = None, {}
+    if real.attrs.get("reference") in EXTERNAL_REFERENCES:
+        rig = fit_rig(real, fitted, board)
+        if rig.found is not None:
+            corrected = rig_corrected(real, fitted, board, fold, rig.found.name)
+            after_rig = {c: gap_by(corrected, fitted, c) for c in COVARIATES}
+            dataset.attrs.update(
+                fitted_rig_model=rig.found.name,
+                **{f"fitted_rig_{k}": v for k, v in rig.found.parameters.items()},
+            )
     return PhotoDiagnosis(
         fit=fit,
         before={c: gap_by(real, nominal, c) for c in COVARIATES},
         after={c: gap_by(real, fitted, c) for c in COVARIATES},
         edge_width_after_px=float(np.nanmedian(fitted["edge_width"].values)),
         dataset=dataset,
+        rig=rig,
+        after_rig=after_rig,
     )
+
+
+def rig_corrected(
+    real: xr.Dataset, simulated: xr.Dataset, board: Board, fold: np.ndarray, model: str
+) -> xr.Dataset:
+    """``real`` with each fold's predicted rig error taken off its position errors.
+
+    The error of ``model`` fitted on the other fold (module doc).
+    """
+    errors = real["error_translation"].transpose("frame", "marker", "camera_axis").values.copy()
+    for held in (fold, ~fold):
+        other = fit_rig(real.isel(frame=~held), simulated.isel(frame=~held), board)
+        fitted = next(m for m in other.models if m.name == model)
+        errors[held] -= rig_error(real.isel(frame=held), board, fitted)
+    corrected = real.copy()
+    corrected["error_translation"] = (("frame", "marker", "camera_axis"), errors)
+    return corrected
 
 
 __all__ = [
@@ -231,4 +276,5 @@ __all__ = [
     "camera_pipeline",
     "diagnose_photos",
     "fit_photo_camera",
+    "rig_corrected",
 ]
