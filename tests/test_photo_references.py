@@ -451,3 +451,25 @@ def test_no_rig_offset_is_fitted_where_the_chain_is_right(board, photo_set, by_t
     assert fit.found is None and fit.sightings == 102 and fit.frames == 6
     lines = fit.lines("robot poses and hand-eye")
     assert lines[-1].startswith("no rig offset: no model is both 3 sd from zero")
+
+
+def test_a_print_1_percent_large_is_fitted_as_a_print_scale(board, photo_set, by_truth, tmp_path):
+    """Photos of the board printed 1 % large, measured with its nominal size against the true
+    poses, less the nominal print's errors: a print scale of +0.86 +- 0.04 % (measured; within
+    the issue's 25 % of +1 %). A board offset explains the gap alike (2.07 against 2.09: the
+    scale's mean shift of the markers is an offset) and is named as a look-alike; the print
+    scale, one parameter against six, is the answer."""
+    from simgap.analysis.gap import fit_rig
+
+    folder, truth = photo_set
+    large = dataclasses.replace(
+        board, square_m=board.square_m * 1.01, marker_m=board.marker_m * 1.01
+    )
+    for (name, pose), (r, _) in zip(truth.items(), VIEWS, strict=True):
+        image = synthetic_view(large, CAMERA, np.array(r), pose[:3, 3])
+        cv2.imwrite(str(tmp_path / name), image)
+    ds = measure_photos(tmp_path, board, CAMERA, reference=PosesReference(tmp_path, truth))
+    fit = fit_rig(ds, by_truth, board)
+    assert fit.found is not None and fit.found.name == "print_scale"
+    assert fit.found.parameters["scale"] == pytest.approx(0.01, rel=0.25)
+    assert fit.look_alikes == ("board_offset",)

@@ -32,10 +32,10 @@ Each model's parameters get leave-one-photo-out jackknife standard deviations (E
 Tibshirani 1993, ch. 11). A model is found where, as a calibration file's correction
 (:mod:`simgap.pose.calibration_check`), it is clear (a parameter at least
 :data:`~simgap.pose.calibration_check.DISAGREE_SIGMAS` sd from zero) and useful (the misfit
-falls by at least :data:`~simgap.pose.calibration_check.MIN_RMS_FALL`); the found model that
-leaves the least misfit is the answer, and any other found model whose misfit is within that
-share of it is named as a look-alike the photos do not tell apart (photos from more board
-orientations would).
+falls by at least :data:`~simgap.pose.calibration_check.MIN_RMS_FALL`). The found models whose
+misfit is within that share of the least one explain the gap alike: the one with the fewest
+parameters is the answer (a print scale before a six-parameter offset), and the others are named
+as look-alikes the photos do not tell apart (photos from more board orientations would).
 """
 
 from __future__ import annotations
@@ -168,9 +168,10 @@ class RigFit:
     models : tuple of RigModelFit
         Every model of :data:`RIG_MODELS`, in its order.
     found : RigModelFit or None
-        The found model with the least RMS after (None: the gap holds no rig offset).
+        Of the found models within ``MIN_RMS_FALL`` of the least misfit, the one with the
+        fewest parameters (None: the gap holds no rig offset).
     look_alikes : tuple of str
-        Other found models whose misfit after is within ``MIN_RMS_FALL`` of ``found``'s.
+        The other found models within ``MIN_RMS_FALL`` of the least misfit.
     sightings, frames : int
         Sightings (markers seen in both real and simulated photos) and photos fitted on.
     spread_m : tuple of float
@@ -306,12 +307,10 @@ def fit_rig(real: xr.Dataset, simulated: xr.Dataset, board: Board) -> RigFit:
     spread = np.maximum(spread, SPREAD_FLOOR_M)
     models = tuple(_fit_model(m, geometry, gap, spread) for m in RIG_MODELS)
     found = sorted((m for m in models if m.found), key=lambda m: m.misfit_after)
-    best = found[0] if found else None
-    look_alikes = tuple(
-        m.name
-        for m in found[1:]
-        if best is not None and m.misfit_after * (1.0 - MIN_RMS_FALL) <= best.misfit_after
-    )
+    alike = [m for m in found if m.misfit_after * (1.0 - MIN_RMS_FALL) <= found[0].misfit_after]
+    # of models that explain the gap alike, the one with the fewest parameters (parsimony)
+    best = min(alike, key=lambda m: len(m.parameters)) if alike else None
+    look_alikes = tuple(m.name for m in alike if m is not best)
     frames = len(np.unique(geometry.frame))
     x, y, z = (float(v) for v in spread)
     return RigFit(models, best, look_alikes, len(gap), frames, (x, y, z))
