@@ -43,6 +43,8 @@ from simgap.cli.outputs import (
 from simgap.core.limits import MAX_PIXELS, PHOTO_SPP
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     import numpy as np
 
     from simgap.core.rig import CameraModel
@@ -374,8 +376,16 @@ def calibrate(
         held = None
         against = "the photos"
         if reference is not None:
-            held = _reference_poses(reference, names, points, given)
-            against = f"the photos, each board held at its pose from {held.attrs['reference']}"
+            chain = reference
+
+            def held(camera: CameraModel, photos: Sequence[int]) -> list[np.ndarray]:
+                # through the camera checked: a robot's board-in-base solved from the photos
+                # depends on it
+                chosen = ([names[i] for i in photos], [points[i] for i in photos])
+                return _reference_poses(chain, *chosen, camera).camera_from_board
+
+            kind = _reference_poses(reference, names, points, given).attrs["reference"]
+            against = f"the photos, each board held at its pose from {kind}"
         typer.echo(
             f"{calibration} against {against}, each parameter corrected alone (the correction "
             "+- its jackknife sd; the board points' RMS reprojection before -> after):"
@@ -383,8 +393,7 @@ def calibrate(
         from simgap.cli.progress import StepBars
 
         with StepBars(progress) as bars:
-            poses_held = None if held is None else held.camera_from_board
-            checks = check_calibration(points, given, bars, reference=poses_held)
+            checks = check_calibration(points, given, bars, reference=held)
         for c in checks:
             flag = "  DOES NOT DESCRIBE THE PHOTOS" if c.disagrees else ""
             typer.echo(

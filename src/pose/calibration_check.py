@@ -26,7 +26,10 @@ photos (a tracker's poses, a robot's chain: :mod:`simgap.pipeline.photo_referenc
 are held there instead of re-solved: the board's distance is then no longer free to absorb the
 focal length, and a focal error shows as the points' scale about the principal point. The
 reference's own error (a tracker's, a robot's, a hand-eye's) enters the RMS and the jackknife
-as the photos' scatter does.
+as the photos' scatter does. A reference that depends on the camera (a robot whose board-in-base
+is solved from the photos' own board poses) is given as a :data:`ReferencePoses` and re-solved
+through each correction tried: solved once through the file, it would absorb the file's focal
+error.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Final, TypeVar
+from typing import Final
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -52,8 +55,6 @@ DISAGREE_SIGMAS: Final[float] = 3.0
 MIN_RMS_FALL: Final[float] = 0.10
 #: Fewest photos for a jackknife (with fewer, no correction is called clear).
 MIN_PHOTOS: Final[int] = 4
-
-T = TypeVar("T")
 
 
 def _focal(camera: CameraModel, x: float) -> CameraModel:
@@ -120,30 +121,41 @@ class ParameterCheck:
 
 #: Each photo's board points (n, 3) m and image points (n, 2) px.
 Points = list[tuple[np.ndarray, np.ndarray]]
+#: The reference poses (``camera_from_board``, 4 x 4, m) of the photos at the given indices of
+#: the points, given the camera they are seen through: a robot chain whose board-in-base is
+#: solved from the photos' own board poses depends on the camera being checked.
+ReferencePoses = Callable[[CameraModel, Sequence[int]], Sequence[np.ndarray]]
 
 
-def _rms(points: Points, camera: CameraModel, reference: Sequence[np.ndarray] | None) -> float:
-    """RMS reprojection (px) of all photos' points.
+def _rms(
+    points: Points, camera: CameraModel, reference: ReferencePoses | None, photos: Sequence[int]
+) -> float:
+    """RMS reprojection (px) of the points of ``photos`` (indices into ``points``).
 
-    Each photo's board pose solved anew, or held at its ``reference`` pose (``camera_from_board``,
-    4 x 4, m) where one is given.
+    Each photo's board pose solved anew, or held at its ``reference`` pose where one is given.
     """
+    poses = None if reference is None else reference(camera, photos)
     total, count = 0.0, 0
-    for i, (obj, img) in enumerate(points):
-        if reference is None:
+    for k, i in enumerate(photos):
+        obj, img = points[i]
+        if poses is None:
             _, _, rms = solve_board_pose(obj, img, camera)
         else:
-            rms = reprojection_rms(obj, img, camera, reference[i])
+            rms = reprojection_rms(obj, img, camera, poses[k])
         total, count = total + rms**2 * len(obj), count + len(obj)
     return float(np.sqrt(total / count))
 
 
 def _correct(
-    points: Points, camera: CameraModel, check: Check, reference: Sequence[np.ndarray] | None
+    points: Points,
+    camera: CameraModel,
+    check: Check,
+    reference: ReferencePoses | None,
+    photos: Sequence[int],
 ) -> tuple[float, float]:
     """The correction of one parameter minimising :func:`_rms`, and that RMS (px)."""
     res = minimize_scalar(
-        lambda x: _rms(points, check.apply(camera, x), reference),
+        lambda x: _rms(points, check.apply(camera, x), reference, photos),
         bounds=(-check.bound, check.bound),
         method="bounded",
         options={"xatol": check.bound * 1e-5},
@@ -151,15 +163,11 @@ def _correct(
     return float(res.x), float(res.fun)
 
 
-def _without(items: Sequence[T] | None, i: int) -> list[T] | None:
-    return None if items is None else [*items[:i], *items[i + 1 :]]
-
-
 def check_calibration(
     points: Points,
     camera: CameraModel,
     progress: ProgressCallback | None = None,
-    reference: Sequence[np.ndarray] | None = None,
+    reference: Sequence[np.ndarray] | ReferencePoses | None = None,
 ) -> list[ParameterCheck]:
     """Each parameter of :data:`CHECKS` of ``camera`` corrected alone on the photos' ``points``.
 
@@ -171,20 +179,29 @@ def check_calibration(
         The file held against them.
     progress : callable, optional
         Told of each parameter checked (step ``"checking the file"``).
-    reference : sequence of numpy.ndarray, optional
+    reference : sequence of numpy.ndarray or ReferencePoses, optional
         Each photo's board pose from an external reference (``camera_from_board``, 4 x 4, m;
-        the order of ``points``): the poses are held there (module doc). None: each photo's pose
-        is solved from its own points.
+        the order of ``points``), or a :data:`ReferencePoses` that gives them for a camera: the
+        poses are held there (module doc). None: each photo's pose is solved from its own
+        points.
 
     Raises
     ------
     ValueError
-        Where ``reference`` does not give one pose per photo.
+        Where a sequence ``reference`` does not give one pose per photo.
     """
-    if reference is not None and len(reference) != len(points):
-        raise ValueError(f"{len(reference)} reference poses for {len(points)} photos")
-    before = _rms(points, camera, reference)
+    if reference is not None and not callable(reference):
+        if len(reference) != len(points):
+            raise ValueError(f"{len(reference)} reference poses for {len(points)} photos")
+        fixed = list(reference)
+
+        def held(_: CameraModel, photos: Sequence[int]) -> Sequence[np.ndarray]:
+            return [fixed[i] for i in photos]
+
+        reference = held
     n = len(points)
+    every = list(range(n))
+    before = _rms(points, camera, reference, every)
     out = []
     steps = Steps(progress)
     steps.start("checking the file", len(CHECKS))
@@ -192,11 +209,11 @@ def check_calibration(
         if check.name.startswith("k") and len(camera.distortion) < int(check.name[1:]):
             steps.advance()
             continue
-        correction, after = _correct(points, camera, check, reference)
+        correction, after = _correct(points, camera, check, reference, every)
         std = float("nan")
         if n >= MIN_PHOTOS:
             loo = [
-                _correct(points[:i] + points[i + 1 :], camera, check, _without(reference, i))[0]
+                _correct(points, camera, check, reference, every[:i] + every[i + 1 :])[0]
                 for i in range(n)
             ]
             std = float(jackknife_std(np.array(loo)))
@@ -225,5 +242,6 @@ __all__ = [
     "Check",
     "ParameterCheck",
     "Points",
+    "ReferencePoses",
     "check_calibration",
 ]
