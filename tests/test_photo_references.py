@@ -235,8 +235,9 @@ def test_bad_pose_and_transform_files_are_named_errors(tmp_path, name, text, mes
 
 
 def test_ingest_with_a_poses_file(board, photo_set, tmp_path):
-    """``ingest --board --poses``: the dataset (CF) and the printout name the reference; a photo
-    without a row and options that do not go together exit with code 2, no traceback."""
+    """``ingest --board --poses``: the dataset (CF) and the printout name the reference, and the
+    calibration file is held against it (the true file describes the photos); a photo without a
+    row and options that do not go together exit with code 2, no traceback."""
     folder, truth = photo_set
     cal = tmp_path / "camera.yaml"
     cal.write_text(calibration_to_yaml(CAMERA))
@@ -246,6 +247,7 @@ def test_ingest_with_a_poses_file(board, photo_set, tmp_path):
     res = CliRunner().invoke(app, [*base, "--poses", str(poses), "-o", str(out)])
     assert res.exit_code == 0, res.output
     assert "marker sightings against the poses file" in res.output
+    assert f"{cal}: describes the photos" in res.output
     with xr.open_dataset(out) as ds:
         assert ds.attrs["reference_poses"] == str(poses)
         assert ds.board_points_translation.attrs["units"] == "m"

@@ -282,6 +282,11 @@ def _ingest_photos(
         f"unreadable; {seen} marker sightings against {against}"
     )
     typer.echo(errors_table(errors_by_distance(ds)))
+    if reference is not None:  # the file against the reference: what the calibration explains
+        from simgap.pipeline.photos import named_photo_points
+
+        names, points, _ = named_photo_points(photos, board, opts.max_pixels)
+        _check_file(opts.calibration, camera, names, points, reference, progress)
     if diagnosis is not None:
         fit = diagnosis.fit
         typer.echo(
@@ -345,8 +350,6 @@ def calibrate(
     from simgap.pipeline.capture.calibration import calibration_to_yaml, read_calibration
     from simgap.pipeline.photos import named_photo_points
     from simgap.pose.board_calibration import CALIBRATION_FLAGS, calibrate_from_photos
-    from simgap.pose.calibration_check import DISAGREE_SIGMAS, MIN_RMS_FALL, check_calibration
-
     references = _ReferenceFiles(poses, robot_poses, hand_eye, board_in_base)
     inputs = [("PHOTOS", photos), ("--board", board), ("--calibration", calibration)]
     check_outputs([(OUTPUT, output, CALIBRATION_OUTPUT)], inputs + references.given, overwrite)
@@ -373,48 +376,7 @@ def calibrate(
         if camera is not None:
             _warn_fold(name, camera, points)
     if given is not None:
-        held = None
-        against = "the photos"
-        if reference is not None:
-            chain = reference
-
-            def held(camera: CameraModel, photos: Sequence[int]) -> list[np.ndarray]:
-                # through the camera checked: a robot's board-in-base solved from the photos
-                # depends on it
-                chosen = ([names[i] for i in photos], [points[i] for i in photos])
-                return _reference_poses(chain, *chosen, camera).camera_from_board
-
-            kind = _reference_poses(reference, names, points, given).attrs["reference"]
-            against = f"the photos, each board held at its pose from {kind}"
-        typer.echo(
-            f"{calibration} against {against}, each parameter corrected alone (the correction "
-            "+- its jackknife sd; the board points' RMS reprojection before -> after):"
-        )
-        from simgap.cli.progress import StepBars
-
-        with StepBars(progress) as bars:
-            checks = check_calibration(points, given, bars, reference=held)
-        for c in checks:
-            flag = "  DOES NOT DESCRIBE THE PHOTOS" if c.disagrees else ""
-            typer.echo(
-                f"  {c.name:<13} {c.correction:+.4g} +- {c.std:.2g} {c.unit}".ljust(40)
-                + f"RMS {c.rms_before_px:.3f} -> {c.rms_after_px:.3f} px{flag}"
-            )
-        bad = sorted((c for c in checks if c.disagrees), key=lambda c: c.rms_after_px)
-        if bad:
-            worst, others = bad[0], ", ".join(c.name for c in bad[1:])
-            typer.echo(
-                f"{calibration}: the file does not describe this camera: its {worst.name} "
-                f"corrected by {worst.correction:+.4g} {worst.unit} lowers the RMS "
-                f"{worst.rms_before_px:.3f} -> {worst.rms_after_px:.3f} px"
-                + (f" ({others} alone explain less)" if others else "")
-            )
-        else:
-            typer.echo(
-                f"{calibration}: describes the photos: no correction is both "
-                f"{DISAGREE_SIGMAS:g} sd from zero and lowering the RMS by "
-                f"{100 * MIN_RMS_FALL:g} %"
-            )
+        _check_file(calibration, given, names, points, reference, progress)
     if output is not None:
         header = (
             f"{CALIBRATION_HEADER} {fit.photos} photos of {board.name}, RMS {fit.rms_px:.3f} px\n"
@@ -422,6 +384,63 @@ def calibrate(
         text = header + calibration_to_yaml(cam)
         atomic_write(output, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         typer.echo(f"wrote {output}")
+
+
+def _check_file(
+    path: Path | None,
+    camera: CameraModel,
+    names: list[str],
+    points: list[tuple[np.ndarray, np.ndarray]],
+    reference: PhotoReference | None,
+    progress: bool,
+) -> None:
+    """Print the calibration file ``path`` held against the photos, parameter by parameter.
+
+    :func:`simgap.pose.calibration_check.check_calibration`, each photo's board posed from its
+    own points or held at its pose from ``reference`` (re-solved through each correction tried:
+    a robot's board-in-base solved from the photos depends on the camera).
+    """
+    from simgap.cli.progress import StepBars
+    from simgap.pose.calibration_check import DISAGREE_SIGMAS, MIN_RMS_FALL, check_calibration
+
+    held = None
+    against = "the photos"
+    if reference is not None:
+        chain = reference
+
+        def held(checked: CameraModel, photos: Sequence[int]) -> list[np.ndarray]:
+            chosen = ([names[i] for i in photos], [points[i] for i in photos])
+            return _reference_poses(chain, *chosen, checked).camera_from_board
+
+        kind = _reference_poses(reference, names, points, camera).attrs["reference"]
+        against = f"the photos, each board held at its pose from {kind}"
+    typer.echo(
+        f"{path} against {against}, each parameter corrected alone (the correction "
+        "+- its jackknife sd; the board points' RMS reprojection before -> after):"
+    )
+    with StepBars(progress) as bars:
+        checks = check_calibration(points, camera, bars, reference=held)
+    for c in checks:
+        flag = "  DOES NOT DESCRIBE THE PHOTOS" if c.disagrees else ""
+        typer.echo(
+            f"  {c.name:<13} {c.correction:+.4g} +- {c.std:.2g} {c.unit}".ljust(40)
+            + f"RMS {c.rms_before_px:.3f} -> {c.rms_after_px:.3f} px{flag}"
+        )
+    bad = sorted((c for c in checks if c.disagrees), key=lambda c: c.rms_after_px)
+    if bad:
+        worst, others = bad[0], ", ".join(c.name for c in bad[1:])
+        typer.echo(
+            f"{path}: the file does not describe this camera: its {worst.name} "
+            f"corrected by {worst.correction:+.4g} {worst.unit} lowers the RMS "
+            f"{worst.rms_before_px:.3f} -> {worst.rms_after_px:.3f} px"
+            + (f" ({others} alone explain less)" if others else "")
+        )
+    else:
+        typer.echo(
+            f"{path}: describes the photos: no correction is both "
+            f"{DISAGREE_SIGMAS:g} sd from zero and lowering the RMS by "
+            f"{100 * MIN_RMS_FALL:g} %"
+        )
 
 
 def _reference_poses(
