@@ -456,6 +456,11 @@ def test_no_rig_offset_is_fitted_where_the_chain_is_right(board, photo_set, by_t
     )
     fit = fit_rig(ds, by_truth, board)
     assert fit.found is None and fit.sightings == 102 and fit.frames == 6
+    few = fit_rig(ds.isel(frame=slice(0, 3)), by_truth.isel(frame=slice(0, 3)), board)
+    assert len(few.models) == 3 and few.found is None and few.frames == 3  # no jackknife
+    assert all(np.isnan(list(m.std.values())).all() for m in few.models)
+    none = fit_rig(ds.isel(frame=slice(0, 0)), by_truth.isel(frame=slice(0, 0)), board)
+    assert none.models == () and none.found is None and none.sightings == 0
     lines = fit.lines("robot poses and hand-eye")
     assert lines[-1].startswith("no rig offset: no model is both 3 sd from zero")
 

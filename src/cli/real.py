@@ -350,6 +350,7 @@ def calibrate(
     from simgap.pipeline.capture.calibration import calibration_to_yaml, read_calibration
     from simgap.pipeline.photos import named_photo_points
     from simgap.pose.board_calibration import CALIBRATION_FLAGS, calibrate_from_photos
+
     references = _ReferenceFiles(poses, robot_poses, hand_eye, board_in_base)
     inputs = [("PHOTOS", photos), ("--board", board), ("--calibration", calibration)]
     check_outputs([(OUTPUT, output, CALIBRATION_OUTPUT)], inputs + references.given, overwrite)

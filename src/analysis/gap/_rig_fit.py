@@ -166,7 +166,7 @@ class RigFit:
     Attributes
     ----------
     models : tuple of RigModelFit
-        Every model of :data:`RIG_MODELS`, in its order.
+        Every model of :data:`RIG_MODELS`, in its order (none without a sighting).
     found : RigModelFit or None
         Of the found models within ``MIN_RMS_FALL`` of the least misfit, the one with the
         fewest parameters (None: the gap holds no rig offset).
@@ -300,9 +300,15 @@ def fit_rig(real: xr.Dataset, simulated: xr.Dataset, board: Board) -> RigFit:
     """Fit :data:`RIG_MODELS` on the gap of ``real`` against ``simulated`` (module doc).
 
     Both are photo datasets of the same frames and markers measured against the same external
-    reference (:func:`simgap.pipeline.photos.simulate_photos`).
+    reference (:func:`simgap.pipeline.photos.simulate_photos`). Without a sighting seen in both
+    no model is fitted (``models`` empty); in fewer than
+    :data:`~simgap.pose.calibration_check.MIN_PHOTOS` photos the models are fitted without a
+    jackknife, so none is found.
     """
     geometry, gap = _seen(real, simulated, board)
+    frames = len(np.unique(geometry.frame))
+    if not len(gap):
+        return RigFit((), None, (), 0, 0, (np.nan, np.nan, np.nan))
     spread = np.array([mad_sigma(gap[:, k] - np.median(gap[:, k])) for k in range(3)])
     spread = np.maximum(spread, SPREAD_FLOOR_M)
     models = tuple(_fit_model(m, geometry, gap, spread) for m in RIG_MODELS)
@@ -311,7 +317,6 @@ def fit_rig(real: xr.Dataset, simulated: xr.Dataset, board: Board) -> RigFit:
     # of models that explain the gap alike, the one with the fewest parameters (parsimony)
     best = min(alike, key=lambda m: len(m.parameters)) if alike else None
     look_alikes = tuple(m.name for m in alike if m is not best)
-    frames = len(np.unique(geometry.frame))
     x, y, z = (float(v) for v in spread)
     return RigFit(models, best, look_alikes, len(gap), frames, (x, y, z))
 
