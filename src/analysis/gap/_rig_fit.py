@@ -11,12 +11,12 @@ frame) and fitted by linear least squares with each of :data:`RIG_MODELS`:
     The camera is not where the reference puts it: its true pose in the reference's camera
     frame is ``D = (I + [w]x, d)`` (a hand-eye error; a tracker's camera calibration), so a
     marker the reference puts at ``p`` (camera frame) is seen at ``D^-1 p`` and
-    ``g = -d + [p]x w``.
+    ``g = -d + [p]x w``. The hand-eye that removes it is the given one times ``D``.
 ``board_offset``
     The board is not where the reference puts it: its true pose is ``T_ref E``, ``E = (I +
     [w_b]x, d_b)`` in the board frame (a board-in-base error; a tracker's board calibration), so
     ``g = R (d_b - [q]x w_b)``, ``q`` the marker centre on the board and ``R`` the board's
-    rotation.
+    rotation. The board-in-base that removes it is the given one times ``E``.
 ``print_scale``
     The print is ``1 + s`` times its nominal size (about the board's origin): a single marker's
     pose from its corners at the nominal size is the true one scaled towards the camera centre,
