@@ -286,7 +286,10 @@ def _ingest_photos(
         from simgap.pipeline.photos import named_photo_points
 
         names, points, _ = named_photo_points(photos, board, opts.max_pixels)
-        _check_file(opts.calibration, camera, names, points, reference, progress)
+        if points:
+            _check_file(opts.calibration, camera, names, points, reference, progress)
+        else:
+            typer.echo(f"{opts.calibration}: not checked: no photo shows enough of the board")
     if diagnosis is not None:
         fit = diagnosis.fit
         typer.echo(
