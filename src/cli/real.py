@@ -49,6 +49,7 @@ if TYPE_CHECKING:
 
     from simgap.core.rig import CameraModel
     from simgap.pipeline.photo_references import PhotoReference, ResolvedReference
+    from simgap.pose.calibration_check import ReferencePoses
 
 
 @app.command()
@@ -407,17 +408,20 @@ def _check_file(
     from simgap.cli.progress import StepBars
     from simgap.pose.calibration_check import DISAGREE_SIGMAS, MIN_RMS_FALL, check_calibration
 
-    held = None
+    held: list[np.ndarray] | ReferencePoses | None = None
     against = "the photos"
     if reference is not None:
-        chain = reference
+        resolved = _reference_poses(reference, names, points, camera)
+        held = resolved.camera_from_board
+        against = f"the photos, each board held at its pose from {resolved.attrs['reference']}"
+        if reference.uses_board_poses:  # re-solved through each camera the check tries
+            chain = reference
 
-        def held(checked: CameraModel, photos: Sequence[int]) -> list[np.ndarray]:
-            chosen = ([names[i] for i in photos], [points[i] for i in photos])
-            return _reference_poses(chain, *chosen, checked).camera_from_board
+            def through(checked: CameraModel, photos: Sequence[int]) -> list[np.ndarray]:
+                chosen = ([names[i] for i in photos], [points[i] for i in photos])
+                return _reference_poses(chain, *chosen, checked).camera_from_board
 
-        kind = _reference_poses(reference, names, points, camera).attrs["reference"]
-        against = f"the photos, each board held at its pose from {kind}"
+            held = through
     typer.echo(
         f"{path} against {against}, each parameter corrected alone (the correction "
         "+- its jackknife sd; the board points' RMS reprojection before -> after):"
@@ -456,15 +460,17 @@ def _reference_poses(
     """The reference poses of the photos ``names`` that show the board (``points``' order).
 
     A robot reference without ``--board-in-base`` solves the board's place from each photo's
-    own board pose through ``camera`` (:meth:`RobotReference.resolve`).
+    own board pose through ``camera`` (:meth:`RobotReference.resolve`); no other reads them, and
+    they are not solved for it.
     """
     from simgap.core import transforms as tf
     from simgap.pose.board_pose import solve_board_pose
 
-    own = []
-    for obj, img in points:
-        rvec, tvec, _ = solve_board_pose(obj, img, camera)
-        own.append(tf.make(tf.rotvec_to_matrix(rvec), tvec))
+    own: list[np.ndarray | None] = [None] * len(points)
+    if reference.uses_board_poses:
+        for k, (obj, img) in enumerate(points):
+            rvec, tvec, _ = solve_board_pose(obj, img, camera)
+            own[k] = tf.make(tf.rotvec_to_matrix(rvec), tvec)
     return reference.resolve(names, own)
 
 

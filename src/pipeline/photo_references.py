@@ -301,6 +301,13 @@ class PhotoReference(Protocol):
     :class:`PosesReference` or :class:`RobotReference`.
     """
 
+    @property
+    def uses_board_poses(self) -> bool:
+        """Whether :meth:`resolve` reads the photos' own board poses.
+
+        Its poses then depend on the camera those were solved through.
+        """
+
     def check(self, names: Sequence[str]) -> None:
         """Raise ConfigError naming the file where a photo of ``names`` has no pose."""
 
@@ -348,6 +355,11 @@ class PosesReference:
     def read(cls, path: Path) -> PosesReference:
         """Read the pose CSV at ``path`` (ConfigError as :func:`read_pose_csv`)."""
         return cls(Path(path), read_pose_csv(path, "camera_from_board"))
+
+    @property
+    def uses_board_poses(self) -> bool:
+        """False: the poses are the file's."""
+        return False
 
     def check(self, names: Sequence[str]) -> None:
         """Raise ConfigError naming the file where a photo of ``names`` has no row."""
@@ -407,6 +419,11 @@ class RobotReference:
             if board_in_base is None
             else read_transform_file(board_in_base, "base_from_board"),
         )
+
+    @property
+    def uses_board_poses(self) -> bool:
+        """True where ``base_from_board`` is solved from the photos' own board poses."""
+        return self.base_from_board is None
 
     def check(self, names: Sequence[str]) -> None:
         """Raise ConfigError naming the robot pose CSV where a photo of ``names`` has no row."""
