@@ -32,16 +32,13 @@ from simgap.analysis.gap import diagnose_photos, parameter_text
 from simgap.core import transforms as tf
 from simgap.core.board import read_board
 from simgap.core.rig import CameraModel
-from simgap.effects.image import ImageContext, run_pipeline
-from simgap.effects.state import ImageState
 from simgap.pipeline.photo_references import (
     RobotReference,
     write_pose_csv,
     write_transform_file,
 )
-from simgap.pipeline.photos import measure_photos
+from simgap.pipeline.photos import measure_photos, photo_of
 from simgap.render.board_scene import BoardScene
-from simgap.render.imaging import to_gray
 from simgap.scene.spec import default_scene_spec
 
 BOARD = Path(__file__).resolve().parents[1] / "assets" / "real" / "opencv_charuco" / "board.yaml"
@@ -94,9 +91,8 @@ def main() -> None:
         centre = np.mean(board.chessboard_corners, axis=0)
         for f, pose in enumerate(views(centre)):
             name = f"photo_{f:02d}.png"
-            hdr = scene.render(pose, 100 + f)
-            ctx = ImageContext((0, 0), CAMERA, np.random.default_rng(50 + f))
-            cv2.imwrite(str(folder / name), to_gray(run_pipeline(hdr, ImageState(), ctx)))
+            photo = photo_of(scene.render(pose, 100 + f), CAMERA, seed=50 + f)
+            cv2.imwrite(str(folder / name), photo)
             truth[name] = pose
         robot = write_pose_csv(
             Path(tmp) / "robot.csv",

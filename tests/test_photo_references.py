@@ -414,10 +414,7 @@ def test_a_hand_eye_error_is_found_in_rendered_photos(board, photo_set, by_truth
     +5.0 mm near / mid / far, after -0.58 / -0.04 / +0.09 mm.
     """
     from simgap.analysis.gap import diagnose_photos
-    from simgap.effects.image import ImageContext, run_pipeline
-    from simgap.effects.state import ImageState
-    from simgap.pipeline.photos import render_photos
-    from simgap.render.imaging import to_gray
+    from simgap.pipeline.photos import photo_of, render_photos
 
     folder, truth = photo_set
     rendered = tmp_path / "photos"
@@ -425,8 +422,7 @@ def test_a_hand_eye_error_is_found_in_rendered_photos(board, photo_set, by_truth
     for f, (name, hdr) in enumerate(
         zip(truth, render_photos(by_truth, board, CAMERA, spp=16, seed=100), strict=True)
     ):
-        ctx = ImageContext((0, 0), CAMERA, np.random.default_rng(50 + f))
-        cv2.imwrite(str(rendered / name), to_gray(run_pipeline(hdr, ImageState(), ctx)))
+        cv2.imwrite(str(rendered / name), photo_of(hdr, CAMERA, seed=50 + f))
     error = tf.make(tf.rotvec_to_matrix([0, 0.005, 0]), [0.002, 0, 0])
     robot = write_pose_csv(tmp_path / "robot.csv", _robot_poses(truth, FLANGE_FROM_CAMERA))
     hand_eye = _write_transform(tmp_path / "hand_eye.yaml", FLANGE_FROM_CAMERA @ error)

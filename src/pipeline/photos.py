@@ -272,6 +272,18 @@ def reference_poses(real: xr.Dataset) -> list[np.ndarray | None]:
     ]
 
 
+def photo_of(
+    hdr: np.ndarray, camera: CameraModel, image: ImageState | None = None, seed: int = 0
+) -> np.ndarray:
+    """A render (linear RGB) as the 8-bit grey photo a camera writes.
+
+    The camera pipeline ``image`` (:func:`simgap.effects.image.run_pipeline`: the catalogue's
+    image effects, then the encoding; default: sRGB alone), its noise drawn from ``seed``.
+    """
+    ctx = ImageContext((0, 0), camera, np.random.default_rng(seed))
+    return to_gray(run_pipeline(hdr, image or ImageState(), ctx))
+
+
 def simulate_photos(
     real: xr.Dataset,
     renders: list[np.ndarray | None],
@@ -292,14 +304,9 @@ def simulate_photos(
     (:class:`~simgap.pipeline.photo_references.PosesReference`). A frame without a render is
     listed in ``frames_unreadable``. The layout of :func:`measure_photos`.
     """
-    state = image or ImageState()
-
     def load(f: int) -> np.ndarray | str:
         hdr = renders[f]
-        if hdr is None:
-            return "no reference pose in the photo"
-        ctx = ImageContext((0, 0), camera, np.random.default_rng(f))
-        return to_gray(run_pipeline(hdr, state, ctx))
+        return "no reference pose in the photo" if hdr is None else photo_of(hdr, camera, image, f)
 
     names = [str(n) for n in real["frame"].values]
     reference = None
@@ -548,6 +555,7 @@ __all__ = [
     "named_photo_points",
     "photo_points",
     "photo_files",
+    "photo_of",
     "reference_poses",
     "render_photos",
     "simulate_photos",
