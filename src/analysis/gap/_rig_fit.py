@@ -41,7 +41,7 @@ as look-alikes the photos do not tell apart (photos from more board orientations
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Final
 
 import numpy as np
@@ -292,7 +292,7 @@ def _seen(real: xr.Dataset, simulated: xr.Dataset, board: Board) -> tuple[_Geome
     geometry = _geometry(real, board)
     gap = _gap(real, simulated)
     ok = np.isfinite(gap).all(axis=1) & np.isfinite(geometry.p).all(axis=1)
-    kept = _Geometry(*(getattr(geometry, f)[ok] for f in ("p", "q", "rotation", "origin", "frame")))
+    kept = _Geometry(**{f.name: getattr(geometry, f.name)[ok] for f in fields(geometry)})
     return kept, gap[ok]
 
 
