@@ -48,6 +48,8 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     tests below and ``tests/test_validation_report.py``). Run it with
     ``pytest -m slow tests/test_validate.py``.
     """
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_truth import light_spread_truth
     from simgap.diagnosis.trial import camera_named
     from simgap.diagnosis.trial_score import TrialRecord
     from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
@@ -92,9 +94,10 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     for t in (TrialRecord.from_json(t) for t in data["trials"]):
         s = t.score
         geometric = set(s.selected) & geometric_effects()
-        # the camera's own exposure, noise and softness (and crushed shadows' black level) may
-        # be named; nothing else not hidden
-        extra = set(s.selected) - set(s.hidden) - set(camera_named(s.crushed_black_share))
+        # the camera's own exposure, noise and softness (crushed shadows' black level, uneven
+        # light's direction) may be named; nothing else not hidden
+        own = camera_named(s.crushed_black_share, light_spread_truth(t.camera, load_rig()))
+        extra = set(s.selected) - set(s.hidden) - set(own)
         if set(s.hidden) & set(OUTSIDE):  # outside the catalogue: must read "unexplained"
             expected = s.unexplained and not geometric
         elif s.hidden:
@@ -144,9 +147,10 @@ def _selecting(*effects: str, **params: dict[str, float]) -> DiagnosisResult:
 
 def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong():
     """Every hidden sampler makes a valid effect; the camera's own exposure may be named, a
-    geometric effect that was not hidden may not; magnitudes read the camera's totals."""
+    geometric effect that was not hidden may not; magnitudes read the camera's totals; a sun is
+    scored on what upright tags read of it, and is the camera's own where its lights are uneven."""
     from simgap.core.rig import load_rig
-    from simgap.diagnosis.camera_truth import exposure_truth, with_exposure
+    from simgap.diagnosis.camera_truth import exposure_truth, light_spread_truth, with_exposure
     from simgap.diagnosis.hidden_effects import HIDDEN, REPORTED_AS, rendered_effects
     from simgap.diagnosis.nuisance import draw_nuisance
     from simgap.diagnosis.trial import Trial
@@ -161,7 +165,9 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
             effects = rendered_effects({name: params}) or {REPORTED_AS.get(name, name): params}
             for effect, values in effects.items():
                 make_effect(effect, values)
-            assert all(key in params for key in keys)
+            # the scored parameters are those the diagnosis reads (a sun: its E cos(elevation))
+            truth = Trial(0, {name: params}).truth()[REPORTED_AS.get(name, name)][0]
+            assert all(key in truth for key in keys)
     rig = load_rig()
     camera = with_exposure(draw_nuisance(np.random.default_rng(1), rig), 1.2, rig)
     # the exposure setting makes the camera's total (light meter, transfer curve) the hidden one
@@ -189,6 +195,22 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     answer = _selecting("lens_distortion", lens_distortion={"k1": -0.115})
     lens = Trial(0, both, camera, answer, rig=rig).score()
     assert lens.magnitude_error["lens_distortion.k1"] == pytest.approx(0.025 / 0.14)
+    # a sun 60 deg up at 2 W/m^2 gives an upright tag facing it 1 W/m^2; its azimuth is scored
+    # the shorter way round, over a quarter turn (350 read for 10: 20 deg, 22 %)
+    sun = {"sun": {"azimuth_deg": 10.0, "elevation_deg": 60.0, "irradiance_w_m2": 2.0}}
+    fitted = {"azimuth_deg": 350.0, "horizontal_irradiance_w_m2": 1.1, "ev": 0.0}
+    lit = Trial(0, sun, camera, _selecting("sun", sun=fitted), rig=rig).score()
+    assert lit.correct
+    assert lit.magnitude_error["sun.horizontal_irradiance_w_m2"] == pytest.approx(0.1)
+    assert lit.magnitude_error["sun.azimuth_deg"] == pytest.approx(20.0 / 90.0)
+    # a sun not hidden is the camera's own only where its lights light the tags unevenly
+    even = replace(camera, effects={**camera.effects, "lighting": {}, "ambient": {}})
+    assert light_spread_truth(even, rig) == pytest.approx(0.0, abs=1e-9)
+    assert Trial(0, hidden, even, _selecting("focal_length", "sun"), rig=rig).score().spurious == (
+        "sun",
+    )
+    assert light_spread_truth(camera, rig) > 0.15  # measured 0.61: its spot light elsewhere
+    assert Trial(0, hidden, camera, _selecting("focal_length", "sun"), rig=rig).score().correct
 
 
 def test_targeted_validation_draws_only_the_named_effects(tmp_path):

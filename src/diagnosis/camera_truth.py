@@ -4,7 +4,8 @@ The truths a blind validation trial is scored against where the other camera has
 of effect as the hidden one (:data:`simgap.diagnosis.hidden_effects.CAMERA_NAMED`): its total
 exposure (:func:`exposure_truth`: the exposure setting, a light meter at the tags and the transfer
 curve) and its softness (:func:`softness_truth`: the pixel filter's width beyond the
-simulation's box), never read from the capture itself; and :func:`with_exposure`, which sets a
+simulation's box), never read from the capture itself; how unevenly its lights light the tags
+against the simulation's (:func:`light_spread_truth`); and :func:`with_exposure`, which sets a
 camera's exposure so that its total is a drawn one. The cameras are drawn by
 :mod:`simgap.diagnosis.nuisance`.
 """
@@ -21,8 +22,8 @@ from simgap.core.rig import Rig
 from simgap.effects import make_effect
 from simgap.effects.state import SceneState, VariantState
 from simgap.pose.image_stats import linearise
-from simgap.scene.lights import irradiance
-from simgap.scene.spec import SceneSpec, default_scene_spec
+from simgap.scene.lights import lights_irradiance
+from simgap.scene.spec import default_scene_spec
 
 if TYPE_CHECKING:  # annotation only: the draws import this module, not the reverse
     from simgap.diagnosis.nuisance import NuisanceCamera
@@ -57,9 +58,21 @@ def _tag_points(rig: Rig, p: tuple[int, ...], theta_deg: tuple[float, ...]) -> t
     return np.array(points), np.array(normals)
 
 
-def _scene_irradiance(spec: SceneSpec, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    lights = (irradiance(light, points, normals) for light in spec.lights.values())
-    return sum(lights, np.zeros(len(points)))
+def _light_ratios(camera: NuisanceCamera, rig: Rig) -> np.ndarray:
+    """Per facing tag of the capture, log2 of its direct irradiance over the simulation's.
+
+    Key and ambient (:func:`simgap.scene.lights.lights_irradiance`; shadows and
+    inter-reflections left out).
+    """
+    base = VariantState(scene=SceneState(spec=default_scene_spec()))
+    state = base
+    for name in ("lighting", "ambient"):
+        state = make_effect(name, camera.effects[name]).apply(state)
+    points, normals = _tag_points(rig, camera.p, camera.theta_deg)
+    ratio = lights_irradiance(state.scene.spec.lights.values(), points, normals) / (
+        lights_irradiance(base.scene.spec.lights.values(), points, normals)
+    )
+    return np.log2(ratio)
 
 
 def light_meter_ev(camera: NuisanceCamera, rig: Rig) -> float:
@@ -68,15 +81,20 @@ def light_meter_ev(camera: NuisanceCamera, rig: Rig) -> float:
     The median over the capture's facing tags of the log2 ratio of direct irradiance (key and
     ambient, :func:`simgap.scene.lights.irradiance`; shadows and inter-reflections left out).
     """
-    base = VariantState(scene=SceneState(spec=default_scene_spec()))
-    state = base
-    for name in ("lighting", "ambient"):
-        state = make_effect(name, camera.effects[name]).apply(state)
-    points, normals = _tag_points(rig, camera.p, camera.theta_deg)
-    ratio = _scene_irradiance(state.scene.spec, points, normals) / _scene_irradiance(
-        base.scene.spec, points, normals
-    )
-    return float(np.median(np.log2(ratio)))
+    return float(np.median(_light_ratios(camera, rig)))
+
+
+def light_spread_truth(camera: NuisanceCamera, rig: Rig) -> float:
+    """How unevenly the other camera's lights light its tags against the simulation's (stops).
+
+    The RMS over the capture's facing tags of the log2 ratio of direct irradiance (as
+    :func:`light_meter_ev`) less its median: 0 where the capture's key and ambient light every
+    tag by the same factor (one exposure), larger where its key light stands elsewhere and lights
+    the tags' faces differently, which the diagnosis may read as a light the simulation lacks
+    (the ``sun`` candidate).
+    """
+    log_ratio = _light_ratios(camera, rig)
+    return float(np.sqrt(np.mean((log_ratio - np.median(log_ratio)) ** 2)))
 
 
 def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:

@@ -51,6 +51,21 @@ def _gloss(rng: np.random.Generator) -> dict[str, Any]:
     }
 
 
+def _sun(rng: np.random.Generator) -> dict[str, Any]:
+    """A distant light the simulation lacks: a sun low over the camera's side of the fixture.
+
+    From azimuths 100-260 deg (rail frame, :class:`simgap.effects.scene.Sun`; the fixture's
+    camera looks along +Y from azimuth 180, so these light faces it can see: a sun behind the
+    tags lights none, and no image shows it), 5-50 deg up, 1.5-4 W m^-2 on a surface facing it
+    (about 1-3x the simulation's key light on a frontal tag).
+    """
+    return {
+        "azimuth_deg": float(rng.uniform(100.0, 260.0)),
+        "elevation_deg": float(rng.uniform(5.0, 50.0)),
+        "irradiance_w_m2": float(rng.uniform(1.5, 4.0)),
+    }
+
+
 #: Hidden effects and how their magnitudes are drawn (realistic hardware ranges), with the
 #: parameters whose fitted values are scored (empty: not a magnitude effect).
 HIDDEN: dict[str, tuple[Sampler, tuple[str, ...]]] = {
@@ -91,11 +106,15 @@ HIDDEN: dict[str, tuple[Sampler, tuple[str, ...]]] = {
     ),
     "jpeg": (lambda r: {"quality": int(r.integers(25, 76))}, ("quality",)),
     "tag_gloss": (_gloss, ("alpha", "light_intensity_w_sr")),
+    # scored on its azimuth and the irradiance an upright tag facing it gets (E cos(elevation)):
+    # the tags stand upright and tell neither the elevation nor E apart
+    # (simgap.analysis.candidates._sun; simgap.diagnosis.trial.Trial.truth)
+    "sun": (_sun, ("azimuth_deg", "horizontal_irradiance_w_m2")),
 }
 #: Hidden effects that are no catalogue effect, and the effect that names them.
 REPORTED_AS: dict[str, str] = {"faulty_calibration": "lens_distortion"}
 #: Appearance effects among :data:`HIDDEN` (scored per effect).
-APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg", "tag_gloss")
+APPEARANCE = ("blur", "exposure", "sensor_noise", "defocus", "jpeg", "tag_gloss", "sun")
 #: Appearance effects every other camera has some of (:mod:`simgap.diagnosis.nuisance`: its
 #: exposure and light, its sensor, its pixel filter): naming them is never wrong, and a hidden one
 #: sets the camera's own (exposure: its total exposure; sensor noise: its sensor) or adds to it

@@ -12,6 +12,7 @@ from simgap.effects.state import VariantState
 from simgap.pipeline.experiment import Experiment
 from simgap.pipeline.simulator import Simulator
 from simgap.pose.image_stats import STAT_NAMES
+from simgap.scene.lights import LightSpec, lights_irradiance
 
 #: Trailing shape of each per-item result field.
 _FIELD_SHAPES = {"error": (6,), "corners": (4, 2), "image_stats": (len(STAT_NAMES),)}
@@ -22,7 +23,8 @@ class SimRunner:
 
     The :class:`simgap.analysis.candidates.Runner` of :class:`simgap.analysis.search.ModelSearch`
     and of the simulation-fitted candidates: :meth:`errors`, :meth:`corners`, :meth:`stats`,
-    :meth:`detected`, :meth:`depths` and :meth:`eye_from_tag` give the simulated evidence.
+    :meth:`detected`, :meth:`depths`, :meth:`eye_from_tag`, :meth:`rail_from_tag` and
+    :meth:`irradiance` give the simulated evidence and the nominal rig's geometry and light.
 
     Parameters
     ----------
@@ -39,6 +41,7 @@ class SimRunner:
         self.focal_px = float(self.rig.camera.fx)
         self.tags = simulator.tags(exp)
         self._memo: dict[tuple, dict[str, np.ndarray]] = {}
+        self._lights: tuple[LightSpec, ...] | None = None  # the baseline's, read when first asked
 
     def _results(
         self,
@@ -99,3 +102,30 @@ class SimRunner:
     def eye_from_tag(self, items: Items) -> np.ndarray:
         """Pose of each item's tag in the eyepoint frame, nominal rig (N, 4, 4) (m)."""
         return self.rig.eyepoints_from_tags(items.tag, items.p, items.theta)
+
+    def rail_from_tag(self, items: Items) -> np.ndarray:
+        """Pose of each item's tag in the rail frame, nominal rig (N, 4, 4) (m)."""
+        if not len(items):
+            return np.empty((0, 4, 4))
+        rail_from_eye = np.stack([self.rig.rail_from_eyepoint(float(p)) for p in items.p])
+        return rail_from_eye @ self.eye_from_tag(items)
+
+    def irradiance(self, items: Items) -> np.ndarray:
+        """Direct irradiance of the simulation's own lights at each item's tag centre (N,) (W m^-2).
+
+        The lights of the experiment's first variant (its baseline), through
+        :func:`simgap.scene.lights.lights_irradiance` on the tag's face (nominal rig): shadows and
+        inter-reflections left out.
+        """
+        if not len(items):
+            return np.zeros(0)
+        if self._lights is None:
+            self._lights = tuple(self.exp.variant_states()[0][1].scene.spec.lights.values())
+        rail_from_tag = self.rail_from_tag(items)
+        rail_from_eye = np.stack([self.rig.rail_from_eyepoint(float(p)) for p in items.p])
+        return lights_irradiance(
+            self._lights,
+            rail_from_tag[:, :3, 3],
+            rail_from_tag[:, :3, 2],
+            rail_from_eye,
+        )

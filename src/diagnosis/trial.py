@@ -9,9 +9,9 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis.candidates import geometric_effects
-from simgap.analysis.thresholds import image_floor
+from simgap.analysis.thresholds import SUN_MIN_ALTERNATIVE_MISFIT, image_floor
 from simgap.core.rig import Rig
-from simgap.diagnosis.camera_truth import exposure_truth, softness_truth
+from simgap.diagnosis.camera_truth import exposure_truth, light_spread_truth, softness_truth
 from simgap.diagnosis.hidden_effects import (
     CAMERA_NAMED,
     HIDDEN,
@@ -27,6 +27,10 @@ from simgap.diagnosis.trial_score import TrialRecord, TrialScore
 def _magnitude(params: dict[str, Any], key: str) -> np.ndarray:
     return np.atleast_1d(np.asarray(params.get(key, 0.0), float))
 
+
+#: The size a sun's azimuth error is relative to (deg): a quarter turn, the half-width of the
+#: cosine lobe of an upright face it lights; its 25 % magnitude bar is 22.5 deg.
+AZIMUTH_SCALE_DEG = 90.0
 
 #: Bins of the per-nuisance score table (a trial's camera by the truths a diagnosis is scored
 #: against): |exposure| (EV), softness (px), full well (e-).
@@ -62,17 +66,28 @@ def crushed_black_share(real: xr.Dataset) -> float | None:
     return float(np.nanmax(values)) if np.isfinite(values).any() else None
 
 
-def camera_named(crushed_black: float | None) -> tuple[str, ...]:
+def camera_named(
+    crushed_black: float | None, light_spread_stops: float | None = None
+) -> tuple[str, ...]:
     """Effects a diagnosis may name of a capture that was not hidden in it: the camera's own.
 
-    Those every other camera has (:data:`~simgap.diagnosis.hidden_effects.CAMERA_NAMED`) and,
+    Those every other camera has (:data:`~simgap.diagnosis.hidden_effects.CAMERA_NAMED`);
     where the capture's shadows are crushed (``crushed_black``, :func:`crushed_black_share`, at
     least the floor of ``black_clipped_fraction`` in
-    :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`), its black level.
+    :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`), its black level; and where its lights
+    light the tags unevenly against the simulation's (``light_spread_stops``,
+    :func:`simgap.diagnosis.camera_truth.light_spread_truth`, at least the paper level's spread
+    that calls for a light: :data:`~simgap.analysis.thresholds.SUN_MIN_ALTERNATIVE_MISFIT`
+    floors of ``paper_linear``), a light the simulation lacks (``sun``): its key light stands
+    elsewhere, and the direction it lights the tags from is what the finding reads.
     """
     floor = image_floor("black_clipped_fraction")
     crushed = crushed_black is not None and crushed_black >= floor
-    return CAMERA_NAMED + (("black_level",) if crushed else ())
+    uneven = (
+        light_spread_stops is not None
+        and light_spread_stops >= SUN_MIN_ALTERNATIVE_MISFIT * image_floor("paper_linear")
+    )
+    return CAMERA_NAMED + (("black_level",) if crushed else ()) + (("sun",) if uneven else ())
 
 
 def pipeline_bins(camera: NuisanceCamera) -> dict[str, str]:
@@ -167,9 +182,11 @@ class Trial:
         relative to. The hidden effects' own parameters (relative to themselves), except where
         the other camera has the same kind of effect (:data:`CAMERA_NAMED`): exposure reads the
         camera's total exposure and blur its total softness (:func:`exposure_truth`,
-        :func:`softness_truth`); a faulty calibration file is read as the lens it describes
-        wrongly: no distortion, an error relative to the distortion the file claims (beside a
-        hidden lens distortion: the lens's own, relative to itself).
+        :func:`softness_truth`); a sun is read as its azimuth (the error the shorter way round,
+        relative to :data:`AZIMUTH_SCALE_DEG`) and the irradiance an upright tag facing it gets
+        (``E cos(elevation)``); a faulty calibration file is read as the lens it
+        describes wrongly: no distortion, an error relative to the distortion the file claims
+        (beside a hidden lens distortion: the lens's own, relative to itself).
         """
         out: dict[str, tuple[dict[str, Any], dict[str, float]]] = {}
         for name, params in self.hidden.items():
@@ -181,6 +198,19 @@ class Trial:
                     continue  # the lens as it is: its own distortion (scored below)
                 scale = {"k1": abs(float(params["k1"]))}
                 out[REPORTED_AS[name]] = ({"k1": 0.0}, scale)
+                continue
+            if name == "sun":  # what upright tags read of it (the sun candidate's parameters)
+                elevation = np.radians(float(params["elevation_deg"]))
+                horizontal = float(params["irradiance_w_m2"]) * float(np.cos(elevation))
+                params = {
+                    "azimuth_deg": float(params["azimuth_deg"]),
+                    "horizontal_irradiance_w_m2": horizontal,
+                }
+                scales = {
+                    "azimuth_deg": AZIMUTH_SCALE_DEG,
+                    "horizontal_irradiance_w_m2": horizontal,
+                }
+                out[name] = (params, scales)
                 continue
             if self.camera is not None and self.rig is not None:
                 if name == "exposure":
@@ -206,7 +236,10 @@ class Trial:
         hidden = tuple(self.hidden)
         named = {REPORTED_AS.get(h, h) for h in hidden}
         geometric = tuple(e for e in selected if e in geometric_effects())
-        camera_own = camera_named(self.crushed_black_share)
+        light_spread = (
+            light_spread_truth(self.camera, self.rig) if self.camera and self.rig else None
+        )
+        camera_own = camera_named(self.crushed_black_share, light_spread)
         spurious = tuple(e for e in selected if e not in named and e not in camera_own)
         own = [e for e in selected if e in named or e not in camera_own]
         catalogue = hides_catalogue_effects(hidden)
@@ -259,5 +292,7 @@ class Trial:
                 continue
             for key, scale in scales.items():
                 error = _magnitude(fitted[name], key) - _magnitude(params, key)
+                if key == "azimuth_deg":  # the shorter way round
+                    error = (error + 180.0) % 360.0 - 180.0
                 errors[f"{name}.{key}"] = float(np.linalg.norm(error) / scale)
         return errors

@@ -33,8 +33,9 @@ class TrialScore:
     A trial hides catalogue effects (one or two, :data:`~simgap.diagnosis.hidden_effects.HIDDEN`),
     one effect outside the catalogue (:data:`~simgap.diagnosis.hidden_effects.OUTSIDE`), or
     nothing. The camera's own effects are those it may always be said to have
-    (:func:`simgap.diagnosis.trial.camera_named`: its exposure, sensor noise and softness, and
-    its black level where its shadows are crushed).
+    (:func:`simgap.diagnosis.trial.camera_named`: its exposure, sensor noise and softness, its
+    black level where its shadows are crushed, a light from another direction where its lights
+    light the tags unevenly).
 
     Attributes
     ----------

@@ -6,7 +6,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.gap import SCORED_STATS
+from simgap.analysis.gap import IMAGE_CHANNELS
 from simgap.analysis.search import Scored
 from simgap.analysis.thresholds import UNEXPLAINED_MISFIT
 from simgap.diagnosis.result import Where
@@ -70,7 +70,7 @@ def unexplained_evidence(
     pose = any(a.significant for a in where.axis_gaps.values())
     if pose and (chosen is None or chosen.pose_gap_reduction < settings.explained_reduction):
         out.append("pose")
-    misfit = dict(zip(SCORED_STATS, chosen.image_misfit_after, strict=True)) if chosen else {}
+    misfit = dict(zip(IMAGE_CHANNELS, chosen.image_misfit_after, strict=True)) if chosen else {}
     out += [
         t.stat
         for t in where.image_tests

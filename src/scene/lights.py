@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Literal
@@ -231,3 +232,43 @@ def irradiance(light: LightSpec, points: np.ndarray, normals: np.ndarray) -> np.
         full = 0.75 * light.cutoff_deg
         out *= np.clip((light.cutoff_deg - angle) / (light.cutoff_deg - full), 0.0, 1.0)
     return out
+
+
+def lights_irradiance(
+    lights: Iterable[LightSpec],
+    points: np.ndarray,
+    normals: np.ndarray,
+    rail_from_eyepoint: np.ndarray | None = None,
+) -> np.ndarray:
+    """Direct irradiance of several lights at surface points, summed (W m^-2, luminance).
+
+    Each light as :func:`irradiance` reads it (shadows and inter-reflections left out); a light
+    on the camera (``frame`` ``eyepoint``) is placed at each point's configuration first
+    (:meth:`LightSpec.placed`).
+
+    Parameters
+    ----------
+    lights : iterable of LightSpec
+        The lights (a scene's ``lights.values()``).
+    points, normals : ndarray (N, 3)
+        Surface points (m, rail frame) and their unit normals.
+    rail_from_eyepoint : ndarray (N, 4, 4), optional
+        The camera's pose at each point's configuration (m); needed only where a light is on
+        the camera.
+
+    Returns
+    -------
+    ndarray (N,)
+        Summed irradiance (W m^-2).
+    """
+    points, normals = np.atleast_2d(points).astype(float), np.atleast_2d(normals).astype(float)
+    total = np.zeros(len(points))
+    for light in lights:
+        if light.frame == "rail":
+            total += irradiance(light, points, normals)
+            continue
+        if rail_from_eyepoint is None:
+            raise ValueError("lights_irradiance: a light on the camera needs rail_from_eyepoint")
+        for i, m in enumerate(rail_from_eyepoint):
+            total[i] += irradiance(light.placed(m), points[i : i + 1], normals[i : i + 1])[0]
+    return total

@@ -7,8 +7,8 @@ of a print scale, ``_size_signature``) or a ``SimulationCandidate`` run through 
 the ``Runner`` it is given (``_runner``): the appearance effects fitted on image evidence
 (``_appearance``, ``_exposure``, ``_black_level``, ``_sensor_noise``, ``_defocus``), the glossy
 laminate (``_gloss`` on the levels of ``_tag_levels``, ``_glint_ratio``, ``_lobe``, with
-``_subset_fit``), and a model's simulation effects fitted one after another
-(``_simulation_chain``).
+``_subset_fit``), a light the simulation lacks (``_sun``), and a model's simulation effects
+fitted one after another (``_simulation_chain``).
 
 The modules are private; other packages import the names of ``__all__`` from here.
 """
@@ -52,6 +52,14 @@ from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._sensor_noise import FULL_WELL_BOUNDS_E, SensorNoiseCandidate
 from simgap.analysis.candidates._simulation_chain import SimulationChain
 from simgap.analysis.candidates._size_signature import size_change
+from simgap.analysis.candidates._sun import (
+    RENDER_ELEVATION_DEG,
+    PaperLevels,
+    SunCandidate,
+    SunFit,
+    fit_sun,
+    sun_effects,
+)
 from simgap.analysis.candidates._tag_levels import CLIPPED_DN, TagLevels
 
 __all__ = [
@@ -73,9 +81,13 @@ __all__ = [
     "ProjectionCandidate",
     "ProjectionSet",
     "ROUGHNESS_RANGE",
+    "RENDER_ELEVATION_DEG",
+    "PaperLevels",
     "Runner",
     "SensorNoiseCandidate",
     "SimulationChain",
+    "SunCandidate",
+    "SunFit",
     "TagLevels",
     "agreed_dc_step",
     "beckmann",
@@ -83,6 +95,7 @@ __all__ = [
     "evidence_misfit",
     "fit_levels",
     "fit_ratios",
+    "fit_sun",
     "fresnel_veil",
     "geometric_effects",
     "ink_exposures",
@@ -93,4 +106,5 @@ __all__ = [
     "project_items",
     "signature_significant",
     "size_change",
+    "sun_effects",
 ]

@@ -7,10 +7,11 @@ effect's valid range). Appearance effects are fitted on
 the image statistics named with them (:mod:`simgap.analysis.candidates._appearance`,
 :mod:`simgap.analysis.candidates._exposure`, :mod:`simgap.analysis.candidates._black_level`,
 :mod:`simgap.analysis.candidates._sensor_noise`, :mod:`simgap.analysis.candidates._defocus`,
-:mod:`simgap.analysis.candidates._gloss`); those statistics are also
-their signature: an appearance effect is a candidate only where the capture shows it
-(:meth:`simgap.analysis.candidates.AppearanceCandidate.signature_shown`: one of them differs
-significantly, or for the laminate the ink-to-paper ratios call for one).
+:mod:`simgap.analysis.candidates._gloss`, :mod:`simgap.analysis.candidates._sun`); those
+statistics are also their signature: an appearance effect is a candidate only where the
+capture shows it (:meth:`simgap.analysis.candidates.AppearanceCandidate.signature_shown`: one of
+them differs significantly, for the laminate the ink-to-paper ratios call for one, for a sun the
+paper levels against the way the tags face).
 
 A new candidate is one entry here. The order of the table is the order in which candidates are
 fitted and, among equally good ones, ranked.
@@ -28,6 +29,7 @@ from simgap.analysis.candidates._exposure import ExposureCandidate
 from simgap.analysis.candidates._fitting import Candidate, ProjectionCandidate
 from simgap.analysis.candidates._gloss import GlossCandidate
 from simgap.analysis.candidates._sensor_noise import SensorNoiseCandidate
+from simgap.analysis.candidates._sun import SunCandidate
 
 #: Edge widths along x and y (the all-sides width is reported only).
 EDGE_WIDTHS = ("edge_width_x_px", "edge_width_y_px")
@@ -65,6 +67,7 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
                 "jpeg", ("blockiness",), "quality", (5.0, 100.0), 1.0, noise=SensorNoiseCandidate()
             ),
             GlossCandidate(),
+            SunCandidate(),
         )
     }
 )

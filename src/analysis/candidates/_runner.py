@@ -52,3 +52,11 @@ class Runner(Protocol):
     def eye_from_tag(self, items: Items) -> np.ndarray:
         """Pose of each item's tag in the eyepoint frame, nominal rig (N, 4, 4) (m)."""
         ...
+
+    def rail_from_tag(self, items: Items) -> np.ndarray:
+        """Pose of each item's tag in the rail frame, nominal rig (N, 4, 4) (m)."""
+        ...
+
+    def irradiance(self, items: Items) -> np.ndarray:
+        """Direct irradiance of the simulation's own lights at each item's tag (N,) (W m^-2)."""
+        ...

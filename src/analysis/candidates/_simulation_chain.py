@@ -8,7 +8,8 @@ by geometric effects (measured on a development capture: a blur a third too smal
 Each effect is therefore fitted on the simulation that already holds the effects before it in
 :data:`FIT_ORDER`, the order in which their evidence is least confounded by the others: the
 paper level first (exposure; a blur or a noise barely moves a level measured over a tag's
-paper), then the crushed shadows (a black level: the share of a tag at 0 DN depends on the
+paper), then a light the simulation lacks (a sun, read from the paper levels against the way
+the tags face), then the crushed shadows (a black level: the share of a tag at 0 DN depends on the
 exposure), then the edge widths (blur, defocus; clipping narrows them, a glint barely moves them),
 the glint of a laminate (ink and paper levels against view angle; a soft edge bleeds paper into
 small tags' ink cells), the noise (sensor noise, whose excess over the simulation depends on its
@@ -38,6 +39,7 @@ from simgap.effects.state import VariantState
 #: before it (see module docstring); effects not named here come after, in catalogue order.
 FIT_ORDER = (
     "exposure",
+    "sun",
     "black_level",
     "blur",
     "defocus",

@@ -15,6 +15,7 @@ The modules are private; other packages import the names of ``__all__`` from her
 from __future__ import annotations
 
 from simgap.analysis.gap._channels import (
+    IMAGE_CHANNELS,
     NOISE_STATS,
     SCORED_STATS,
     Prediction,
@@ -24,6 +25,7 @@ from simgap.analysis.gap._channels import (
     detection_score,
     evidence_channels,
     frame_corner_noise,
+    level_spread,
     root_sum_square,
 )
 from simgap.analysis.gap._evidence import (
@@ -100,6 +102,8 @@ __all__ = [
     "RigFit",
     "RigModelFit",
     "SCORED_STATS",
+    "IMAGE_CHANNELS",
+    "level_spread",
     "SHIFT_DRAWS",
     "ScatterTest",
     "VIEW_ANGLE_LABEL",

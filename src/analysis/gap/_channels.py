@@ -6,7 +6,8 @@ image statistics, detection rates) are compared with the real evidence channel b
 :func:`corner_unit`), the pose over all axes (:func:`simgap.analysis.gap.gap_score`: in units
 of each item's noise or the practical floor), detection (:func:`detection_score`, in units of
 :func:`detection_unit`) and each image statistic with a floor
-(:func:`image_misfits`, in floors). :func:`evidence_channels` puts them in one vector; its root
+(:func:`image_misfits`, in floors, and the paper level's spread over the tags,
+:func:`level_spread`). :func:`evidence_channels` puts them in one vector; its root
 sum of squares is the combined misfit a model is ranked on. Every function here also takes a
 leading batch of item sets (bootstrap resamples), which gives one value per set.
 """
@@ -32,6 +33,11 @@ NOISE_STATS = [
 ]
 #: Image statistics with a floor: the image channels, in this order.
 SCORED_STATS = tuple(s for s, (_, floor) in IMAGE_FLOORS.items() if floor is not None)
+#: The statistic whose spread over the tags is the last image channel (:func:`level_spread`).
+SPREAD_STAT = "paper_linear"
+#: Every image channel by name, in the order of :func:`image_misfits`: the statistics with a
+#: floor, then the paper level's spread over the tags.
+IMAGE_CHANNELS = (*SCORED_STATS, "paper_spread")
 
 
 @dataclass(frozen=True)
@@ -175,30 +181,60 @@ def channel_misfits(
 
 
 def image_misfits(real: np.ndarray | None, pred: np.ndarray | None) -> np.ndarray:
-    """Image-evidence misfit per statistic of the scored items (floors), capped (in floors).
+    """Image-evidence misfit per image channel of the scored items (floors), capped.
 
     Per statistic of :data:`simgap.analysis.thresholds.IMAGE_FLOORS` that has a floor, the
     absolute median over tags of ``compare_stat(real, pred) / floor`` (a bias, robust to
-    per-tag noise). Misfits beyond the cap mean "not modelled" and count as the cap, so that an
-    effect is not credited or blamed for a difference nothing in the catalogue explains (a print
-    whose ink is blacker than the simulation's, say). Zeros when nothing is measured.
-    ``real`` and ``pred`` are (N, S), or (..., N, S) for a batch of item sets; the result is
-    (K,) or (..., K) for the K scored statistics.
+    per-tag noise); then the paper level's spread over the tags (:func:`level_spread`). Misfits
+    beyond the cap mean "not modelled" and count as the cap, so that an effect is not credited
+    or blamed for a difference nothing in the catalogue explains (a print whose ink is blacker
+    than the simulation's, say). Zeros when nothing is measured. ``real`` and ``pred`` are
+    (N, S), or (..., N, S) for a batch of item sets; the result is (K,) or (..., K) for the K
+    channels of :data:`IMAGE_CHANNELS`.
     """
     if real is None or pred is None:
-        return np.zeros(len(SCORED_STATS))
-    out = np.zeros(real.shape[:-2] + (len(SCORED_STATS),))
+        return np.zeros(len(IMAGE_CHANNELS))
+    out = np.zeros(real.shape[:-2] + (len(IMAGE_CHANNELS),))
     for k, stat in enumerate(SCORED_STATS):
-        floor = IMAGE_FLOORS[stat][1]
-        i = STAT_INDEX[stat]
-        d = compare_stat(stat, real[..., i], pred[..., i])
-        with warnings.catch_warnings():  # a set without a measured tag scores 0
-            warnings.simplefilter("ignore", RuntimeWarning)
-            median = np.nanmedian(np.where(np.isfinite(d), d, np.nan), axis=-1)
+        median = _tag_median(_tag_misfit(stat, real, pred))
         out[..., k] = np.where(
-            np.isfinite(median), np.minimum(np.abs(median) / floor, RESIDUAL_CAP), 0.0
+            np.isfinite(median), np.minimum(np.abs(median), RESIDUAL_CAP), 0.0
         )
+    out[..., -1] = level_spread(real, pred)
     return out
+
+
+def _tag_misfit(stat: str, real: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """Per tag, ``compare_stat(real, pred)`` of ``stat`` in its floors; NaN where unmeasured."""
+    i = STAT_INDEX[stat]
+    d = compare_stat(stat, real[..., i], pred[..., i]) / IMAGE_FLOORS[stat][1]
+    return np.where(np.isfinite(d), d, np.nan)
+
+
+def _tag_median(d: np.ndarray) -> np.ndarray:
+    """Median over the tags (last axis) of finite values; NaN for a set with none."""
+    with warnings.catch_warnings():  # a set without a measured tag
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(d, axis=-1)
+
+
+def level_spread(real: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """Spread over the tags of the paper level's misfit (floors), capped; 0 where unmeasured.
+
+    The RMS over tags of each tag's paper misfit (:data:`SPREAD_STAT`, ``compare_stat / floor``)
+    less the median one, each capped at :data:`~simgap.analysis.thresholds.RESIDUAL_CAP`. The
+    median channel reads what moves every tag's paper alike (an exposure); this one what moves
+    tags differently by the way they face: a light the simulation lacks (a sun on some faces),
+    whose median change over the tags can stay under its floor. One gain leaves it as it is,
+    and every effect that does not light tags unevenly changes it little. ``real`` and ``pred``
+    are (..., N, S); the result has their leading shape.
+    """
+    d = _tag_misfit(SPREAD_STAT, real, pred)
+    deviation = np.minimum(np.abs(d - _tag_median(d)[..., None]), RESIDUAL_CAP)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rms = np.sqrt(np.nanmean(deviation**2, axis=-1))
+    return np.where(np.isfinite(rms), rms, 0.0)
 
 
 def detection_groups(items: Items) -> list[np.ndarray]:
