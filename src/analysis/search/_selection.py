@@ -46,6 +46,7 @@ from simgap.analysis.thresholds import (
     GEOMETRY_CORNER_GAP_PX,
     MAX_EFFECTS,
     MINOR_CONTRIBUTION,
+    MODEL_SEARCH_STARTS,
 )
 from simgap.core.progress import Steps
 from simgap.core.rig import Rig
@@ -292,7 +293,10 @@ class ModelSearch:
         motion blur moved the pose gap by 6 % or less either way, every true geometric effect that
         started a model lowered it by 19 % or more; docs/results/design_evidence.md#selection).
 
-        An effect is added while the combined misfit falls and some evidence channel
+        The search starts from the best single effect, and again from each of the next geometric
+        ones among the first :data:`~simgap.analysis.thresholds.MODEL_SEARCH_STARTS` of the
+        ranking; the best of its answers is kept (:func:`parsimonious`). From each start, an
+        effect is added while the combined misfit falls and some evidence channel
         improves distinguishably (:func:`improves`); where no single one does (or none starts
         the search) and the model leaves the geometry unexplained, two projection effects may
         enter at once (:mod:`simgap.analysis.search._pair_step`); the model is then simplified
@@ -330,7 +334,40 @@ class ModelSearch:
             if not starts or not improves_on_nothing(starts[0]):
                 # as where nothing differs: a lens seen only in the cross-fitted corners
                 return corner_effect_alone(ranking)
-        current = self.simplify(starts[0], pool)
+        # greedy from the best start and from the next geometric ones: a look-alike that leads
+        # alone can take the search down a path the true pair never joins (MODEL_SEARCH_STARTS)
+        more = [
+            st
+            for st in starts[1:MODEL_SEARCH_STARTS]
+            if isinstance(st.fits[0][0], ProjectionCandidate) and improves_on_nothing(st)
+        ]
+        grown = [self._grow(start, pool, max_effects) for start in [starts[0], *more]]
+        current = parsimonious(grown) if len(grown) > 1 else grown[0]
+        if len(current.fits) > 1:
+            model = tuple(c for c, _ in current.fits)
+            loss = {
+                c.effect: self.evaluate(tuple(m for m in model if m is not c)).evidence_after
+                for c in model
+            }
+            current = dataclasses.replace(
+                current,
+                fits=sorted(
+                    current.fits,
+                    key=lambda cf: (EFFECTS[cf[1].effect].stochastic, -loss[cf[1].effect]),
+                ),
+            )
+        projection = any(isinstance(c, ProjectionCandidate) for c, _ in current.fits)
+        if projection and current.corner_gap_after_px > GEOMETRY_CORNER_GAP_PX:
+            self.refused_geometry = current
+            return self.select(ranking, max_effects, geometry=False)
+        return current
+
+    def _grow(self, start: Scored, pool: list[Candidate], max_effects: int) -> Scored:
+        """The greedy forward search from ``start``, simplified, pruned, with corner findings.
+
+        (:meth:`select`'s search from one start.)
+        """
+        current = self.simplify(start, pool)
         seen = {frozenset(current.effects)}
         while len(current.fits) < max_effects:
             model = tuple(c for c, _ in current.fits)
@@ -352,23 +389,6 @@ class ModelSearch:
             seen.add(frozenset(current.effects))
         current = self.prune(current)
         current = with_corner_effects(current, pool, self.evaluate, max_effects)
-        if len(current.fits) > 1:
-            model = tuple(c for c, _ in current.fits)
-            loss = {
-                c.effect: self.evaluate(tuple(m for m in model if m is not c)).evidence_after
-                for c in model
-            }
-            current = dataclasses.replace(
-                current,
-                fits=sorted(
-                    current.fits,
-                    key=lambda cf: (EFFECTS[cf[1].effect].stochastic, -loss[cf[1].effect]),
-                ),
-            )
-        projection = any(isinstance(c, ProjectionCandidate) for c, _ in current.fits)
-        if projection and current.corner_gap_after_px > GEOMETRY_CORNER_GAP_PX:
-            self.refused_geometry = current
-            return self.select(ranking, max_effects, geometry=False)
         return current
 
     def _pool(self, ranking: list[Scored], geometry: bool) -> list[Candidate]:
