@@ -52,12 +52,12 @@ def _gloss(rng: np.random.Generator) -> dict[str, Any]:
 
 
 def _sun(rng: np.random.Generator) -> dict[str, Any]:
-    """A distant light the simulation lacks: a sun low over the camera's side of the fixture.
+    """A distant light the simulation lacks: a sun over the camera's side of the fixture.
 
     From azimuths 100-260 deg (rail frame, :class:`simgap.effects.scene.Sun`; the fixture's
     camera looks along +Y from azimuth 180, so these light faces it can see: a sun behind the
     tags lights none, and no image shows it), 5-50 deg up, 1.5-4 W m^-2 on a surface facing it
-    (about 1-3x the simulation's key light on a frontal tag).
+    (1-3x the 1.0-1.4 W m^-2 the simulation's key light gives a frontal tag).
     """
     return {
         "azimuth_deg": float(rng.uniform(100.0, 260.0)),

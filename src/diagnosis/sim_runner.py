@@ -107,8 +107,11 @@ class SimRunner:
         """Pose of each item's tag in the rail frame, nominal rig (N, 4, 4) (m)."""
         if not len(items):
             return np.empty((0, 4, 4))
-        rail_from_eye = np.stack([self.rig.rail_from_eyepoint(float(p)) for p in items.p])
-        return rail_from_eye @ self.eye_from_tag(items)
+        return self._rail_from_eye(items) @ self.eye_from_tag(items)
+
+    def _rail_from_eye(self, items: Items) -> np.ndarray:
+        """The camera's pose in the rail frame at each item's carriage position (N, 4, 4) (m)."""
+        return np.stack([self.rig.rail_from_eyepoint(float(p)) for p in items.p])
 
     def irradiance(self, items: Items) -> np.ndarray:
         """Direct irradiance of the simulation's own lights at each item's tag centre (N,) (W m^-2).
@@ -121,8 +124,8 @@ class SimRunner:
             return np.zeros(0)
         if self._lights is None:
             self._lights = tuple(self.exp.variant_states()[0][1].scene.spec.lights.values())
-        rail_from_tag = self.rail_from_tag(items)
-        rail_from_eye = np.stack([self.rig.rail_from_eyepoint(float(p)) for p in items.p])
+        rail_from_eye = self._rail_from_eye(items)
+        rail_from_tag = rail_from_eye @ self.eye_from_tag(items)
         return lights_irradiance(
             self._lights,
             rail_from_tag[:, :3, 3],
