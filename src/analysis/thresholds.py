@@ -164,12 +164,10 @@ MAX_EFFECTS: Final[int] = 5
 #: Single effects the greedy model search starts from (:meth:`simgap.analysis.search.
 #: ModelSearch.select`): the best, and the next geometric ones among the first this many of the
 #: ranking; the search's best answer over its starts is kept. One start follows a look-alike that
-#: leads alone: a focal length of -2.1 % and a print 1.2 % large, whose depth scales nearly
-#: cancel, let a camera mount lead (combined misfit 4.57 against the focal length's 4.69), and
-#: the search grew it with a tag offset (3.89) where the focal length with the print scale
-#: explains the evidence far better (2.94; both within 0.2 % of the truth) but was never tried
-#: (blind seed 72 trial 8, docs/results/design_evidence.md#selection). Three: the mount, the
-#: focal length and the print scale are the first three geometric effects there.
+#: leads alone: a camera mount that leads a focal length and a print scale whose depth scales
+#: nearly cancel is grown with a tag offset, and the true pair, which explains the evidence far
+#: better, is never tried. Three: the mount, the focal length and the print scale are the first
+#: three geometric effects of such a capture (measured: docs/results/design_evidence.md#selection).
 MODEL_SEARCH_STARTS: Final[int] = 3
 #: Largest corner gap (px, RMS over the choose split's items) a model with a geometric or
 #: calibration effect may leave: geometry is fitted on the corners and, once the image formation

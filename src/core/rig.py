@@ -307,6 +307,13 @@ class Rig:
         centre = np.array([0.0, -face.radius, self.links.tag_height])
         return tf.make(r, centre + r @ np.asarray(err.tag_offset))
 
+    def rail_from_tag(self, tag: int, theta: float, err: FixtureErrors = NOMINAL) -> np.ndarray:
+        """Pose of tag ``tag``'s marker frame in the rail frame, turntable at ``theta`` rad.
+
+        Its third column is the tag's normal (the marker's +z, towards a camera that sees it).
+        """
+        return self.rail_from_turntable(theta, err) @ self.turntable_from_tag(tag, err)
+
     def rail_from_eyepoint(self, p: float, err: FixtureErrors = NOMINAL) -> np.ndarray:
         """Pose of the eyepoint in the rail frame."""
         return self.rail_from_carriage(p, err) @ self.carriage_from_eyepoint(err)
@@ -315,8 +322,7 @@ class Rig:
         self, tag: int, p: float, theta: float, err: FixtureErrors = NOMINAL
     ) -> np.ndarray:
         """Tag pose in the eyepoint (global) frame; the expected pose when ``err`` is nominal."""
-        rail_from_tag = self.rail_from_turntable(theta, err) @ self.turntable_from_tag(tag, err)
-        return tf.invert(self.rail_from_eyepoint(p, err)) @ rail_from_tag
+        return tf.invert(self.rail_from_eyepoint(p, err)) @ self.rail_from_tag(tag, theta, err)
 
     def eyepoints_from_tags(
         self, tags: np.ndarray, ps: np.ndarray, thetas: np.ndarray, err: FixtureErrors = NOMINAL

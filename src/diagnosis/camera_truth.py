@@ -52,7 +52,7 @@ def _tag_points(rig: Rig, p: tuple[int, ...], theta_deg: tuple[float, ...]) -> t
             for tag in rig.tags.ids:
                 if not rig.is_visible(tag, pin, t):
                     continue
-                m = rig.rail_from_turntable(t) @ rig.turntable_from_tag(tag)
+                m = rig.rail_from_tag(tag, t)
                 points.append(m[:3, 3])
                 normals.append(m[:3, 2])
     return np.array(points), np.array(normals)

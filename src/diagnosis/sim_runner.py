@@ -105,13 +105,9 @@ class SimRunner:
 
     def rail_from_tag(self, items: Items) -> np.ndarray:
         """Pose of each item's tag in the rail frame, nominal rig (N, 4, 4) (m)."""
-        if not len(items):
-            return np.empty((0, 4, 4))
-        return self._rail_from_eye(items) @ self.eye_from_tag(items)
-
-    def _rail_from_eye(self, items: Items) -> np.ndarray:
-        """The camera's pose in the rail frame at each item's carriage position (N, 4, 4) (m)."""
-        return np.stack([self.rig.rail_from_eyepoint(float(p)) for p in items.p])
+        tags_thetas = zip(items.tag, items.theta, strict=True)
+        poses = [self.rig.rail_from_tag(int(t), float(th)) for t, th in tags_thetas]
+        return np.stack(poses) if poses else np.empty((0, 4, 4))
 
     def irradiance(self, items: Items) -> np.ndarray:
         """Direct irradiance of the simulation's own lights at each item's tag centre (N,) (W m^-2).
@@ -124,11 +120,10 @@ class SimRunner:
             return np.zeros(0)
         if self._lights is None:
             self._lights = tuple(self.exp.variant_states()[0][1].scene.spec.lights.values())
-        rail_from_eye = self._rail_from_eye(items)
-        rail_from_tag = rail_from_eye @ self.eye_from_tag(items)
+        rail_from_tag = self.rail_from_tag(items)
         return lights_irradiance(
             self._lights,
             rail_from_tag[:, :3, 3],
             rail_from_tag[:, :3, 2],
-            rail_from_eye,
+            np.stack([self.rig.rail_from_eyepoint(float(p)) for p in items.p]),
         )

@@ -188,17 +188,18 @@ def fit_sun(levels: PaperLevels) -> SunFit | None:
     )
     lower, upper = (-8.0, IRRADIANCE_W_M2[0], -720.0), (8.0, IRRADIANCE_W_M2[1], 720.0)
     start_irradiance = float(np.median(levels.irradiance))
-    best = None
-    for azimuth in SCAN_AZIMUTHS_DEG:
-        sol = least_squares(
-            sun_residual,
-            x0=[float(np.min(y)), start_irradiance, float(azimuth)],
-            bounds=(lower, upper),
-            loss="soft_l1",
-        )
-        if best is None or sol.cost < best.cost:
-            best = sol
-    assert best is not None
+    best = min(
+        (
+            least_squares(
+                sun_residual,
+                x0=[float(np.min(y)), start_irradiance, float(azimuth)],
+                bounds=(lower, upper),
+                loss="soft_l1",
+            )
+            for azimuth in SCAN_AZIMUTHS_DEG
+        ),
+        key=lambda sol: sol.cost,
+    )
     return SunFit(
         azimuth_deg=float(best.x[2] % 360.0),
         horizontal_irradiance_w_m2=float(best.x[1]),
