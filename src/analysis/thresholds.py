@@ -146,6 +146,14 @@ EXPLAINED_REDUCTION: Final[float] = 0.3
 #: the practical floor, :meth:`simgap.analysis.search.ModelSearch.contributions`) is below
 #: this moves no pose by a relevant amount: it is *minor* (one unit: the floor itself).
 MINOR_CONTRIBUTION: Final[float] = 1.0
+#: A projection effect (geometry or calibration) that moves no pose beyond the floor stays in a
+#: model, as a minor effect, only where it moves the corners the model predicts by at least
+#: this much (px, robust RMS over the scored items): the detector's own corner bias
+#: (:data:`CORNER_UNIT_PX`), which another camera's light, edges and pipeline change by as much.
+#: A smaller, consistent corner change is what the modelled appearance leaves of that, not a
+#: calibration or a fixture the corners single out (:func:`simgap.analysis.search.pruned`).
+#: Source: set a priori from the corner unit (docs/results/design_evidence.md#pruning).
+MINOR_CORNER_SHIFT_PX: Final[float] = CORNER_UNIT_PX
 
 #: A fitted parameter within this share of the end of its searched range (from the range's
 #: largest magnitude) lies *on its bound*: the fit wanted to go further, so the model is a proxy

@@ -55,7 +55,7 @@ from simgap.analysis.gap._gap import (
     mean_error,
     region_summary,
 )
-from simgap.analysis.gap._gap_size import gap_score, median_abs_gap
+from simgap.analysis.gap._gap_size import corner_score, gap_score, median_abs_gap
 from simgap.analysis.gap._image_evidence import (
     VIEW_ANGLE_LABEL,
     image_stat_view,
@@ -112,6 +112,7 @@ __all__ = [
     "channel_misfits",
     "clearly_lower",
     "compare_stat",
+    "corner_score",
     "corner_unit",
     "detection_groups",
     "detection_pvalue",

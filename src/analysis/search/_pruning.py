@@ -9,10 +9,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from simgap.analysis.candidates import Candidate
+import numpy as np
+
+from simgap.analysis.candidates import Candidate, ProjectionCandidate
+from simgap.analysis.gap import corner_score
 from simgap.analysis.search._scored import Scored
 from simgap.analysis.search._scoring import as_good, corner_gap_lower
-from simgap.analysis.thresholds import MINOR_CONTRIBUTION
+from simgap.analysis.thresholds import MINOR_CONTRIBUTION, MINOR_CORNER_SHIFT_PX
 from simgap.effects import EFFECTS
 
 
@@ -37,6 +40,13 @@ def pruned(
     intrinsics are not questioned so: a focal length the capture's calibration file knows moves
     the corners and no pose (a true one beside a camera mount: pose contribution 0.01, corners a
     quarter lower). Measurements: docs/results/design_evidence.md#pruning.
+
+    Next, a projection effect (geometry or calibration) that moves no pose beyond the floor is
+    dropped where it moves the predicted corners by less than
+    :data:`~simgap.analysis.thresholds.MINOR_CORNER_SHIFT_PX` (:func:`corner_shift_px`): the
+    detector's own corner bias, which another camera's image formation changes by as much, so
+    the corners cannot single such an effect out (a principal point of a tenth of a pixel is
+    no calibration finding, however consistently it lowers the corner gap).
 
     Any other effect below :data:`~simgap.analysis.thresholds.MINOR_CONTRIBUTION` is dropped only
     when the model without it still explains the evidence as well (:func:`as_good`); otherwise
@@ -68,6 +78,17 @@ def pruned(
         if unseen:
             scored = rigid[min(unseen, key=weight.__getitem__)]
             continue
+        without = {
+            c.effect: evaluate(tuple(m for m, _ in scored.fits if m is not c))
+            for c, _ in scored.fits
+            if isinstance(c, ProjectionCandidate) and weight[c.effect] < MINOR_CONTRIBUTION
+        }
+        faint = [
+            e for e, r in without.items() if corner_shift_px(scored, r) < MINOR_CORNER_SHIFT_PX
+        ]
+        if faint:
+            scored = without[min(faint, key=weight.__getitem__)]
+            continue
         options = []
         for effect in (e for e, w in weight.items() if w < MINOR_CONTRIBUTION):
             reduced = evaluate(tuple(c for c, _ in scored.fits if c.effect != effect))
@@ -77,3 +98,16 @@ def pruned(
             return scored
         scored = min(options, key=lambda o: o.evidence_after)
     return scored
+
+
+def corner_shift_px(a: Scored, b: Scored) -> float:
+    """How far two models' predicted corners lie apart on the same items (px).
+
+    The robust RMS distance (:func:`~simgap.analysis.gap.corner_score`) between the corners of
+    ``a``'s and ``b``'s predictions; infinite where either carries none (nothing to compare,
+    nothing dropped for it).
+    """
+    if a.prediction is None or b.prediction is None:
+        return float("inf")
+    shift = corner_score(a.prediction.corners, b.prediction.corners)
+    return float(shift) if np.isfinite(shift) else float("inf")
