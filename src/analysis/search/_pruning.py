@@ -66,28 +66,25 @@ def pruned(
     """
     while len(scored.fits) > 1:
         weight = contributions(scored)
-        rigid = {
-            c.effect: evaluate(tuple(m for m, _ in scored.fits if m is not c))
-            for c, _ in scored.fits
-            if EFFECTS[c.effect].stage == "geometry" and weight[c.effect] < MINOR_CONTRIBUTION
-        }
-        after, unit = scored.corner_gap_after_px, scored.corner_unit_px
-        unseen = [
-            e for e, r in rigid.items() if not corner_gap_lower(after, r.corner_gap_after_px, unit)
-        ]
-        if unseen:
-            scored = rigid[min(unseen, key=weight.__getitem__)]
-            continue
+        # the model without each projection effect that moves no pose beyond the floor
         without = {
             c.effect: evaluate(tuple(m for m, _ in scored.fits if m is not c))
             for c, _ in scored.fits
             if isinstance(c, ProjectionCandidate) and weight[c.effect] < MINOR_CONTRIBUTION
         }
+        after, unit = scored.corner_gap_after_px, scored.corner_unit_px
+        unseen = [
+            e
+            for e, r in without.items()
+            if EFFECTS[e].stage == "geometry"
+            and not corner_gap_lower(after, r.corner_gap_after_px, unit)
+        ]
         faint = [
             e for e, r in without.items() if corner_shift_px(scored, r) < MINOR_CORNER_SHIFT_PX
         ]
-        if faint:
-            scored = without[min(faint, key=weight.__getitem__)]
+        dropped = unseen or faint  # the rigid changes' own rule first
+        if dropped:
+            scored = without[min(dropped, key=weight.__getitem__)]
             continue
         options = []
         for effect in (e for e, w in weight.items() if w < MINOR_CONTRIBUTION):
