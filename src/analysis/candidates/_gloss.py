@@ -106,6 +106,11 @@ OFFSET_M: tuple[float, float] = (-0.15, 0.15)
 #: the validation's laminates give 0.4-2x); unbounded, ``G`` and the light's scales trade off
 #: until the simulation's own lights are left out of the model.
 CAMERA_LIGHT_MAX_EV = 2.0
+#: Searched range of the ink factor ``h`` (log2): the ink 16 times darker or brighter than
+#: simulated, what a print, a black level or a tone curve does to it. A fit on either end is
+#: a proxy for what the level model cannot express (:data:`~simgap.analysis.thresholds.
+#: AT_BOUND_SHARE`), as a roughness or offset on its end is.
+INK_FACTOR_LOG2: tuple[float, float] = (-4.0, 4.0)
 #: Intensity of the light of the calibration render (W sr^-1; the camera light's default: a tag
 #: 0.45 m away gets the template key light's irradiance) and the largest intensity reported.
 REFERENCE_INTENSITY_W_SR = 0.24
@@ -224,28 +229,29 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
 
     a_scale = float(np.median(levels.sim_paper)) * 0.1  # a light of a tenth of the key at 0.3 m
     black_max = LEVEL_BOUNDS[1]
+    h_low, h_high = INK_FACTOR_LOG2
     base = np.array([0.0, 0.0, 0.0, 0.0, ROUGHNESS_RANGE[1], 0.0, 0.0, 0.0])
     inf = np.inf
     # exposure without, then with the black level: started at none, the joint fit can stall
-    x_exp, _ = solve(base, np.array([1, 1, 0, 0, 0, 0, 0, 0], bool), (-6, -4), (6, 4))
+    x_exp, _ = solve(base, np.array([1, 1, 0, 0, 0, 0, 0, 0], bool), (-6, h_low), (6, h_high))
     x_exp, rms_exp = solve(
-        x_exp, np.array([1, 1, 0, 0, 0, 0, 0, 1], bool), (-6, -4, 0), (6, 4, black_max)
+        x_exp, np.array([1, 1, 0, 0, 0, 0, 0, 1], bool), (-6, h_low, 0), (6, h_high, black_max)
     )
     ev_low = max(float(x_exp[0]) - CAMERA_LIGHT_MAX_EV, -6.0)
     start = x_exp.copy()
     start[2] = a_scale
     scales = np.array([1, 1, 1, 0, 0, 0, 0, 1], bool)
-    x_light, rms_light = solve(start, scales, (ev_low, -4, 0, 0), (6, 4, inf, black_max))
+    x_light, rms_light = solve(start, scales, (ev_low, h_low, 0, 0), (6, h_high, inf, black_max))
     if fixed is not None:
         start = x_light.copy()
         start[4:7] = fixed
         start[3] = a_scale
         scales[3] = True
-        x, rms = solve(start, scales, (ev_low, -4, 0, 0, 0), (6, 4, inf, inf, black_max))
+        x, rms = solve(start, scales, (ev_low, h_low, 0, 0, 0), (6, h_high, inf, inf, black_max))
         return LevelFit(x, rms_exp, rms_light, rms, len(levels))
     best, best_rms = x_light, rms_light
-    lower = (ev_low, -4, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0], 0)
-    upper = (6, 4, inf, inf, ROUGHNESS_RANGE[1], OFFSET_M[1], OFFSET_M[1], black_max)
+    lower = (ev_low, h_low, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0], 0)
+    upper = (6, h_high, inf, inf, ROUGHNESS_RANGE[1], OFFSET_M[1], OFFSET_M[1], black_max)
     for alpha in STARTS[0]:
         for offset in STARTS[1]:
             start = x_light.copy()
@@ -425,6 +431,7 @@ class GlossCandidate(AppearanceCandidate):
                 ("alpha", on_bound(fit.alpha, *ROUGHNESS_RANGE)),
                 ("light_offset_x_m", on_bound(fit.offset_x_m, *OFFSET_M)),
                 ("light_offset_z_m", on_bound(fit.offset_z_m, *OFFSET_M)),
+                ("ink_factor", on_bound(float(fit.x[1]), *INK_FACTOR_LOG2)),
                 # no light is no glint (not supported), not a bound: only the bright end is
                 ("light_intensity_w_sr", on_bound(params["light_intensity_w_sr"], -top, top)),
             )
