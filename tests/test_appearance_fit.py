@@ -519,3 +519,21 @@ def test_the_ink_reads_a_clipped_tag_only_where_it_follows_the_paper():
     assert ink_exposures(real_paper[:5], sim_paper[:5], real_ink[:5], sim_ink[:5]) is None
     # too few unclipped tags to calibrate the ink on
     assert ink_exposures(real_paper[1:], sim_paper[1:], real_ink[1:], sim_ink[1:]) is None
+
+
+def test_a_blur_with_nothing_to_fit_on_is_a_valid_unsupported_fit():
+    """No item carries edge widths (a dark capture, most tags lost): every scanned misfit is NaN.
+
+    The fit is unsupported (left out of the ranking) and renders as the smallest searched blur:
+    at 0 px, no valid blur, its render stopped a blind validation (fresh seed 79 trial 5, 9 of 24
+    items detected, ``blur.sigma_px: expected 0 < sigma < 10 px``).
+    """
+    from simgap.analysis.candidates import CANDIDATES
+    from simgap.effects import make_effect
+
+    blur = CANDIDATES["blur"]
+    grid = np.linspace(*blur.bounds, 5)
+    fit = blur.refine(None, None, None, grid, np.full(grid.size, np.nan), 0.0)
+    assert fit.extra["supported"] is False
+    assert fit.params["sigma_px"] == pytest.approx(blur.bounds[0])
+    assert make_effect("blur", fit.params).params.sigma_px == pytest.approx(0.05)

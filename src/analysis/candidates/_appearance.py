@@ -222,10 +222,17 @@ class AppearanceCandidate(SimulationCandidate):
         """The fit refined by a bounded Brent search around the scan's (``grid``) minimum.
 
         The misfit is capped and can be flat far from its minimum: the coarse scan brackets the
-        minimum. ``t0``: ``time.perf_counter()`` at the fit's start.
+        minimum. ``t0``: ``time.perf_counter()`` at the fit's start. Where no scanned misfit is
+        finite (no item carries the statistics) the fit is not supported, at the searched value
+        nearest no effect.
         """
         if not np.isfinite(values).any():
-            return Fit(self.effect, self.params(0.0), time.perf_counter() - t0, {})
+            # no item has the statistics: nothing fitted, at the searched value nearest none (a
+            # blur's range starts above 0 px, which is no valid blur)
+            rest = float(np.clip(0.0, *self.bounds))
+            return Fit(
+                self.effect, self.params(rest), time.perf_counter() - t0, {"supported": False}
+            )
         k = int(np.nanargmin(values))
         lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
         sol = minimize_scalar(
