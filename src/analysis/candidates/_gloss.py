@@ -28,8 +28,7 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
    the floors of :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`; bounded robust least
    squares fit exposure alone, then a matte light (``a``), then the laminate (``b``,
    ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`); ``G``, ``h`` and
-   ``k`` are free in each, ``G`` with the light at most :data:`CAMERA_LIGHT_MAX_EV` below the
-   exposure-only fit's. A black level takes the same level off ink and paper, so it crushes
+   ``k`` are free in each. A black level takes the same level off ink and paper, so it crushes
    the ink and leaves a glint standing on it; ``h`` alone would darken the glint with the ink and
    an exposure stops too low would make up for it (docs/results/laminate.md).
 3. **Geometry from the ink-to-paper ratios** where at least
@@ -100,12 +99,6 @@ from simgap.effects.state import VariantState
 #: captures without a laminate; docs/results/design_evidence.md#gloss).
 ROUGHNESS_RANGE: tuple[float, float] = (0.01, 0.6)
 OFFSET_M: tuple[float, float] = (-0.15, 0.15)
-#: How far below the exposure-only fit's exposure the light models' exposure ``G`` is searched
-#: (EV): a light beside the lens giving the fitted tags up to 3x the simulation's own light.
-#: A light brighter than that is the scene's key light, not one on the camera body (the LEDs of
-#: the validation's laminates give 0.4-2x); unbounded, ``G`` and the light's scales trade off
-#: until the simulation's own lights are left out of the model.
-CAMERA_LIGHT_MAX_EV = 2.0
 #: Searched range of the ink factor ``h`` (log2): the ink 16 times darker or brighter than
 #: simulated, what a print, a black level or a tone curve does to it. A fit on either end is
 #: a proxy for what the level model cannot express (:data:`~simgap.analysis.thresholds.
@@ -237,20 +230,19 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
     x_exp, rms_exp = solve(
         x_exp, np.array([1, 1, 0, 0, 0, 0, 0, 1], bool), (-6, h_low, 0), (6, h_high, black_max)
     )
-    ev_low = max(float(x_exp[0]) - CAMERA_LIGHT_MAX_EV, -6.0)
     start = x_exp.copy()
     start[2] = a_scale
     scales = np.array([1, 1, 1, 0, 0, 0, 0, 1], bool)
-    x_light, rms_light = solve(start, scales, (ev_low, h_low, 0, 0), (6, h_high, inf, black_max))
+    x_light, rms_light = solve(start, scales, (-6, h_low, 0, 0), (6, h_high, inf, black_max))
     if fixed is not None:
         start = x_light.copy()
         start[4:7] = fixed
         start[3] = a_scale
         scales[3] = True
-        x, rms = solve(start, scales, (ev_low, h_low, 0, 0, 0), (6, h_high, inf, inf, black_max))
+        x, rms = solve(start, scales, (-6, h_low, 0, 0, 0), (6, h_high, inf, inf, black_max))
         return LevelFit(x, rms_exp, rms_light, rms, len(levels))
     best, best_rms = x_light, rms_light
-    lower = (ev_low, h_low, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0], 0)
+    lower = (-6, h_low, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0], 0)
     upper = (6, h_high, inf, inf, ROUGHNESS_RANGE[1], OFFSET_M[1], OFFSET_M[1], black_max)
     for alpha in STARTS[0]:
         for offset in STARTS[1]:
