@@ -16,6 +16,7 @@ line) instead of silently keeping the last value, and exponent notation without 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
 import types
@@ -219,9 +220,19 @@ def check_finite(value: Any, where: str, _seen: set[int] | None = None) -> None:
             check_finite(v, f"{where}[{i}]", _seen)
 
 
+def _mismatch(tp: Any, value: Any, where: str) -> ConfigError:
+    """The error for ``value`` at ``where`` not being of the type ``tp``."""
+    return ConfigError(f"{where}: expected {_type_name(tp)}, got {value!r}")
+
+
+@functools.cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    """``typing.get_type_hints`` of a dataclass, resolved once per class."""
+    return typing.get_type_hints(cls)
+
+
 def _convert(tp: Any, value: Any, where: str) -> Any:
     origin = typing.get_origin(tp)
-    fail = ConfigError(f"{where}: expected {_type_name(tp)}, got {value!r}")
     if tp is Any:
         check_finite(value, where)
         return value
@@ -238,14 +249,14 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
                 return _convert(arg, value, where)
             except ConfigError:
                 continue
-        raise fail
+        raise _mismatch(tp, value, where)
     if origin is typing.Literal:
         if value in typing.get_args(tp):
             return value
-        raise fail
+        raise _mismatch(tp, value, where)
     if origin in (list, tuple):
         if not isinstance(value, (list, tuple)):
-            raise fail
+            raise _mismatch(tp, value, where)
         (arg, *rest) = typing.get_args(tp) or (Any,)
         if origin is tuple and rest and rest[0] is not Ellipsis:
             args = typing.get_args(tp)
@@ -258,28 +269,28 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         return tuple(_convert(arg, v, f"{where}[{i}]") for i, v in enumerate(value))
     if origin is dict:
         if not isinstance(value, Mapping):
-            raise fail
+            raise _mismatch(tp, value, where)
         _, vt = typing.get_args(tp)
         return {str(k): _convert(vt, v, f"{where}.{k}") for k, v in value.items()}
     if dataclasses.is_dataclass(tp):
         if isinstance(value, tp):
             return value
         if not isinstance(value, Mapping):
-            raise fail
+            raise _mismatch(tp, value, where)
         return from_mapping(tp, value, where=where)
     if tp is bool:
         if isinstance(value, bool):
             return value
-        raise fail
+        raise _mismatch(tp, value, where)
     if tp is int:
         if isinstance(value, float) and value.is_integer():  # 6e3 in YAML is a float
             return int(value)
         if isinstance(value, bool) or not isinstance(value, int):
-            raise fail
+            raise _mismatch(tp, value, where)
         return value
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise fail
+            raise _mismatch(tp, value, where)
         try:
             number = float(value)
         except OverflowError:  # an integer beyond float range
@@ -288,7 +299,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         return number
     if tp is str:
         if not isinstance(value, str):
-            raise fail
+            raise _mismatch(tp, value, where)
         return value
     raise ConfigError(f"{where}: unsupported type {tp!r}")
 
@@ -311,7 +322,7 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], where: str = "") -> T:
         On unknown keys, wrong types, missing required keys, or a range check failing in the
         dataclass's ``__post_init__``.
     """
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     sep = "" if not where or where.endswith(": ") else "."
     unknown = sorted(set(map(str, data)) - set(fields))

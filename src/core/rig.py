@@ -301,9 +301,7 @@ class Rig:
     def turntable_from_tag(self, tag: int, err: FixtureErrors = NOMINAL) -> np.ndarray:
         """Pose of tag ``tag``'s marker frame in the turntable frame."""
         face = self.tags.face(tag)
-        normal = np.array([0.0, -1.0, 0.0]) if face.facing == "outward" else np.array([0, 1.0, 0])
-        y = np.array([0.0, 0.0, 1.0])
-        r = np.column_stack([np.cross(y, normal), y, normal])
+        r = _FACE_ROTATIONS[face.facing]
         centre = np.array([0.0, -face.radius, self.links.tag_height])
         return tf.make(r, centre + r @ np.asarray(err.tag_offset))
 
@@ -379,6 +377,19 @@ class Rig:
         """Side of the white sticker including the quiet zone (m)."""
         cells = self.marker_cells()
         return self.tags.size * (cells + 2 * self.tags.quiet_zone_cells) / cells
+
+
+def _face_rotation(normal: tuple[float, float, float]) -> np.ndarray:
+    """Marker frame of a face (turntable frame): x = z_up x normal, y = up (+z), z = normal."""
+    n, y = np.asarray(normal, float), np.array([0.0, 0.0, 1.0])
+    r = np.column_stack([np.cross(y, n), y, n])
+    r.flags.writeable = False
+    return r
+
+
+#: The marker frame's rotation in the turntable frame per facing (a face's normal points away
+#: from the turntable's axis, ``outward``, or towards it).
+_FACE_ROTATIONS = {"outward": _face_rotation((0.0, -1.0, 0.0)), "inward": _face_rotation((0, 1, 0))}
 
 
 def view_angles(eyepoint_from_tags: np.ndarray) -> np.ndarray:

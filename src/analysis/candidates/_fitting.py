@@ -96,6 +96,12 @@ def project_items(rig: Rig, camera, errors, tag_scale: float, items: Items) -> n
     return camera.project(pts).reshape(len(items), 4, 2)
 
 
+def base_corners(rig: Rig, base: VariantState, items: Items) -> np.ndarray:
+    """Image corners (N, 4, 2) of the items' tags as the simulation ``base`` projects them (px)."""
+    s0 = base.scene
+    return project_items(rig, s0.camera, s0.errors, s0.tag_scale, items)
+
+
 #: Scale of the robust (soft L1) loss of the corner fits (px): corner residuals beyond it count
 #: linearly (a tag detected with a corner off by a pixel does not lead the fit).
 CORNER_LOSS_SCALE_PX = 0.5
@@ -199,12 +205,23 @@ class ProjectionCandidate:
         """The single effects fitted (this one; a joint set's members)."""
         return (self,)
 
-    def corner_shift(self, rig: Rig, base: VariantState, x: np.ndarray, items: Items) -> np.ndarray:
-        """Change of the projected corners (N, 4, 2) caused by the effect (px)."""
-        s0, s1 = base.scene, self._state(base, x).scene
-        return project_items(rig, s1.camera, s1.errors, s1.tag_scale, items) - project_items(
-            rig, s0.camera, s0.errors, s0.tag_scale, items
-        )
+    def corner_shift(
+        self,
+        rig: Rig,
+        base: VariantState,
+        x: np.ndarray,
+        items: Items,
+        reference: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Change of the projected corners (N, 4, 2) caused by the effect (px).
+
+        ``reference``: the corners projected with ``base`` (:func:`base_corners`), where the
+        caller holds them already (a fit evaluates many ``x`` on the same items).
+        """
+        if reference is None:
+            reference = base_corners(rig, base, items)
+        s1 = self._state(base, x).scene
+        return project_items(rig, s1.camera, s1.errors, s1.tag_scale, items) - reference
 
     def fit(self, rig: Rig, base: VariantState, items: Items) -> Fit:
         """Robust least squares on corners: real = sim + shift(x) (px)."""
@@ -217,9 +234,10 @@ class ProjectionCandidate:
             return Fit(self.effect, self.effect_params(x), time.perf_counter() - t0, extra)
         sub = items.subset(np.flatnonzero(ok))
         goal = (target[ok] - sub.sim_corners).ravel()
+        reference = base_corners(rig, base, sub)
 
         def residual(x):
-            return self.corner_shift(rig, base, x * self.x_scale, sub).ravel() - goal
+            return self.corner_shift(rig, base, x * self.x_scale, sub, reference).ravel() - goal
 
         x, fun = self._solve(residual, np.ones(self.n_params, bool))
         low = self.low_order()
@@ -236,7 +254,8 @@ class ProjectionCandidate:
         size_changes = {
             m.effect: size_change(
                 sub.real_corners,
-                sub.sim_corners + self.corner_shift(rig, base, self.without(x, m.effect), sub),
+                sub.sim_corners
+                + self.corner_shift(rig, base, self.without(x, m.effect), sub, reference),
             )
             for m in self.parts()
             if m.size_signature
