@@ -110,7 +110,7 @@ def main() -> None:
             reference = RobotReference.read(robot, hand_eye, in_base)
             real = measure_photos(folder, board, CAMERA, reference=reference)
             diagnosis = diagnose_photos(real, board, CAMERA, spp=args.spp)
-            rig = diagnosis.rig
+            rig = diagnosis.gaps.rig
             assert rig is not None
             print(f"{label}: {rig.sightings} sightings, {rig.frames} photos", flush=True)
             for m in rig.models:
@@ -123,9 +123,9 @@ def main() -> None:
                       f"{m.misfit_after:.2f}{found}")  # fmt: skip
             if rig.look_alikes:
                 print(f"  look-alikes: {', '.join(rig.look_alikes)}")
-            rows = [("after the camera", diagnosis.after["distance"])]
-            if diagnosis.after_rig:
-                rows.append(("after the camera and the rig", diagnosis.after_rig["distance"]))
+            rows = [("after the camera", diagnosis.gaps.after["distance"])]
+            if diagnosis.gaps.after_rig:
+                rows.append(("after the camera and the rig", diagnosis.gaps.after_rig["distance"]))
             for what, bands in rows:
                 cells = "; ".join(
                     f"{b.band} depth {b.gap_median_mm[2]:+.2f} x {b.gap_median_mm[0]:+.2f}"

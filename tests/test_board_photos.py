@@ -16,6 +16,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from simgap.analysis.gap import PhotoCameraFit, fit_photo_camera
+from simgap.analysis.report import PHOTO_ERRORS_FIGURE, PHOTO_GAP_FIGURE, PHOTO_REPORT
 from simgap.cli import app
 from simgap.core import transforms as tf
 from simgap.core.board import Board, read_board
@@ -32,7 +33,7 @@ from simgap.pipeline.photos import (
 from simgap.pose.board_pose import BoardView, marker_error, view_board
 from simgap.pose.calibration_check import CHECKS, check_calibration
 from simgap.pose.detect import Detector, DetectorSettings
-from simgap.results.photo_summary import errors_by_distance, gap_by
+from simgap.results.photo_summary import COVARIATES, errors_by_distance, gap_by
 from tests.board_views import synthetic_view
 from tests.cf_check import cf_check
 
@@ -126,8 +127,36 @@ def test_photo_dataset_reads_by_label_in_plain_xarray(tmp_path):
         z = ds.error_translation.sel(camera_axis="z", frame="img_00.jpg", marker=3)
         assert ds.error_translation.attrs["units"] == "m" and np.isfinite(float(z))
         assert ds.detected.attrs["flag_meanings"] == "no yes"
+    # its report from the file alone: the errors near / mid / far as ingest printed them
+    rep = tmp_path / "report"
+    done = CliRunner().invoke(app, ["report", str(out), "-o", str(rep), "--no-progress"])
+    assert done.exit_code == 0, done.output
+    assert sorted(p.name for p in rep.iterdir() if not p.name.startswith(".")) == [
+        PHOTO_ERRORS_FIGURE,
+        PHOTO_REPORT,
+    ]  # no simulation: no gap figure
+    printed = {line.split()[0]: line.split()[5] for line in _rows(res.output, "band  distance")}
+    written = (rep / PHOTO_REPORT).read_text()
+    assert "Board: ChArUco 5 x 7 squares of 40 mm, markers of 20 mm, DICT_6X6_250." in written
+    for band, depth in printed.items():
+        assert f"| {band} |" in written and f"| {float(depth):+.2f} |" in written
+    model = CliRunner().invoke(app, ["report", str(out), "-o", str(rep), "--model", str(out)])
+    assert model.exit_code == 2 and "--model" in model.output
     res = CliRunner().invoke(app, ["ingest", str(PHOTOS), "--board", str(BOARD), "-o", str(out)])
     assert res.exit_code == 2 and "--calibration" in res.output
+
+
+def _rows(output: str, heading: str) -> list[str]:
+    """The rows of the first console table after the line starting with ``heading``."""
+    lines = output.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(heading)) + 1
+    bands = {name for _, names in COVARIATES.values() for name in names}
+    rows = []
+    for line in lines[start:]:
+        if not line.split() or line.split()[0] not in bands:  # the table ends
+            break
+        rows.append(line)
+    return rows
 
 
 def test_calibration_from_the_photos(board):
@@ -255,6 +284,18 @@ def test_photos_simulated_at_their_reference_poses(tmp_path):
     warnings = [line for line in report.output.splitlines() if line.startswith("WARN:")]
     assert (report.fatal, report.errors) == (0, 0), report.output
     assert warnings == ["WARN: (5): Possible incorrect declaration of a coordinate variable."] * 4
+    # the report from the file alone reads the gap after as ingest printed it
+    rep = tmp_path / "report"
+    done = CliRunner().invoke(app, ["report", str(out), "-o", str(rep), "--no-progress"])
+    assert done.exit_code == 0, done.output
+    assert (rep / PHOTO_GAP_FIGURE).is_file() and (rep / PHOTO_ERRORS_FIGURE).is_file()
+    written = (rep / PHOTO_REPORT).read_text()
+    assert "blur **0.000 px**" in written
+    after = res.output.split("with the camera fitted on the other half of the photos:")[1]
+    printed = _rows(after, "band     distance")
+    assert [row.split()[0] for row in printed] == ["near", "mid", "far"]
+    for row in printed:
+        assert f"| **{float(row.split()[5]):+.2f}** |" in written, (row, written)
     res = CliRunner().invoke(app, ["ingest", str(PHOTOS), "-o", str(out), "--simulate"])
     assert res.exit_code == 2 and "--simulate" in res.output
 

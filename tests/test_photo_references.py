@@ -431,12 +431,12 @@ def test_a_hand_eye_error_is_found_in_rendered_photos(board, photo_set, by_truth
         rendered, board, CAMERA, reference=RobotReference.read(robot, hand_eye, in_base)
     )
     diagnosis = diagnose_photos(real, board, CAMERA, spp=16)
-    assert diagnosis.rig is not None and diagnosis.rig.found is not None
-    found = diagnosis.rig.found
+    assert diagnosis.gaps.rig is not None and diagnosis.gaps.rig.found is not None
+    found = diagnosis.gaps.rig.found
     assert found.name == "camera_offset"
     assert found.parameters["dx_m"] == pytest.approx(-0.002, rel=0.25)
     assert found.parameters["wy_rad"] == pytest.approx(-0.005, rel=0.25)
-    assert all(abs(b.gap_median_mm[0]) < 1.0 for b in diagnosis.after_rig["distance"])
+    assert all(abs(b.gap_median_mm[0]) < 1.0 for b in diagnosis.gaps.after_rig["distance"])
 
 
 def test_no_rig_offset_is_fitted_where_the_chain_is_right(board, photo_set, by_truth, tmp_path):

@@ -283,6 +283,7 @@ def _ingest_photos(
         f"unreadable; {seen} marker sightings against {against}"
     )
     typer.echo(errors_table(errors_by_distance(ds)))
+    typer.echo(f"its report (mm per third, figures): simgap report {output} -o REPORT_FOLDER")
     if reference is not None:  # the file against the reference: what the calibration explains
         from simgap.pipeline.photos import named_photo_points
 
@@ -300,19 +301,19 @@ def _ingest_photos(
             f"{fit.simulated_edge_width_px:.3f}; {diagnosis.edge_width_after_px:.3f} with it)"
         )
         typer.echo("real - simulated, the simulation as it is:")
-        typer.echo(gap_table(diagnosis.before["distance"]))
+        typer.echo(gap_table(diagnosis.gaps.before["distance"]))
         typer.echo("real - simulated, with the camera fitted on the other half of the photos:")
-        for bands in diagnosis.after.values():
+        for bands in diagnosis.gaps.after.values():
             typer.echo(gap_table(bands))
-        if diagnosis.rig is not None:
-            for line in diagnosis.rig.lines(str(ds.attrs["reference"])):
+        if diagnosis.gaps.rig is not None:
+            for line in diagnosis.gaps.rig.lines(str(ds.attrs["reference"])):
                 typer.echo(line)
-            if diagnosis.after_rig:
+            if diagnosis.gaps.after_rig:
                 typer.echo(
                     "real - simulated, with the camera and the rig fitted on the other half of "
                     "the photos:"
                 )
-                typer.echo(gap_table(diagnosis.after_rig["distance"]))
+                typer.echo(gap_table(diagnosis.gaps.after_rig["distance"]))
 
 
 @app.command()
@@ -474,9 +475,7 @@ def _reference_poses(
     return reference.resolve(names, own)
 
 
-def _warn_fold(
-    name: str, camera: CameraModel, points: list[tuple[np.ndarray, np.ndarray]]
-) -> None:
+def _warn_fold(name: str, camera: CameraModel, points: list[tuple[np.ndarray, np.ndarray]]) -> None:
     """Say where a calibration's radial distortion folds inside the image.
 
     :func:`simgap.core.lens.fold_in_image`, beside how far the photos' board points reach from

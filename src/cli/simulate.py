@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from simgap.cli.app import app, read_experiment, read_result_dataset
+from simgap.cli.app import app, fail, read_experiment, read_result_dataset
 from simgap.cli.options import (
     CacheOption,
     CalibrationOption,
@@ -72,14 +72,34 @@ def report(
     A sweep over the sun's direction (experiments/orbital_lighting.yaml) gets the sun's section
     instead of the comparison: polar maps of detection and error, the configurations outside
     the envelope and the worst directions' frames (read from the cache, or rendered).
+
+    A board's photo set (`simgap ingest --board`, with or without --simulate) gets its own
+    report: errors near / mid / far, and with its simulation the camera fitted and the gap
+    before -> after per third of distance, view angle and image radius.
     """
-    from simgap.analysis.report import write_report, write_sun_report
+    from simgap.analysis.report import (
+        is_photo_dataset,
+        write_photo_report,
+        write_report,
+        write_sun_report,
+    )
     from simgap.cli.progress import StepBars
     from simgap.core.outputs import claimed_folder
+    from simgap.results.contract import check_dataset
+    from simgap.results.dataset import read_netcdf
 
     inputs = [("RESULT", result), ("--model", model)]
     check_outputs([(OUTPUT, output, REPORT_FOLDER)], inputs, overwrite)
-    ds = read_result_dataset(result)
+    data = read_netcdf(result)
+    if is_photo_dataset(data):
+        if model is not None:
+            fail(f"--model: {result} is a board's photo set; an error model is drawn over a PASS "
+                 "result dataset")  # fmt: skip
+        with claimed_folder(output):
+            for p in write_photo_report(data, output):
+                typer.echo(str(p))
+        return
+    ds = check_dataset(data, result)
     with claimed_folder(output), StepBars(progress) as bars:
         paths = write_report(ds, output, progress=bars)
         sun = write_sun_report(ds, output, cache)

@@ -71,9 +71,12 @@ from simgap.analysis.gap._paired import (
     item_residuals_px2,
 )
 from simgap.analysis.gap._photo_gap import (
+    PHOTO_IMAGES,
     PhotoCameraFit,
+    PhotoGaps,
     diagnose_photos,
     fit_photo_camera,
+    photo_gaps,
     rig_corrected,
 )
 from simgap.analysis.gap._pose_noise import SHIFT_DRAWS, noise_shift, propagated_pose_noise
@@ -95,7 +98,9 @@ __all__ = [
     "Items",
     "MIN_PAIRED_ITEMS",
     "NOISE_STATS",
+    "PHOTO_IMAGES",
     "PhotoCameraFit",
+    "PhotoGaps",
     "Prediction",
     "RIG_MODELS",
     "RegionGap",
@@ -124,6 +129,7 @@ __all__ = [
     "distance_thirds",
     "evidence_channels",
     "fit_photo_camera",
+    "photo_gaps",
     "frame_corner_noise",
     "gap_field",
     "gap_score",

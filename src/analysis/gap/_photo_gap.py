@@ -53,7 +53,7 @@ BLUR_BRACKET_START_PX = 0.5
 #: Tolerance of the blur's root (px).
 BLUR_XTOL_PX = 0.01
 #: Labels of the ``image`` dimension of a photo diagnosis's dataset.
-IMAGES = ("real", "simulated", "simulated_fitted")
+PHOTO_IMAGES = ("real", "simulated", "simulated_fitted")
 
 
 @dataclass(frozen=True)
@@ -159,21 +159,15 @@ def fit_photo_camera(
 
 
 @dataclass(frozen=True)
-class PhotoDiagnosis:
-    """A photo set's gap before and after the fitted camera effects.
+class PhotoGaps:
+    """Where a photo diagnosis's gap lies before and after, read from its dataset alone.
 
     Attributes
     ----------
-    fit : PhotoCameraFit
-        The camera fitted on all frames (what is reported).
     before, after : dict of str to list of BandGap
-        Real - simulated in thirds of each covariate (distance, view angle, image radius:
-        :data:`simgap.results.photo_summary.COVARIATES`): the nominal simulation, and each
-        frame simulated with the camera fitted on the other cross-fit fold.
-    edge_width_after_px : float
-        Median edge width of the cross-fitted simulation (px), against ``fit``'s real one.
-    dataset : xarray.Dataset
-        The photo datasets along ``image`` (:data:`IMAGES`), with the fit in its attributes.
+        Real - simulated in thirds of each covariate
+        (:data:`simgap.results.photo_summary.COVARIATES`): the nominal simulation
+        (``simulated``) and the cross-fitted one (``simulated_fitted``).
     rig : RigFit or None
         The rig's geometry fitted on all frames' gap after the camera; None without an external
         reference.
@@ -182,13 +176,32 @@ class PhotoDiagnosis:
         no rig model was found).
     """
 
-    fit: PhotoCameraFit
     before: dict[str, list[BandGap]]
     after: dict[str, list[BandGap]]
-    edge_width_after_px: float
-    dataset: xr.Dataset
     rig: RigFit | None = None
     after_rig: dict[str, list[BandGap]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PhotoDiagnosis:
+    """A photo set's gap before and after the fitted camera effects.
+
+    Attributes
+    ----------
+    fit : PhotoCameraFit
+        The camera fitted on all frames (what is reported).
+    gaps : PhotoGaps
+        Where the gap lies before and after (the camera's, and the rig's where found).
+    edge_width_after_px : float
+        Median edge width of the cross-fitted simulation (px), against ``fit``'s real one.
+    dataset : xarray.Dataset
+        The photo datasets along ``image`` (:data:`PHOTO_IMAGES`), with the fit in its attributes.
+    """
+
+    fit: PhotoCameraFit
+    gaps: PhotoGaps
+    edge_width_after_px: float
+    dataset: xr.Dataset
 
 
 def diagnose_photos(
@@ -208,7 +221,7 @@ def diagnose_photos(
     renders = render_photos(real, board, camera, spec, spp, seed, progress)
     nominal = simulate_photos(real, renders, board, camera, progress=progress)
     fit = fit_photo_camera(real, nominal, renders, board, camera)
-    fold = np.arange(real.sizes["frame"]) % 2 == 0
+    fold = cross_fit_fold(real.sizes["frame"])
     parts = []
     for held in (fold, ~fold):
         other = fit_photo_camera(real, nominal, renders, board, camera, frames=~held)
@@ -220,32 +233,55 @@ def diagnose_photos(
     for name in fitted.data_vars:
         fitted[name].attrs = nominal[name].attrs
     dataset = xr.concat([real, nominal, fitted], dim="image", combine_attrs="override")
-    dataset = dataset.assign_coords(image=("image", list(IMAGES), {"long_name": "image source"}))
+    dataset = dataset.assign_coords(
+        image=("image", list(PHOTO_IMAGES), {"long_name": "image source"})
+    )
     dataset.attrs.update(
         fitted_exposure_ev=fit.exposure_ev,
         fitted_blur_sigma_px=fit.blur_sigma_px,
         render_spp=spp,
         render_seed=seed,
     )
+    gaps = photo_gaps(dataset, board)
+    if gaps.rig is not None and gaps.rig.found is not None:
+        dataset.attrs.update(
+            fitted_rig_model=gaps.rig.found.name,
+            **{f"fitted_rig_{k}": v for k, v in gaps.rig.found.parameters.items()},
+        )
+    return PhotoDiagnosis(
+        fit=fit,
+        gaps=gaps,
+        edge_width_after_px=float(np.nanmedian(fitted["edge_width"].values)),
+        dataset=dataset,
+    )
+
+
+def photo_gaps(dataset: xr.Dataset, board: Board) -> PhotoGaps:
+    """The gaps of a photo diagnosis's dataset (its ``image`` dimension: :data:`PHOTO_IMAGES`).
+
+    The same from the dataset :func:`diagnose_photos` returns or from its netCDF file: the rig
+    is fitted again (a weighted linear least squares, deterministic) where the reference is
+    external, with the same cross-fit folds.
+    """
+    real, nominal, fitted = (dataset.sel(image=name, drop=True) for name in PHOTO_IMAGES)
     rig, after_rig = None, {}
     if real.attrs.get("reference") in EXTERNAL_REFERENCES:
         rig = fit_rig(real, fitted, board)
         if rig.found is not None:
+            fold = cross_fit_fold(real.sizes["frame"])
             corrected = rig_corrected(real, fitted, board, fold, rig.found.name)
             after_rig = {c: gap_by(corrected, fitted, c) for c in COVARIATES}
-            dataset.attrs.update(
-                fitted_rig_model=rig.found.name,
-                **{f"fitted_rig_{k}": v for k, v in rig.found.parameters.items()},
-            )
-    return PhotoDiagnosis(
-        fit=fit,
+    return PhotoGaps(
         before={c: gap_by(real, nominal, c) for c in COVARIATES},
         after={c: gap_by(real, fitted, c) for c in COVARIATES},
-        edge_width_after_px=float(np.nanmedian(fitted["edge_width"].values)),
-        dataset=dataset,
         rig=rig,
         after_rig=after_rig,
     )
+
+
+def cross_fit_fold(frames: int) -> np.ndarray:
+    """The first cross-fit fold of ``frames`` photos (bool (frames,)): the even positions."""
+    return np.arange(frames) % 2 == 0
 
 
 def rig_corrected(
@@ -269,12 +305,15 @@ __all__ = [
     "BLUR_BOUNDS_PX",
     "BLUR_BRACKET_START_PX",
     "BLUR_XTOL_PX",
-    "IMAGES",
+    "PHOTO_IMAGES",
     "PAPER_CLIP_LEVEL",
     "PhotoCameraFit",
     "PhotoDiagnosis",
+    "PhotoGaps",
     "camera_pipeline",
+    "cross_fit_fold",
     "diagnose_photos",
     "fit_photo_camera",
+    "photo_gaps",
     "rig_corrected",
 ]

@@ -27,10 +27,11 @@ The package holds one job a module, composed here and by the variant comparison
 :mod:`~simgap.analysis.report._tables`, :mod:`~simgap.analysis.report._figures` (with
 :mod:`~simgap.analysis.report._heatmaps`), :mod:`~simgap.analysis.report._markdown` and
 :mod:`~simgap.analysis.report._output` (atomic files); :mod:`~simgap.analysis.report._sun` the
-sun-direction section (:func:`write_sun_report`) and
+sun-direction section (:func:`write_sun_report`),
 :mod:`~simgap.analysis.report._errormodel_bands` an error model's 90 % bands over the data it
-describes (:func:`write_error_model_bands`). The modules are private; other packages import the
-names of ``__all__`` from here.
+describes (:func:`write_error_model_bands`) and :mod:`~simgap.analysis.report._photos` the
+report of a board's photo set (:func:`write_photo_report`). The modules are private; other
+packages import the names of ``__all__`` from here.
 
 Examples
 --------
@@ -73,6 +74,16 @@ from simgap.analysis.report._heatmaps import (
 )
 from simgap.analysis.report._markdown import summary_markdown, table2_markdown
 from simgap.analysis.report._output import save_figure, save_text
+from simgap.analysis.report._photos import (
+    PHOTO_ERRORS_FIGURE,
+    PHOTO_GAP_FIGURE,
+    PHOTO_REPORT,
+    dataset_board,
+    is_photo_dataset,
+    plot_photo_errors,
+    plot_photo_gap,
+    write_photo_report,
+)
 from simgap.analysis.report._summaries import (
     VariantSummary,
     check_report_dataset,
@@ -91,14 +102,19 @@ from simgap.analysis.report._tables import (
 from simgap.core.progress import ProgressCallback, Steps
 
 __all__ = [
+    "PHOTO_ERRORS_FIGURE",
+    "PHOTO_GAP_FIGURE",
+    "PHOTO_REPORT",
     "VariantSummary",
     "binned_change_table",
     "change_by_p",
     "compare_variants",
+    "dataset_board",
     "dataset_distance_m",
     "dataset_rig",
     "envelope_rows",
     "fit_abs_error_slope",
+    "is_photo_dataset",
     "mark_beyond_limit",
     "markdown_table",
     "moves_most",
@@ -109,6 +125,8 @@ __all__ = [
     "plot_error_heatmap",
     "plot_error_model_bands",
     "plot_error_vs_distance",
+    "plot_photo_errors",
+    "plot_photo_gap",
     "resolve_baseline",
     "rig_facing_theta_rad",
     "robust_colour_limit",
@@ -123,6 +141,7 @@ __all__ = [
     "worst_directions",
     "write_comparison",
     "write_error_model_bands",
+    "write_photo_report",
     "write_report",
     "write_sun_report",
     "write_variant_report",
