@@ -50,7 +50,11 @@ from simgap.analysis.candidates._projection_set import ProjectionSet
 from simgap.analysis.candidates._registry import CANDIDATES, geometric_effects
 from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._sensor_noise import FULL_WELL_BOUNDS_E, SensorNoiseCandidate
-from simgap.analysis.candidates._simulation_chain import SimulationChain
+from simgap.analysis.candidates._simulation_chain import (
+    SOFTNESS_EFFECTS,
+    SimulationChain,
+    refitted,
+)
 from simgap.analysis.candidates._size_signature import size_change
 from simgap.analysis.candidates._sun import (
     RENDER_ELEVATION_DEG,
@@ -85,6 +89,7 @@ __all__ = [
     "PaperLevels",
     "Runner",
     "SensorNoiseCandidate",
+    "SOFTNESS_EFFECTS",
     "SimulationChain",
     "SunCandidate",
     "SunFit",
@@ -107,4 +112,5 @@ __all__ = [
     "signature_significant",
     "size_change",
     "sun_effects",
+    "refitted",
 ]
