@@ -417,21 +417,13 @@ def test_a_blur_is_fitted_on_the_exposed_simulation():
     exposure (fitted +1.201 EV) 1.400 px; at 1.0 px behind +1.0 EV -4.3 % and +0.2 %. Blind seed
     35 trial 47 (another light, sRGB, +1.1 EV): 0.97 px alone and 1.35 px in the chain for 1.48.
     """
-    from simgap.analysis.candidates import CANDIDATES, SimulationChain
+    from simgap.analysis.candidates import CANDIDATES
 
-    tags = _grey_tags(12, sigma_px=0.4)
-    runner = _TagPipelineRunner(tags)
-    base = VariantState()
-    items = _pipeline_items(len(tags))
-    blur, exposure = CANDIDATES["blur"], CANDIDATES["exposure"]
-    camera = exposure.apply(blur.apply(base, {"sigma_px": 1.4}), {"ev": 1.2})
-    items.real_stats = runner.stats(camera, items)
-    items.sim_stats = runner.stats(base, items)
-    chain = SimulationChain(runner, base, items).fit((blur, exposure))
+    chain, runner, items = _chain_through({"blur": {"sigma_px": 1.4}, "exposure": {"ev": 1.2}})
     assert [c.effect for c, _ in chain] == ["exposure", "blur"]  # the fit order, not the model's
     assert chain[0][1].params["ev"] == pytest.approx(1.2, abs=0.02)
     assert chain[1][1].params["sigma_px"] == pytest.approx(1.4, rel=0.01)
-    assert blur.fit(runner, base, items).params["sigma_px"] < 0.97 * 1.4
+    assert CANDIDATES["blur"].fit(runner, VariantState(), items).params["sigma_px"] < 0.97 * 1.4
 
 
 def test_a_black_level_is_fitted_again_on_the_soft_simulation():
@@ -439,25 +431,41 @@ def test_a_black_level_is_fitted_again_on_the_soft_simulation():
 
     The camera crushes the shadows after its optics soften the edges; the black level comes
     before the softness in the fit order, so it is fitted again beside it
-    (:func:`simgap.analysis.candidates.refitted`). Measured on these twelve synthetic tags
-    (2026-11-29): 0.0295 in the chain (blur 1.356 px), 0.0012 alone on the sharp simulation;
-    0.0441 for 0.05 behind 1.0 px, 0.0199 for 0.02 behind 2.0 px.
+    (:func:`simgap.analysis.candidates.refitted`). Measured on these six synthetic tags
+    (2026-11-29): 0.0297 in the chain (blur 1.354 px), 0.0012 alone on the sharp simulation; on
+    twelve, 0.0295 (1.356 px), 0.0441 for 0.05 behind 1.0 px, 0.0199 for 0.02 behind 2.0 px.
     """
-    from simgap.analysis.candidates import CANDIDATES, SimulationChain
+    from simgap.analysis.candidates import CANDIDATES
 
-    tags = _grey_tags(12, sigma_px=0.4)
-    runner = _TagPipelineRunner(tags)
-    base = VariantState()
-    items = _pipeline_items(len(tags))
-    blur, black_level = CANDIDATES["blur"], CANDIDATES["black_level"]
-    camera = black_level.apply(blur.apply(base, {"sigma_px": 1.4}), {"level": 0.03})
-    items.real_stats = runner.stats(camera, items)
-    items.sim_stats = runner.stats(base, items)
-    chain = SimulationChain(runner, base, items).fit((blur, black_level))
+    camera = {"blur": {"sigma_px": 1.4}, "black_level": {"level": 0.03}}
+    chain, runner, items = _chain_through(camera, tags=6)
     assert [c.effect for c, _ in chain] == ["black_level", "blur"]
     assert chain[0][1].params["level"] == pytest.approx(0.03, rel=0.05)
     assert chain[1][1].params["sigma_px"] == pytest.approx(1.4, rel=0.05)
-    assert black_level.fit(runner, base, items).params["level"] < 0.1 * 0.03
+    sharp = CANDIDATES["black_level"].fit(runner, VariantState(), items)
+    assert sharp.params["level"] < 0.1 * 0.03
+
+
+def _chain_through(
+    camera: dict[str, dict[str, float]], tags: int = 12
+) -> tuple[list, _TagPipelineRunner, Items]:
+    """A model of ``camera``'s effects fitted in a chain on ``tags`` synthetic tags it formed.
+
+    ``camera``: effect name -> parameters, applied to the nominal state in that order. Returns
+    the chain's fits, the tags' runner and the items (real statistics the camera's).
+    """
+    from simgap.analysis.candidates import CANDIDATES, SimulationChain
+
+    runner = _TagPipelineRunner(_grey_tags(tags, sigma_px=0.4))
+    base = VariantState()
+    items = _pipeline_items(len(runner.tags))
+    state = base
+    for name, params in camera.items():
+        state = CANDIDATES[name].apply(state, params)
+    items.real_stats = runner.stats(state, items)
+    items.sim_stats = runner.stats(base, items)
+    model = tuple(CANDIDATES[name] for name in camera)
+    return SimulationChain(runner, base, items).fit(model), runner, items
 
 
 def test_the_censored_median_reads_clipped_tags_as_lower_bounds():
