@@ -142,6 +142,11 @@ def test_photo_dataset_reads_by_label_in_plain_xarray(tmp_path):
         assert f"| {band} |" in written and f"| {float(depth):+.2f} |" in written
     model = CliRunner().invoke(app, ["report", str(out), "-o", str(rep), "--model", str(out)])
     assert model.exit_code == 2 and "--model" in model.output
+    with xr.open_dataset(out) as ds:  # a file whose board attribute was lost
+        broken = tmp_path / "broken.nc"
+        ds.assign_attrs(board="lost").to_netcdf(broken)
+    lost = CliRunner().invoke(app, ["report", str(broken), "-o", str(tmp_path / "lost")])
+    assert lost.exit_code == 2 and f"{broken}: attribute board: expected" in lost.output
     res = CliRunner().invoke(app, ["ingest", str(PHOTOS), "--board", str(BOARD), "-o", str(out)])
     assert res.exit_code == 2 and "--calibration" in res.output
 

@@ -84,6 +84,7 @@ def report(
         write_sun_report,
     )
     from simgap.cli.progress import StepBars
+    from simgap.core.config import ConfigError
     from simgap.core.outputs import claimed_folder
     from simgap.results.contract import check_dataset
     from simgap.results.dataset import read_netcdf
@@ -96,8 +97,12 @@ def report(
             fail(f"--model: {result} is a board's photo set; an error model is drawn over a PASS "
                  "result dataset")  # fmt: skip
         with claimed_folder(output):
-            for p in write_photo_report(data, output):
-                typer.echo(str(p))
+            try:
+                paths = write_photo_report(data, output)
+            except ConfigError as exc:
+                fail(f"{result}: {exc}")
+        for p in paths:
+            typer.echo(str(p))
         return
     ds = check_dataset(data, result)
     with claimed_folder(output), StepBars(progress) as bars:

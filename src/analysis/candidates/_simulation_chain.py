@@ -53,9 +53,9 @@ FIT_ORDER = (
 )
 
 
-#: The softness effects that come after the camera's pipeline in the fit order but before it in
-#: the camera: an image-stage effect before one of them is fitted again beside it
-#: (:func:`refitted`).
+#: The softness effects, fitted after the camera's image-stage effects (exposure, black level)
+#: but acting before them in the camera (optics, then the pipeline): an image-stage effect fitted
+#: before one of them is fitted again beside it (:func:`refitted`).
 SOFTNESS_EFFECTS = frozenset({"blur", "defocus"})
 
 

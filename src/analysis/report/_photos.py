@@ -34,7 +34,7 @@ from simgap.analysis.gap import PHOTO_IMAGES, PhotoGaps, photo_gaps
 from simgap.analysis.report._output import save_figure, save_text
 from simgap.analysis.report._tables import markdown_table, signed
 from simgap.core.board import Board
-from simgap.core.config import from_mapping
+from simgap.core.config import ConfigError, from_mapping
 from simgap.pipeline.photos import PHOTO_SOURCE
 from simgap.results.photo_summary import COVARIATES, BandGap, errors_by_distance
 
@@ -59,8 +59,34 @@ def is_photo_dataset(ds: xr.Dataset) -> bool:
 
 
 def dataset_board(ds: xr.Dataset) -> Board:
-    """The board a photo dataset was measured on (its ``board`` attribute)."""
-    return from_mapping(Board, ast.literal_eval(str(ds.attrs["board"])), where="board: ")
+    """The board a photo dataset was measured on (its ``board`` attribute).
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        Naming the attribute where it is missing or holds no board.
+    """
+    return from_mapping(Board, attribute_mapping(ds, "board"), where="attribute board: ")
+
+
+def attribute_mapping(ds: xr.Dataset, name: str) -> dict:
+    """A photo dataset's attribute ``name`` that holds a mapping (written as its ``repr``).
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        ``attribute <name>: expected ...`` where it is missing or no mapping.
+    """
+    try:
+        value = ast.literal_eval(str(ds.attrs[name]))
+    except (KeyError, ValueError, SyntaxError):
+        value = None
+    if not isinstance(value, dict):
+        raise ConfigError(
+            f"attribute {name}: expected the mapping simgap ingest --board writes, got "
+            f"{ds.attrs.get(name)!r}"
+        )
+    return value
 
 
 def board_text(board: Board) -> str:
@@ -122,7 +148,7 @@ def photo_report_markdown(
         f"- Photos: {ds.attrs.get('frames')} ({ds.attrs.get('frames_unreadable')} unreadable); "
         f"{seen} marker sightings against the {ds.attrs.get('reference')}.",
         f"- Board: {board_text(dataset_board(ds))}.",
-        f"- Calibration: {calibration_text(ast.literal_eval(str(ds.attrs['calibration'])))}.",
+        f"- Calibration: {calibration_text(attribute_mapping(ds, 'calibration'))}.",
         "- Errors in the OpenCV camera frame: x right, y down, z depth (+ farther than the "
         "reference); medians per third of the sightings' distances.",
         "",
