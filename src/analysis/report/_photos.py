@@ -128,17 +128,18 @@ def write_photo_report(ds: xr.Dataset, output: Path) -> list[Path]:
     output.mkdir(parents=True, exist_ok=True)
     simulated = "image" in ds.dims
     real = ds.sel(image="real", drop=True) if simulated else ds
-    gaps = photo_gaps(ds, dataset_board(ds)) if simulated else None
+    board = dataset_board(ds)
+    gaps = photo_gaps(ds, board) if simulated else None
     paths = [save_figure(plot_photo_errors(ds), output / PHOTO_ERRORS_FIGURE)]
     if gaps is not None:
         paths.append(save_figure(plot_photo_gap(gaps), output / PHOTO_GAP_FIGURE))
-    text = photo_report_markdown(ds, real, gaps, [p.name for p in paths])
+    text = photo_report_markdown(ds, real, board, gaps, [p.name for p in paths])
     paths.append(save_text(text, output / PHOTO_REPORT))
     return paths
 
 
 def photo_report_markdown(
-    ds: xr.Dataset, real: xr.Dataset, gaps: PhotoGaps | None, figures: list[str]
+    ds: xr.Dataset, real: xr.Dataset, board: Board, gaps: PhotoGaps | None, figures: list[str]
 ) -> str:
     """The report's Markdown: the set, its errors, and with a simulation the gap and its causes."""
     seen = int(real["detected"].sum())
@@ -147,7 +148,7 @@ def photo_report_markdown(
         "",
         f"- Photos: {ds.attrs.get('frames')} ({ds.attrs.get('frames_unreadable')} unreadable); "
         f"{seen} marker sightings against the {ds.attrs.get('reference')}.",
-        f"- Board: {board_text(dataset_board(ds))}.",
+        f"- Board: {board_text(board)}.",
         f"- Calibration: {calibration_text(attribute_mapping(ds, 'calibration'))}.",
         "- Errors in the OpenCV camera frame: x right, y down, z depth (+ farther than the "
         "reference); medians per third of the sightings' distances.",
