@@ -368,3 +368,45 @@ def test_jpeg_behind_crushed_blacks_and_blur_only_trials_are_scored_apart():
     row = "crushed (>= 10% of a tag at 0 DN; 2 trials) | 50% |"
     assert f"| JPEG named where the capture's blacks are {row}" in text
     assert "| blur-only trials free of geometric and calibration effects | 50% |" in text
+
+
+def test_other_cameras_draw_their_own_tag_print_and_keep_every_other_draw():
+    """Every other camera prints its tags with its own ink (0.5-8 %, uniform in optical density)
+    and paper (65-90 %), which the scene takes; the total exposure stays the drawn one, its
+    paper's share read as exposure; --nominal-print keeps the simulation's print and every other
+    draw of the seed (only the exposure setting moves, by the paper's share)."""
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_truth import exposure_truth, print_ev
+    from simgap.diagnosis.nuisance import INK_DENSITY, PAPER_REFLECTANCE
+    from simgap.diagnosis.trial import nuisance_bins
+    from simgap.diagnosis.validate import ValidateSettings, draw_trials
+    from simgap.scene.spec import load_scene_spec
+
+    rig = load_rig()
+    drawn = draw_trials(ValidateSettings(trials=40, seed=3), rig)
+    nominal = draw_trials(ValidateSettings(trials=40, seed=3, print_reflectance=False), rig)
+    inks = []
+    for (hidden, camera), (hidden_n, camera_n) in zip(drawn, nominal, strict=True):
+        tag = camera.scene["materials"]["tag"]
+        density = -np.log10(tag["ink"])
+        assert INK_DENSITY[0] <= density <= INK_DENSITY[1]
+        assert PAPER_REFLECTANCE[0] <= tag["paper"] <= PAPER_REFLECTANCE[1]
+        inks.append(tag["ink"])
+        # the scene template takes the print as drawn
+        spec = load_scene_spec(camera.scene)
+        assert (spec.tag.ink, spec.tag.paper) == (tag["ink"], tag["paper"])
+        assert "ink" not in camera_n.scene["materials"]["tag"] and print_ev(camera_n) == 0.0
+        assert print_ev(camera) == pytest.approx(np.log2(tag["paper"] / 0.8))
+        # the same draws otherwise; the total exposure the same, through the paper's share
+        assert hidden == hidden_n and (camera.p, camera.theta_deg) == (
+            camera_n.p,
+            camera_n.theta_deg,
+        )
+        others = {k: v for k, v in camera.effects.items() if k != "exposure"}
+        assert others == {k: v for k, v in camera_n.effects.items() if k != "exposure"}
+        # with_exposure's fixed-point steps leave up to 0.027 EV under a black level (above)
+        assert exposure_truth(camera, rig) == pytest.approx(exposure_truth(camera_n, rig), abs=0.05)
+        assert "print ink" in nuisance_bins(camera, rig)
+        assert "print ink" not in nuisance_bins(camera_n, rig)
+    # 40 draws uniform in density over 1.1-2.3: both ends of the range are reached
+    assert min(inks) < 0.01 and max(inks) > 0.05

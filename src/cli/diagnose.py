@@ -275,6 +275,12 @@ def validate(
         "denoising, black level, tone curve, lateral colour, gain changes) and some captures "
         "mostly frontal poses (the default); --no-camera-pipeline draws cameras without them.",
     ),
+    print_reflectance: bool = typer.Option(
+        True,
+        "--drawn-print/--nominal-print",
+        help="Give each other camera its own tag print: ink 0.5-8 % and paper 65-90 % "
+        "reflectance (the default); --nominal-print keeps the simulation's print.",
+    ),
     stages: str = typer.Option(
         "",
         "--stages",
@@ -310,6 +316,7 @@ def validate(
             shard=(int(k), int(n)),
             converged_simulation=converged_simulation,
             camera_pipeline=camera_pipeline,
+            print_reflectance=print_reflectance,
             stages=tuple(s.strip() for s in stages.split(",") if s.strip()),
         )
     except ValueError as exc:  # "stages: expected ...": name the option

@@ -2,11 +2,11 @@
 
 The truths a blind validation trial is scored against where the other camera has the same kind
 of effect as the hidden one (:data:`simgap.diagnosis.hidden_effects.CAMERA_NAMED`): its total
-exposure (:func:`exposure_truth`: the exposure setting, a light meter at the tags and the transfer
-curve) and its softness (:func:`softness_truth`: the pixel filter's width beyond the
-simulation's box), never read from the capture itself; how unevenly its lights light the tags
-against the simulation's (:func:`light_spread_truth`); and :func:`with_exposure`, which sets a
-camera's exposure so that its total is a drawn one. The cameras are drawn by
+exposure (:func:`exposure_truth`: the exposure setting, a light meter at the tags, the print's
+paper and the transfer curve) and its softness (:func:`softness_truth`: the pixel filter's width
+beyond the simulation's box), never read from the capture itself; how unevenly its lights light
+the tags against the simulation's (:func:`light_spread_truth`); and :func:`with_exposure`, which
+sets a camera's exposure so that its total is a drawn one. The cameras are drawn by
 :mod:`simgap.diagnosis.nuisance`.
 """
 
@@ -35,7 +35,7 @@ def with_exposure(camera: NuisanceCamera, total_ev: float, rig: Rig) -> Nuisance
     The transfer curve's apparent change depends on the level, so the setting is found by a
     few fixed-point steps (it converges in three to the last 0.001 EV).
     """
-    meter = light_meter_ev(camera, rig)
+    meter = light_meter_ev(camera, rig) + print_ev(camera)
     setting = total_ev - meter
     for _ in range(4):
         level = PAPER_LEVEL * 2.0 ** (setting + meter)
@@ -97,6 +97,18 @@ def light_spread_truth(camera: NuisanceCamera, rig: Rig) -> float:
     return float(np.sqrt(np.mean((log_ratio - np.median(log_ratio)) ** 2)))
 
 
+def print_ev(camera: NuisanceCamera) -> float:
+    """How much brighter the other camera's tag paper is than the simulation's (EV).
+
+    ``log2`` of the paper albedo of its print (the scene override ``materials.tag.paper``, where
+    drawn: :func:`simgap.diagnosis.nuisance.draw_print`) over the simulation template's; 0 for
+    the template's print. The paper level is what an exposure finding reads, so a greyer paper
+    is a darker exposure.
+    """
+    paper = camera.scene.get("materials", {}).get("tag", {}).get("paper")
+    return 0.0 if paper is None else float(np.log2(float(paper) / default_scene_spec().tag.paper))
+
+
 def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
     """Apparent exposure change of the camera's transfer curve at the paper's level (EV).
 
@@ -136,11 +148,12 @@ PAPER_LEVEL = 0.34
 def exposure_truth(camera: NuisanceCamera, rig: Rig) -> float:
     """The exposure change (EV) that matches the simulation's paper level to this camera's.
 
-    Camera exposure setting + light meter (:func:`light_meter_ev`) + transfer curve
-    (:func:`transfer_ev` at the paper's level): what an exposure finding should read.
+    Camera exposure setting + light meter (:func:`light_meter_ev`) + paper (:func:`print_ev`) +
+    transfer curve (:func:`transfer_ev` at the paper's level): what an exposure finding should
+    read.
     """
     setting = float(camera.effects["exposure"]["ev"])
-    meter = light_meter_ev(camera, rig)
+    meter = light_meter_ev(camera, rig) + print_ev(camera)
     return setting + meter + transfer_ev(camera, PAPER_LEVEL * 2.0 ** (setting + meter))
 
 
@@ -176,6 +189,7 @@ __all__ = [
     "exposure_truth",
     "filter_variance_px2",
     "light_meter_ev",
+    "print_ev",
     "softness_truth",
     "transfer_ev",
     "with_exposure",

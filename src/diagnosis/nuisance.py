@@ -2,7 +2,8 @@
 
 A real camera differs from simgap's simulation in many small ways at once: other lights, another
 exposure, a softer or sharper pixel, its own sensor noise and transfer curve, vignetting, other
-paint on the fixture, the poses an operator chose, one or two frames a pose. A diagnosis whose
+paint on the fixture, another print of the tags (its ink and paper), the poses an operator chose,
+one or two frames a pose. A diagnosis whose
 rules were fitted to one such camera fails on the next, so every trial draws its own from the wide
 ranges below (realistic for a bench camera and lab lighting), and scores are reported per
 nuisance bin (:func:`simgap.diagnosis.trial.nuisance_bins`).
@@ -68,6 +69,13 @@ VIGNETTING = (0.0, 0.35)
 #: Diffuse albedo of the node's and the table's paint (the template's: 0.45 and 0.35).
 NODE_REFLECTANCE = (0.2, 0.8)
 TABLE_REFLECTANCE = (0.15, 0.7)
+#: The tag print's ink and paper (diffuse albedo; the simulation's template: 0.03 and 0.80). The
+#: ink is drawn uniform in optical density, 1.1 (matte toner on office paper, 8 % reflectance) to
+#: 2.3 (dense inkjet on coated stock, 0.5 %): an independent generator's "a black that reflects
+#: nothing" and a laser print are both inside (ISO 12647-2 puts offset black solids at densities
+#: 1.6-1.9 in between). The paper: grey or aged label stock to bright office paper.
+INK_DENSITY = (1.1, 2.3)
+PAPER_REFLECTANCE = (0.65, 0.9)
 #: Poses: how many pin holes (always one of the three nearest and one of the three farthest, so
 #: that a trend with distance shows) and turntable stops (from those where a tag faces the
 #: camera, each tag's frontal stop always among them), and the share of captures with two
@@ -299,6 +307,18 @@ def draw_pipeline(
     return {name: params for name, (present, params) in drawn.items() if present}
 
 
+def draw_print(rng: np.random.Generator) -> dict[str, float]:
+    """The tag print of one other camera: ``ink`` and ``paper`` albedo (scene-template keys).
+
+    The ink from :data:`INK_DENSITY` (uniform in optical density, reflectance ``10 ** -D``), the
+    paper from :data:`PAPER_REFLECTANCE`.
+    """
+    return {
+        "ink": float(10.0 ** -_uniform(rng, INK_DENSITY)),
+        "paper": _uniform(rng, PAPER_REFLECTANCE),
+    }
+
+
 def _frontal_heavy_stops(rng: np.random.Generator) -> tuple[float, ...]:
     """:data:`FRONTAL_HEAVY_STOPS_DEG` and one drawn oblique stop (deg), sorted."""
     oblique = float(rng.choice(OBLIQUE_STOPS_DEG))
@@ -310,6 +330,7 @@ def draw_nuisance(
     rig: Rig,
     pipeline_rng: np.random.Generator | None = None,
     always: Collection[str] = (),
+    print_rng: np.random.Generator | None = None,
 ) -> NuisanceCamera:
     """Draw one other camera from the ranges of this module.
 
@@ -328,6 +349,9 @@ def draw_nuisance(
         draws stay those of ``rng``. None: no pipeline stages and the usual poses.
     always : collection of str, optional
         Pipeline stages every camera has (:func:`draw_pipeline`); only with ``pipeline_rng``.
+    print_rng : numpy.random.Generator, optional
+        Draws the tag print's ink and paper (:func:`draw_print`), from a stream of its own. None:
+        the simulation's print.
     """
     total_ev = _uniform(rng, EXPOSURE_EV)
     light_ev = _uniform(rng, LIGHT_EV)
@@ -354,6 +378,8 @@ def draw_nuisance(
             "table": {"type": "diffuse", "reflectance": _uniform(rng, TABLE_REFLECTANCE)},
         },
     }
+    if print_rng is not None:
+        scene["materials"]["tag"].update(draw_print(print_rng))
     spp = int(rng.choice(SPP_CHOICES))
     p, theta_deg = _poses(rng)
     frames = 2 if rng.uniform() < TWO_FRAMES_SHARE else 1
@@ -372,4 +398,5 @@ __all__ = [
     "NuisanceCamera",
     "draw_nuisance",
     "draw_pipeline",
+    "draw_print",
 ]

@@ -37,6 +37,8 @@ AZIMUTH_SCALE_DEG = 90.0
 EXPOSURE_BINS_EV = (0.5, 1.0)
 SOFTNESS_BINS_PX = (0.2, 0.4)
 FULL_WELL_BINS_E = (3000.0, 8000.0)
+#: Ink reflectance of the print bins (%; the drawn range is 0.5-8, the simulation's 3).
+INK_BINS_PCT = (2.0, 5.0)
 #: Unsharp-mask amounts of the sharpening bins (the drawn range is 0.3-1.5).
 SHARPEN_AMOUNT_BINS = (0.6, 1.0)
 
@@ -118,14 +120,25 @@ def pipeline_bins(camera: NuisanceCamera) -> dict[str, str]:
     }
 
 
+def _print_ink_bin(camera: NuisanceCamera) -> dict[str, str]:
+    """The bin of the camera's print's ink reflectance (%); none where its print was not drawn.
+
+    A camera drawn without a print of its own (``--nominal-print``, or a trial kept before
+    prints were drawn) has no such bin, so that its kept score reads as it was written.
+    """
+    ink = camera.scene.get("materials", {}).get("tag", {}).get("ink")
+    return {} if ink is None else {"print ink": _bin(100.0 * float(ink), INK_BINS_PCT, "%")}
+
+
 def nuisance_bins(
     camera: NuisanceCamera, rig: Rig, crushed_black: float | None = None
 ) -> dict[str, str]:
     """The camera's bin in each nuisance dimension.
 
-    Exposure, softness, noise, frames a pose, poses (mostly frontal or spread), the stages of
-    the camera's own image pipeline (:func:`pipeline_bins`) and, where measured, whether the
-    capture's blacks are crushed (:data:`CRUSHED_BLACK_SHARE`).
+    Exposure, softness, noise, frames a pose, poses (mostly frontal or spread), where drawn the
+    print's ink reflectance (:data:`INK_BINS_PCT`), the stages of the camera's own image pipeline
+    (:func:`pipeline_bins`) and, where measured, whether the capture's blacks are crushed
+    (:data:`CRUSHED_BLACK_SHARE`).
     """
     frontal = set(camera.theta_deg) <= {*FRONTAL_HEAVY_STOPS_DEG, *OBLIQUE_STOPS_DEG} and (
         sum(t not in FRONTAL_HEAVY_STOPS_DEG for t in camera.theta_deg) <= 1
@@ -136,6 +149,7 @@ def nuisance_bins(
         "noise": _bin(camera.effects["sensor_noise"]["full_well_e"], FULL_WELL_BINS_E, "e-"),
         "frames": f"{camera.frames_per_pose} a pose",
         "poses": "mostly frontal" if frontal else "spread",
+        **_print_ink_bin(camera),
         **pipeline_bins(camera),
     }
     if crushed_black is not None:

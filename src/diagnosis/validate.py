@@ -106,6 +106,10 @@ class ValidateSettings:
         Pipeline stages every other camera has (keys of
         :data:`simgap.diagnosis.nuisance.PIPELINE_SHARE`; default none): a validation targeted
         on a stage, e.g. a black level under JPEG. Needs ``camera_pipeline``.
+    print_reflectance : bool
+        Give every other camera its own tag print, ink and paper drawn
+        (:func:`simgap.diagnosis.nuisance.draw_print`); False keeps the simulation's print (the
+        same draws of a seed otherwise).
     """
 
     trials: int = 30
@@ -122,6 +126,7 @@ class ValidateSettings:
     converged_simulation: bool = True
     camera_pipeline: bool = True
     stages: tuple[str, ...] = ()
+    print_reflectance: bool = True
 
     def __post_init__(self) -> None:
         k, n = self.shard
@@ -176,19 +181,21 @@ def draw_trials(
 ) -> list[tuple[dict[str, dict[str, Any]], NuisanceCamera]]:
     """Every trial's hidden effects and other camera, in trial order (the same for any shard).
 
-    The hidden draws, the cameras and the cameras' own image pipelines come from three streams
-    of the seed, so that a change of one's ranges leaves the others' draws of a seed as they
-    were. A hidden exposure sets the camera's total exposure
+    The hidden draws, the cameras, the cameras' own image pipelines and their tag prints come
+    from four streams of the seed, so that a change of one's ranges leaves the others' draws of a
+    seed as they were. A hidden exposure sets the camera's total exposure
     (:func:`simgap.diagnosis.camera_truth.with_exposure`); a hidden sensor noise replaces the
     camera's sensor.
     """
     hidden_rng = np.random.default_rng(settings.seed)
     camera_rng = np.random.default_rng([settings.seed, 1])
     pipeline_rng = np.random.default_rng([settings.seed, 2]) if settings.camera_pipeline else None
+    print_rng = np.random.default_rng([settings.seed, 3]) if settings.print_reflectance else None
     out = []
     for _ in range(settings.trials):
         hidden = draw_hidden(hidden_rng, settings)
-        camera = settings.camera(draw_nuisance(camera_rng, rig, pipeline_rng, settings.stages))
+        drawn = draw_nuisance(camera_rng, rig, pipeline_rng, settings.stages, print_rng)
+        camera = settings.camera(drawn)
         if "exposure" in hidden:
             camera = with_exposure(camera, float(hidden["exposure"]["ev"]), rig)
         out.append((hidden, camera))
