@@ -3,10 +3,10 @@
 A real camera differs from simgap's simulation in many small ways at once: other lights, another
 exposure, a softer or sharper pixel, its own sensor noise and transfer curve, vignetting, other
 paint on the fixture, another print of the tags (its ink and paper), the poses an operator chose,
-one or two frames a pose. A diagnosis whose
-rules were fitted to one such camera fails on the next, so every trial draws its own from the wide
-ranges below (realistic for a bench camera and lab lighting), and scores are reported per
-nuisance bin (:func:`simgap.diagnosis.trial.nuisance_bins`).
+one or two frames a pose. A diagnosis whose rules were fitted to one such camera fails on the
+next, so every trial draws its own from the wide ranges below (realistic for a bench camera and
+lab lighting), and scores are reported per nuisance bin
+(:func:`simgap.diagnosis.trial.nuisance_bins`).
 
 The drawn camera is data (:class:`NuisanceCamera`): its image effects, its scene overrides, its
 samples per pixel and its poses. :mod:`simgap.diagnosis.camera_truth` turns it into the exposure
@@ -70,10 +70,11 @@ VIGNETTING = (0.0, 0.35)
 NODE_REFLECTANCE = (0.2, 0.8)
 TABLE_REFLECTANCE = (0.15, 0.7)
 #: The tag print's ink and paper (diffuse albedo; the simulation's template: 0.03 and 0.80). The
-#: ink is drawn uniform in optical density, 1.1 (matte toner on office paper, 8 % reflectance) to
-#: 2.3 (dense inkjet on coated stock, 0.5 %): an independent generator's "a black that reflects
-#: nothing" and a laser print are both inside (ISO 12647-2 puts offset black solids at densities
-#: 1.6-1.9 in between). The paper: grey or aged label stock to bright office paper.
+#: ink is drawn uniform in optical density (reflectance ``10 ** -D``), from 1.1 (a weak toner
+#: print on office paper, 8 %) to 2.3 (a dense inkjet black on coated stock, 0.5 %): a black
+#: that reflects next to nothing, as an independent generator's, and a laser print are both
+#: inside, and so are the densities of about 1.4-1.9 that office and offset blacks usually
+#: reach. The paper: grey or aged label stock to bright office paper.
 INK_DENSITY = (1.1, 2.3)
 PAPER_REFLECTANCE = (0.65, 0.9)
 #: Poses: how many pin holes (always one of the three nearest and one of the three farthest, so

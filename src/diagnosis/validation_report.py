@@ -12,6 +12,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
+from simgap.diagnosis.nuisance import INK_DENSITY, PAPER_REFLECTANCE
 from simgap.diagnosis.result_json import jsonable
 from simgap.diagnosis.trial import CRUSHED_BLACK_SHARE
 from simgap.diagnosis.trial_score import TrialRecord
@@ -46,6 +49,13 @@ def _percent_1(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.1%}"
 
 
+def _print_ranges() -> str:
+    """The drawn ranges of the tags' print, in % reflectance (:mod:`simgap.diagnosis.nuisance`)."""
+    ink = sorted(100.0 * 10.0 ** -np.asarray(INK_DENSITY))
+    paper = [100.0 * x for x in PAPER_REFLECTANCE]
+    return f"ink {ink[0]:.1f}-{ink[1]:.0f} %, paper {paper[0]:.0f}-{paper[1]:.0f} % reflectance"
+
+
 def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord]) -> str:
     """``validation.md``: the scores, per nuisance bin, per effect, the confusion table, trials.
 
@@ -61,7 +71,7 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         "and colour; ambient; total exposure -1.5 to +1.5 EV; box, tent or Gaussian pixel "
         "filter; 49-81 spp; nearest or bilinear texture filtering; full well 1000-20000 e-, read "
         "noise 1-10 e-; sRGB or gamma 1.8-2.4; vignetting; node and table paint; where drawn, the "
-        "tags' print (ink 0.5-8 %, paper 65-90 % reflectance); 4-6 pin holes x 6-8 stops, "
+        f"tags' print ({_print_ranges()}); 4-6 pin holes x 6-8 stops, "
         "both frontal stops among them; one or two frames a pose; where drawn, the "
         "camera's own image pipeline, each stage in some cameras: gain changes per frame, a "
         "black level crushing the shadows, Bayer demosaicing, bilateral denoising, an S-shaped "
