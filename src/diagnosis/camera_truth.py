@@ -105,8 +105,8 @@ def print_ev(camera: NuisanceCamera) -> float:
     the template's print. The paper level is what an exposure finding reads, so a greyer paper
     is a darker exposure.
     """
-    paper = camera.scene.get("materials", {}).get("tag", {}).get("paper")
-    return 0.0 if paper is None else float(np.log2(float(paper) / default_scene_spec().tag.paper))
+    paper = camera.tag_print().get("paper")
+    return 0.0 if paper is None else float(np.log2(paper / default_scene_spec().tag.paper))
 
 
 def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:

@@ -185,6 +185,15 @@ class NuisanceCamera:
         """The stages of the camera's own image pipeline it has (:data:`PIPELINE_SHARE`)."""
         return {k: v for k, v in self.effects.items() if k in PIPELINE_SHARE}
 
+    def tag_print(self) -> dict[str, float]:
+        """The tag print's drawn ``ink`` and ``paper`` albedo (:func:`draw_print`).
+
+        Empty where the camera prints with the simulation's (``--nominal-print``, trials kept
+        before prints were drawn).
+        """
+        tag = self.scene.get("materials", {}).get("tag", {})
+        return {k: float(tag[k]) for k in ("ink", "paper") if k in tag}
+
 
 def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     return float(rng.uniform(*bounds))

@@ -126,8 +126,8 @@ def _print_ink_bin(camera: NuisanceCamera) -> dict[str, str]:
     A camera drawn without a print of its own (``--nominal-print``, or a trial kept before
     prints were drawn) has no such bin, so that its kept score reads as it was written.
     """
-    ink = camera.scene.get("materials", {}).get("tag", {}).get("ink")
-    return {} if ink is None else {"print ink": _bin(100.0 * float(ink), INK_BINS_PCT, "%")}
+    ink = camera.tag_print().get("ink")
+    return {} if ink is None else {"print ink": _bin(100.0 * ink, INK_BINS_PCT, "%")}
 
 
 def nuisance_bins(

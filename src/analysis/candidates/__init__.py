@@ -109,8 +109,8 @@ __all__ = [
     "on_bound",
     "predicted_levels",
     "project_items",
+    "refitted",
     "signature_significant",
     "size_change",
     "sun_effects",
-    "refitted",
 ]
