@@ -186,6 +186,30 @@ def test_a_look_alike_displaced_by_a_corner_effect_leaves():
         assert sorted(model.effects) == kept
 
 
+def test_a_minor_finding_another_explains_as_well_in_its_place_is_undecided():
+    """:meth:`~simgap.analysis.search.ModelSearch.look_alikes`: a principal point of 0.5 px, minor,
+    is explained as well by a small camera rotation in its place (noise seeds 1-3, measured:
+    a camera mount each time, a tag offset too on seed 2); a calibration file's distortion of k1
+    -0.08 is singled out by the corners (no look-alike on seeds 1-3); a focal length of +0.2 %
+    moves the poses (not minor) and is not questioned."""
+    rig = load_rig()
+    cands = [c for c in CANDIDATES.values() if isinstance(c, ProjectionCandidate)]
+    for hidden, effect, alikes in (
+        ({"principal_point": {"dx_px": 0.5, "dy_px": 0.0}}, "principal_point", {"camera_mount"}),
+        ({"lens_distortion": {"k1": -0.08}}, "lens_distortion", set()),
+        ({"focal_length": {"scale": 0.002}}, "focal_length", set()),
+    ):
+        for seed in (1, 3):
+            search = _search(rig, hidden, seed=seed)
+            ranking = search.rank(cands, significant=True)
+            chosen = search.select(ranking)
+            assert chosen is not None and chosen.effects == [effect], (hidden, seed)
+            found = search.look_alikes(chosen, ranking)
+            assert set(found.get(effect, ())) == alikes, (hidden, seed, found)
+            if effect == "focal_length":
+                assert search.minor(chosen) == []
+
+
 def test_a_tag_centre_is_blind_to_a_symmetric_edge_bias():
     """The centre residual: a square drawn in or out about its centre leaves it (0 px^2), a shift
     of (dx, dy) px gives dx^2 + dy^2."""

@@ -213,6 +213,41 @@ def test_hidden_effects_are_valid_and_the_cameras_own_appearance_is_never_wrong(
     assert Trial(0, hidden, camera, _selecting("focal_length", "sun"), rig=rig).score().correct
 
 
+def test_an_undecided_finding_names_none_of_its_look_alikes():
+    """A minor finding the diagnosis left undecided between look-alikes
+    (``Finding.look_alikes``) is no hit, and is spurious only where none of its look-alikes is
+    in the capture: blind seed 82 trial 0's calibration file (k1 -0.06) beside a laminate, read
+    as "focal_length or lens_distortion (minor, undecided)", is right for the laminate and
+    names no effect the capture lacks; the same answer alone names nothing."""
+    from simgap.diagnosis.trial import Trial
+    from simgap.diagnosis.trial_score import UNDECIDED
+
+    undecided = Finding(
+        effect="focal_length",
+        params={"scale": 0.0012},
+        pose_contribution=0.4,
+        minor=True,
+        look_alikes=["lens_distortion"],
+    )
+    gloss = Finding(effect="tag_gloss", params={}, pose_contribution=0.05, minor=True)
+    both = DiagnosisResult(
+        selection=Selection(findings=[undecided, gloss], n_params=0, items=0, scores=Scores())
+    )
+    hidden = {"tag_gloss": {"alpha": 0.15}, "faulty_calibration": {"k1": -0.06}}
+    pair = Trial(0, hidden, None, both).score()
+    assert pair.correct and pair.spurious == () and pair.recall == 0.5
+    assert pair.undecided == {"focal_length": ("lens_distortion",)}
+    assert pair.decided == ("tag_gloss",) and pair.top1 == "tag_gloss"
+    alone = DiagnosisResult(
+        selection=Selection(findings=[undecided], n_params=0, items=0, scores=Scores())
+    )
+    faulty = Trial(0, {"faulty_calibration": {"k1": -0.06}}, None, alone).score()
+    assert not faulty.correct and faulty.spurious == () and faulty.top1 == UNDECIDED
+    # where no look-alike is in the capture either, the undecided finding is spurious
+    scale = Trial(0, {"tag_scale": {"scale": 0.02}}, None, alone).score()
+    assert not scale.correct and scale.spurious == ("focal_length",)
+
+
 def test_targeted_validation_draws_only_the_named_effects(tmp_path):
     from simgap.diagnosis.validate import ValidateSettings, draw_hidden
 

@@ -201,10 +201,17 @@ class Diagnosis:
             seconds=time.perf_counter() - t0,
         )
 
-    def selection(self, chosen: Scored) -> Selection:
-        """The chosen model's findings and its scores on the choose split."""
+    def selection(self, chosen: Scored, ranking: list[Scored]) -> Selection:
+        """The chosen model's findings and its scores on the choose split.
+
+        A minor geometric or calibration finding carries the effects that explain the evidence
+        as well in its place (:meth:`simgap.analysis.search.ModelSearch.look_alikes`, from
+        ``ranking``'s effects); the models with them are tried first, so that the look-alikes
+        listed with their telling poses include them.
+        """
         weight = self.search.contributions(chosen)
         minor = set(self.search.minor(chosen))
+        alikes = self.search.look_alikes(chosen, ranking)
         return Selection(
             findings=[
                 Finding(
@@ -213,6 +220,7 @@ class Diagnosis:
                     pose_contribution=weight[fit.effect],
                     minor=fit.effect in minor,
                     at_bound=list(fit.extra.get("at_bound", ())),
+                    look_alikes=list(alikes.get(fit.effect, ())),
                 )
                 for _, fit in chosen.fits
             ],
@@ -347,7 +355,7 @@ def diagnose(
         where=where,
         ranking=[RankedEffect.of(s) for s in ranking],
         on_bound=[RankedEffect.of(s) for s in d.search.on_bound],
-        selection=d.selection(chosen) if chosen else None,
+        selection=d.selection(chosen, ranking) if chosen else None,
         unexplained_evidence=unexplained_evidence(chosen, where, settings)
         if where.significant
         else [],

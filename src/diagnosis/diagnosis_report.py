@@ -31,7 +31,7 @@ from simgap.diagnosis.engineering import (
     plot_abs_error_vs_distance,
     plot_gap_by_distance,
 )
-from simgap.diagnosis.result import DiagnosisResult, EquivalentModel
+from simgap.diagnosis.result import DiagnosisResult, EquivalentModel, Finding
 from simgap.diagnosis.where_report import where_markdown
 
 
@@ -161,8 +161,8 @@ def selected_names(result: DiagnosisResult) -> str:
     Where other models explain the capture as well (look-alikes its poses cannot tell apart),
     they are named after it: the selection is then the simplest of equals, not a verdict.
     """
-    minor = set(result.minor)
-    names = ", ".join(f"{e} (minor)" if e in minor else e for e in result.selected) or "-"
+    findings = result.selection.findings if result.selection else []
+    names = ", ".join(_finding_name(f) for f in findings) or "-"
     alike = (
         [" + ".join(a.effects) for a in result.selection.equivalent_models]
         if result.selection
@@ -173,6 +173,13 @@ def selected_names(result: DiagnosisResult) -> str:
     return names
 
 
+def _finding_name(finding: Finding) -> str:
+    """A finding's name, marked minor, and undecided with its look-alikes where it is."""
+    if finding.undecided:
+        return f"{finding.effect} or {' or '.join(finding.look_alikes)} (minor, undecided)"
+    return f"{finding.effect} (minor)" if finding.minor else finding.effect
+
+
 def selection_markdown(result: DiagnosisResult) -> list[str]:
     """Markdown lines for the selected effects, what stays unexplained and the look-alikes."""
     if result.selection is None:
@@ -181,6 +188,12 @@ def selection_markdown(result: DiagnosisResult) -> list[str]:
     if result.minor:
         lines.append(
             "Minor: seen in the corners or images, no pose change beyond the practical floor."
+        )
+    if any(f.undecided for f in result.selection.findings):
+        lines.append(
+            "Undecided: a minor finding whose look-alikes, each in its place, explain the "
+            "evidence as well; these poses cannot tell which of them the capture has (the "
+            "poses that would are listed with the look-alike models below)."
         )
     if result.unexplained:
         lines.append(

@@ -139,6 +139,10 @@ class Finding:
         Its parameters fitted on the end of their searched range
         (:func:`simgap.analysis.search.at_bound`; empty for every finding the search admits,
         recorded so that validation measures it).
+    look_alikes : list of str
+        For a minor geometric or calibration finding, the effects that explain the evidence as
+        well in its place (:func:`simgap.analysis.search.corner_look_alikes`): the corners do not
+        single it out, so the finding is undecided between it and them (empty: decided).
     """
 
     effect: str
@@ -146,6 +150,12 @@ class Finding:
     pose_contribution: float
     minor: bool
     at_bound: list[str] = field(default_factory=list)
+    look_alikes: list[str] = field(default_factory=list)
+
+    @property
+    def undecided(self) -> bool:
+        """The capture's poses cannot tell this finding from its look-alikes."""
+        return bool(self.look_alikes)
 
 
 @dataclass(kw_only=True)

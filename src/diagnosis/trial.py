@@ -21,7 +21,7 @@ from simgap.diagnosis.hidden_effects import (
 )
 from simgap.diagnosis.nuisance import FRONTAL_HEAVY_STOPS_DEG, OBLIQUE_STOPS_DEG, NuisanceCamera
 from simgap.diagnosis.result import DiagnosisResult
-from simgap.diagnosis.trial_score import TrialRecord, TrialScore
+from simgap.diagnosis.trial_score import UNDECIDED, TrialRecord, TrialScore
 
 
 def _magnitude(params: dict[str, Any], key: str) -> np.ndarray:
@@ -247,6 +247,9 @@ class Trial:
         relative to :meth:`truth`'s scale.
         """
         selected = tuple(self.result.selected)
+        findings = self.result.selection.findings if self.result.selection else []
+        undecided = {f.effect: tuple(f.look_alikes) for f in findings if f.undecided}
+        decided = tuple(e for e in selected if e not in undecided)
         hidden = tuple(self.hidden)
         named = {REPORTED_AS.get(h, h) for h in hidden}
         geometric = tuple(e for e in selected if e in geometric_effects())
@@ -254,10 +257,14 @@ class Trial:
             light_spread_truth(self.camera, self.rig) if self.camera and self.rig else None
         )
         camera_own = camera_named(self.crushed_black_share, light_spread)
-        spurious = tuple(e for e in selected if e not in named and e not in camera_own)
-        own = [e for e in selected if e in named or e not in camera_own]
+        spurious = tuple(
+            e
+            for e in selected
+            if e not in named and e not in camera_own and not set(undecided.get(e, ())) & named
+        )
+        own = [e for e in decided if e in named or e not in camera_own]
         catalogue = hides_catalogue_effects(hidden)
-        hits = [found(h, selected) for h in hidden] if catalogue else []
+        hits = [found(h, decided) for h in hidden] if catalogue else []
         if not hidden:
             correct = not spurious
         elif not catalogue:
@@ -272,7 +279,7 @@ class Trial:
         return TrialScore(
             hidden=hidden,
             selected=selected,
-            top1=own[0] if own else (selected[0] if selected else "none"),
+            top1=own[0] if own else (decided[0] if decided else UNDECIDED if undecided else "none"),
             unexplained=self.result.unexplained,
             geometric_selected=geometric,
             spurious=spurious,
@@ -290,6 +297,7 @@ class Trial:
                 combined.pose_gap_reduction_interval_90 if catalogue and combined else None
             ),
             crushed_black_share=self.crushed_black_share,
+            undecided=undecided,
         )
 
     def _magnitude_errors(self) -> dict[str, float]:

@@ -24,6 +24,9 @@ from simgap.diagnosis.result_json import VersionedRecord
 
 #: Version of the trial file schema written (``trial_NNN.json`` and ``validation.json``'s trials).
 TRIAL_SCHEMA_VERSION = 2
+#: A trial's top-1 answer where the diagnosis named nothing but findings it left undecided
+#: between look-alikes (:attr:`TrialScore.undecided`).
+UNDECIDED = "undecided"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,6 +85,11 @@ class TrialScore:
         The largest share of a tag's pixels at 0 DN over the capture's frames (0-1,
         :func:`simgap.diagnosis.trial.crushed_black_share`), against which the camera's own
         black level was judged; None where the capture has no such statistic.
+    undecided : dict of str to tuple of str
+        The selected effects the diagnosis left undecided, each with its look-alikes
+        (:attr:`simgap.diagnosis.result.Finding.look_alikes`): named neither way, and spurious
+        only where no look-alike is in the capture either. Empty in trial files written before
+        findings could be undecided.
     """
 
     hidden: tuple[str, ...]
@@ -98,6 +106,12 @@ class TrialScore:
     pose_gap_reduction: float | None = None
     pose_gap_reduction_interval_90: tuple[float, float] | None = None
     crushed_black_share: float | None = None
+    undecided: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+    @property
+    def decided(self) -> tuple[str, ...]:
+        """The selected effects the diagnosis named (those it left undecided are not)."""
+        return tuple(e for e in self.selected if e not in self.undecided)
 
     @property
     def catalogue(self) -> bool:

@@ -17,7 +17,7 @@ import numpy as np
 from simgap.diagnosis.nuisance import INK_DENSITY, PAPER_REFLECTANCE
 from simgap.diagnosis.result_json import jsonable
 from simgap.diagnosis.trial import CRUSHED_BLACK_SHARE
-from simgap.diagnosis.trial_score import TrialRecord
+from simgap.diagnosis.trial_score import TrialRecord, TrialScore
 from simgap.diagnosis.validation_summary import ValidationSummary
 
 #: Version of the ``validation.json`` schema written; 1 (no ``schema_version`` key) had the
@@ -160,7 +160,16 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         left = ", ".join(t.result.unexplained_evidence) or "-"
         lines.append(
             f"| {t.index} | {', '.join(score.hidden) or 'none'} | "
-            f"{', '.join(score.selected) or '-'} | {left} | {'yes' if score.correct else 'no'} | "
+            f"{_selected_text(score)} | {left} | {'yes' if score.correct else 'no'} | "
             f"{mags or '-'} | {_camera_text(score.nuisance_bins)} | {t.seconds:.0f} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _selected_text(score: TrialScore) -> str:
+    """The selected effects, each undecided one with its look-alikes (``-`` for none)."""
+    names = [
+        f"{e} (undecided: or {' or '.join(score.undecided[e])})" if e in score.undecided else e
+        for e in score.selected
+    ]
+    return ", ".join(names) or "-"

@@ -195,7 +195,7 @@ def summarize_scores(
         no_effect_correct=_share([s.correct for s in none]),
         no_effect_free_of_geometry=_share([not s.geometric_selected for s in none]),
         blur_only_free_of_geometry=_share([not s.geometric_selected for s in blur_only]),
-        jpeg_crushed_recall=_share([found("jpeg", s.selected) for s in crushed_jpeg]),
+        jpeg_crushed_recall=_share([found("jpeg", s.decided) for s in crushed_jpeg]),
         jpeg_crushed_trials=len(crushed_jpeg),
         outside_unexplained=_share([s.correct for s in outside]),
         magnitude_within_25pct=_share([m <= 0.25 for m in mags]),
@@ -228,7 +228,7 @@ def _per_effect(inside: Sequence[TrialScore]) -> dict[str, EffectScores]:
             single_trials=len(alone),
             top1_accuracy_single=_share([s.correct for s in alone]),
             trials=len(anywhere),
-            recall=_share([found(name, s.selected) for s in anywhere]),
+            recall=_share([found(name, s.decided) for s in anywhere]),
             magnitude_error_median=_median(errors),
             magnitude_error_p90=_p90(errors),
         )
@@ -265,7 +265,7 @@ def confusion(scores: Sequence[TrialScore]) -> dict[str, dict[str, int]]:
             elif h in OUTSIDE:
                 answer = "unexplained" if s.correct else s.top1
             else:
-                answer = h if found(h, s.selected) else s.top1
+                answer = h if found(h, s.decided) else s.top1
             row = table.setdefault(h, {})
             row[answer] = row.get(answer, 0) + 1
     return table

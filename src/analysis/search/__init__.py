@@ -24,6 +24,7 @@ from simgap.analysis.search._admission import (
 )
 from simgap.analysis.search._corner_findings import (
     corner_effect_alone,
+    corner_look_alikes,
     with_corner_effects,
     without_displaced,
 )
@@ -50,6 +51,7 @@ __all__ = [
     "bootstrap_reductions",
     "clearly_smaller",
     "corner_effect_alone",
+    "corner_look_alikes",
     "corner_residuals",
     "equivalent_models",
     "generalises_better",

@@ -25,6 +25,7 @@ from simgap.analysis.search._admission import (
     seen_in_corners,
 )
 from simgap.analysis.search._scored import Scored
+from simgap.analysis.search._scoring import equivalent_models
 
 
 def with_corner_effects(
@@ -95,3 +96,48 @@ def corner_effect_alone(ranking: Sequence[Scored]) -> Scored | None:
         if has_corner_signature(s.fits[0][0]) and admissible(s, None) and seen_in_corners(s, None)
     ]
     return min(seen, key=lambda s: s.evidence_after) if seen else None
+
+
+def corner_look_alikes(
+    scored: Scored,
+    minor: Sequence[str],
+    pool: Sequence[Candidate],
+    evaluate: Callable[[tuple[Candidate, ...]], Scored],
+) -> dict[str, tuple[str, ...]]:
+    """Per minor projection effect of ``scored``: the projection effects as good in its place.
+
+    A projection effect that moves no pose beyond the floor (``minor``) is seen in the corners
+    alone, and is a finding only where the corners single it out. Where another projection
+    effect of ``pool`` in its place explains every evidence channel indistinguishably from
+    ``scored`` (:func:`~simgap.analysis.search.equivalent_models`: the search's own tolerances,
+    0.05 px or 10 % on the corners and no consistent item-by-item difference), and could enter
+    the rest of the model on its own (:func:`admissible`, which also keeps it off its bounds),
+    the corners do not single the effect out: the capture's poses cannot tell the two apart (a
+    calibration file's wrong distortion and a focal length of a tenth of a percent, both
+    lowering the corners of central tags alike, seen on a blind capture:
+    docs/results/design_evidence.md#corner_findings).
+
+    Returns
+    -------
+    dict of str to tuple of str
+        For each minor projection effect with look-alikes, their effect names (in ``pool``'s
+        order); effects without any are left out.
+    """
+    model = tuple(c for c, _ in scored.fits)
+    out: dict[str, tuple[str, ...]] = {}
+    for member in model:
+        if member.effect not in minor or not isinstance(member, ProjectionCandidate):
+            continue
+        rest = tuple(c for c in model if c is not member)
+        reference = evaluate(rest) if rest else None
+        alikes = tuple(
+            alt.effect
+            for alt in pool
+            if isinstance(alt, ProjectionCandidate)
+            and alt not in model
+            and admissible(swapped := evaluate((*rest, alt)), reference)
+            and equivalent_models(swapped, scored)
+        )
+        if alikes:
+            out[member.effect] = alikes
+    return out

@@ -30,7 +30,11 @@ from simgap.analysis.candidates import (
 from simgap.analysis.gap import Items, Prediction
 from simgap.analysis.search._admission import admissible, at_bound
 from simgap.analysis.search._contributions import pose_contributions
-from simgap.analysis.search._corner_findings import corner_effect_alone, with_corner_effects
+from simgap.analysis.search._corner_findings import (
+    corner_effect_alone,
+    corner_look_alikes,
+    with_corner_effects,
+)
 from simgap.analysis.search._cross_fit import cross_fitted
 from simgap.analysis.search._pair_step import pair_start, pair_step
 from simgap.analysis.search._pruning import pruned
@@ -415,6 +419,15 @@ class ModelSearch:
     def tried(self) -> list[Scored]:
         """Every model scored so far (the alternatives a report may list)."""
         return list(self._evaluated.values())
+
+    def look_alikes(self, scored: Scored, ranking: list[Scored]) -> dict[str, tuple[str, ...]]:
+        """Per minor projection effect of a model, the projection effects as good in its place.
+
+        (:func:`~simgap.analysis.search.corner_look_alikes`, from the ranked effects and the
+        projection effects on a bound alone, as :meth:`select` draws from.)
+        """
+        pool = self._pool(ranking, geometry=True)
+        return corner_look_alikes(scored, self.minor(scored), pool, self.evaluate)
 
     def minor(self, scored: Scored) -> list[str]:
         """Effects of a model seen in the evidence that move no pose beyond the floor."""
