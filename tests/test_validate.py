@@ -221,6 +221,7 @@ def test_an_undecided_finding_names_none_of_its_look_alikes():
     names no effect the capture lacks; the same answer alone names nothing."""
     from simgap.diagnosis.trial import Trial
     from simgap.diagnosis.trial_score import UNDECIDED
+    from simgap.diagnosis.validation_summary import summarize_scores
 
     undecided = Finding(
         effect="focal_length",
@@ -246,6 +247,10 @@ def test_an_undecided_finding_names_none_of_its_look_alikes():
     # where no look-alike is in the capture either, the undecided finding is spurious
     scale = Trial(0, {"tag_scale": {"scale": 0.02}}, None, alone).score()
     assert not scale.correct and scale.spurious == ("focal_length",)
+    # the summary counts them, and the report's row says how many held a hidden effect
+    summary = summarize_scores([pair, faulty, scale])
+    assert (summary.undecided_trials, summary.undecided_holding_hidden) == (3, 2)
+    assert summary.top1_accuracy == pytest.approx(1 / 3)
 
 
 def test_targeted_validation_draws_only_the_named_effects(tmp_path):

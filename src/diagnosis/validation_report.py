@@ -111,6 +111,13 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         f"| trials naming something the capture does not have | {pct(summary.spurious_share)} |",
         "| trials with a selected parameter on the end of its searched range | "
         f"{pct(summary.on_bound_share)} |",
+    ]
+    if summary.undecided_trials:  # a row only where a diagnosis left a finding undecided
+        lines.append(
+            "| trials with a finding undecided between look-alikes (a hidden effect among "
+            f"them) | {summary.undecided_trials} ({summary.undecided_holding_hidden}) |"
+        )
+    lines += [
         "",
         "## Per nuisance bin (share of trials correct)",
         "",

@@ -119,6 +119,12 @@ class ValidationSummary:
         Share of all trials naming something the capture does not have.
     on_bound_share : float or None
         Share of all trials with a selected parameter on the end of its searched range.
+    undecided_trials : int
+        Trials whose diagnosis left a finding undecided between look-alikes
+        (:attr:`~simgap.diagnosis.trial_score.TrialScore.undecided`).
+    undecided_holding_hidden : int
+        Of those, the trials where a hidden effect is among an undecided finding and its
+        look-alikes.
     per_effect : dict of str to EffectScores
         Per hidden catalogue effect, by name (sorted).
     per_nuisance_bin : dict of str to dict of str to BinScores
@@ -148,6 +154,8 @@ class ValidationSummary:
     pose_gap_reduction_at_least_70pct: float | None
     spurious_share: float | None
     on_bound_share: float | None
+    undecided_trials: int
+    undecided_holding_hidden: int
     per_effect: dict[str, EffectScores]
     per_nuisance_bin: dict[str, dict[str, BinScores]]
     confusion: dict[str, dict[str, int]]
@@ -205,10 +213,21 @@ def summarize_scores(
         pose_gap_reduction_at_least_70pct=_share([r >= 0.7 for r in red]),
         spurious_share=_share([bool(s.spurious) for s in scores]),
         on_bound_share=_share([bool(s.on_bound) for s in scores]),
+        undecided_trials=sum(bool(s.undecided) for s in scores),
+        undecided_holding_hidden=sum(_undecided_holds_hidden(s) for s in scores),
         per_effect=_per_effect(inside),
         per_nuisance_bin=_per_nuisance_bin(scores),
         confusion=confusion(scores),
         trials_planned=trials_planned,
+    )
+
+
+def _undecided_holds_hidden(score: TrialScore) -> bool:
+    """Whether a hidden effect is among an undecided finding of the trial and its look-alikes."""
+    return any(
+        found(h, (effect, *alikes))
+        for effect, alikes in score.undecided.items()
+        for h in score.hidden
     )
 
 

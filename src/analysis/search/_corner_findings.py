@@ -11,6 +11,10 @@ distortion answered by exposure alone, although exposure + lens distortion was a
 lowered the corner gap). And where no evidence family differs significantly, a wrong distortion
 in the calibration file that moves no pose significantly would never be looked for. Both seen on
 blind captures: docs/results/design_evidence.md#corner_findings.
+
+The other way round, a minor geometric or calibration finding that the corners do not single
+out from another projection effect in its place is left undecided between them
+(:func:`corner_look_alikes`).
 """
 
 from __future__ import annotations
