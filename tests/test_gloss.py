@@ -229,6 +229,27 @@ class _Runner:
         return self._eye
 
 
+def test_a_laminate_whose_light_has_no_intensity_is_not_supported(monkeypatch):
+    """No light is no glint: where the intensity step finds no light (0 W/sr, or a numerical
+    zero of 1e-17 W/sr as on fresh seed 84 trial 10, which named such a laminate on a capture
+    with nothing hidden, its veil standing in for a brighter print), the fit is not supported,
+    however well the ratios called for a glint; the same levels with a light found are. No
+    render: the intensity step is stubbed."""
+    from simgap.effects.state import VariantState
+
+    eye_from_tag = _grid()
+    truth = np.array([-0.5, np.log2(1.2), 0.01, 2e-3, 0.1, 0.05, 0.02, 0.0])
+    levels = _levels(eye_from_tag, truth, np.random.default_rng(1))
+    items = _Items(
+        _stats(levels.real_ink, levels.real_paper), _stats(levels.sim_ink, levels.sim_paper)
+    )
+    for intensity, supported in ((0.0, False), (1.1e-17, False), (0.3, True)):
+        monkeypatch.setattr(GlossCandidate, "intensity", lambda self, *a, _w=intensity, **k: _w)
+        fit = GlossCandidate().fit(_Runner(eye_from_tag), VariantState(), items)
+        assert fit.params["light_intensity_w_sr"] == intensity
+        assert fit.extra["supported"] is supported
+
+
 @pytest.mark.parametrize("veil", [0.0, 0.004])
 def test_a_laminate_whose_ink_median_stays_under_its_floor_is_a_candidate(veil):
     """A veil of 0.004 full scale behind a darker ink (0.85x, as a black level pulls it) lifts

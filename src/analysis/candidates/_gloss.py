@@ -39,7 +39,10 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
    level model's own geometry.
 4. **Supported** where the glint explains the ratios better than flare and a constant ratio
    by :data:`GLINT_MIN_GAIN` (with too few unclipped papers: where the laminate explains the
-   levels better than a matte light by as much): a glint that follows the half-angle is the
+   levels better than a matte light by as much), and the light it mirrors has an intensity
+   (step 5, at least :data:`MIN_INTENSITY_W_SR`: without one, the coating's veil alone stood in
+   for a print's brighter ink on a blind capture with nothing hidden,
+   docs/results/design_evidence.md#gloss): a glint that follows the half-angle is the
    laminate's signature (that a level differs at all is the where step's test, which makes it
    a candidate). Three glinting tags of nineteen are 0.95 floors RMS under exposure alone: an
    RMS gate on the levels would miss them.
@@ -108,6 +111,12 @@ INK_FACTOR_LOG2: tuple[float, float] = (-4.0, 4.0)
 #: 0.45 m away gets the template key light's irradiance) and the largest intensity reported.
 REFERENCE_INTENSITY_W_SR = 0.24
 INTENSITY_W_SR: tuple[float, float] = (0.0, 5.0)
+#: Weakest light a laminate finding mirrors (W sr^-1): a hundredth of the reference light, which
+#: lights a tag 0.45 m away at a hundredth of the key light's irradiance. Below it the intensity
+#: step found no glint to scale (its estimates are numerical zeros, 1e-17 W/sr on a blind
+#: capture; docs/results/design_evidence.md#gloss); every laminate light fitted on the blind
+#: seeds is 0.24 W/sr or more, and validate draws 0.1-0.5 W/sr.
+MIN_INTENSITY_W_SR = 0.01 * REFERENCE_INTENSITY_W_SR
 #: Smallest black level rendered (fraction of full scale): the black-level candidate's smallest
 #: searched level (:data:`~simgap.analysis.candidates._black_level.LEVEL_BOUNDS`); below it
 #: nothing is crushed.
@@ -416,6 +425,9 @@ class GlossCandidate(AppearanceCandidate):
         supported = glint_supported(fit, ratio)
         if supported:
             params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit, ratio)
+            # no light is no glint: a laminate without one is only its coating's veil over ink
+            # and paper, which a brighter print, flare or a transfer curve make as well
+            supported = params["light_intensity_w_sr"] >= MIN_INTENSITY_W_SR
         top = INTENSITY_W_SR[1]
         at_bound = tuple(
             name
