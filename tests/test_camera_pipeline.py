@@ -269,3 +269,32 @@ def test_the_method_is_read_behind_a_non_srgb_tone_response_and_denoising():
         traces.add(rgb8)
     verdict = traces.verdict()
     assert (verdict.layout, verdict.method) == ("RGGB", "bilinear")
+
+
+def test_the_marker_edges_offset_is_told_from_a_scale():
+    """:func:`~simgap.diagnosis.camera_signatures.edge_offset` on exact corners of 38 tags
+    (tests/test_diagnose.py) with 0.2 px noise (seed 1): corners drawn 0.3 px towards each
+    marker's centre, as a pipeline moves soft edges, read as an offset of -0.30 px with no share
+    (measured -0.304 px, share +0.03 % at 0.4 standard errors); a focal length of +2 % as a
+    share of +2.03 % (24.8 standard errors) with no offset (measured -0.004 px). Tolerances: a
+    tenth of the offset, of the share, and the 4 standard errors of the print scale's size
+    signature."""
+    from test_diagnose import _items
+
+    from simgap.analysis.thresholds import SIZE_SLOPE_Z
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_signatures import edge_offset
+
+    rig = load_rig()
+    items, _ = _items(rig, {}, noise_px=0.2, seed=1, shrink_px=0.3)
+    edge = edge_offset(items)
+    assert edge is not None and edge.tags == 38
+    assert edge.offset_px == pytest.approx(-0.3, abs=0.03)
+    assert abs(edge.scale_z) < SIZE_SLOPE_Z
+    items, _ = _items(rig, {"focal_length": {"scale": 0.02}}, noise_px=0.2, seed=1)
+    edge = edge_offset(items)
+    assert edge is not None
+    assert edge.scale_share == pytest.approx(0.02, rel=0.1) and edge.scale_z > SIZE_SLOPE_Z
+    assert abs(edge.offset_px) < 0.03
+    # too few tags to regress: nothing said
+    assert edge_offset(items.subset(np.arange(3))) is None

@@ -43,7 +43,7 @@ from simgap.analysis.search import (
 )
 from simgap.core.axes import AXES
 from simgap.core.progress import ProgressCallback, Steps
-from simgap.diagnosis.camera_signatures import pipeline_signatures
+from simgap.diagnosis.camera_signatures import edge_offset, pipeline_signatures
 from simgap.diagnosis.diagnosis_files import (
     SPLITS,
     DiagnosisEvidence,
@@ -370,6 +370,7 @@ def diagnose(
         simulation_render=f"{sim_exp.render.mode} {sim_exp.render.spp} spp",
         demosaicing=demosaicing_result(real),
         camera_pipeline=pipeline_signatures(d.real, d.sim),
+        edge_offset=edge_offset(d.items),
         propagated_corner_noise_px=d.propagated_px,
         noise_shift_corner_px=None if d.noise_shift is None else d.noise_shift.corner_px,
     )

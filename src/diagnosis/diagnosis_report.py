@@ -358,7 +358,7 @@ def write_diagnosis_report(
     lines += engineering_markdown(items, selected_names(result))
     lines += where_markdown(result.where)
     lines += which_markdown(result)
-    lines += pipeline_markdown(result.camera_pipeline)
+    lines += pipeline_markdown(result.camera_pipeline, result.edge_offset)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in paths] + [""]
     lines.append(f"Diagnosis time: {result.seconds:.0f} s.")
     paths.append(save_text("\n".join(lines) + "\n", out_dir / "diagnosis.md"))

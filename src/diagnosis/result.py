@@ -274,6 +274,27 @@ class PipelineSignature:
     simulated: float | None
 
 
+@dataclass(kw_only=True)
+class EdgeOffset:
+    """How the capture's marker sizes differ from the simulation's: a share and an offset.
+
+    The per-tag size change real - simulated regressed on the simulated size over every
+    comparable item (:func:`simgap.diagnosis.camera_signatures.edge_offset`). A scale (a print
+    scale, a focal length) changes a marker's size by a share of it; a camera pipeline the
+    simulation lacks (a black level, a tone curve, demosaicing on soft edges) moves its edges by
+    about the same pixels at every size: the offset.
+    """
+
+    #: tags regressed
+    tags: int
+    #: the size change at zero size (px; positive: the capture's markers larger)
+    offset_px: float
+    #: the size change per px of size (a share; 0.01: 1 % larger)
+    scale_share: float
+    #: ``scale_share`` over its standard error
+    scale_z: float
+
+
 #: Schema 1 keys renamed in schema 2, per record.
 _V1_RANKED = {
     "heldout_gap_before": "pose_gap_before",
@@ -427,6 +448,9 @@ class DiagnosisResult(VersionedRecord):
     demosaicing: Demosaicing | None = None
     #: what the capture and the simulation show of each stage of a camera's own pipeline
     camera_pipeline: list[PipelineSignature] = field(default_factory=list)
+    #: the marker sizes' change split into a share and an edge offset; None where fewer than
+    #: four tags or no spread of sizes (absent in files written before it)
+    edge_offset: EdgeOffset | None = None
     #: corner noise (px per coordinate) propagated through PnP to each item's pose
     #: noise, where the simulation's repeats measure none (a converged render); None otherwise
     propagated_corner_noise_px: float | None = None
