@@ -277,6 +277,10 @@ class _TagPipelineRunner:
             out.append(tag_stats(imaging.to_gray(frame), corners + (16, 32), LAYOUT, (16, 32)))
         return np.array(out)
 
+    def corners(self, state: VariantState, items: Items) -> np.ndarray:
+        """The tags' drawn corners, under every state: these tests fit statistics only."""
+        return np.stack([corners for _, corners in self.tags])
+
 
 def _grey_tags(n: int, **kwargs: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """``n`` synthetic grey tags (linear render, corners), paper 0.25-0.6, each turned a little."""

@@ -35,6 +35,8 @@ VARIANTS = {
     "black_level": {"black_level": {"level": 0.05}},
     "tone_curve": {"tone_curve": {"contrast": 5, "midpoint": 0.5}},
     "gain_change": {"gain_change": {"sigma_ev": 0.2}},
+    "edge_grow": {"edge_offset": {"offset_px": 0.5}},
+    "edge_shrink": {"edge_offset": {"offset_px": -0.5}},
 }
 
 
@@ -298,3 +300,74 @@ def test_the_marker_edges_offset_is_told_from_a_scale():
     assert abs(edge.offset_px) < 0.03
     # too few tags to regress: nothing said
     assert edge_offset(items.subset(np.arange(3))) is None
+
+
+def _radial_change_px(staged, name: str) -> np.ndarray:
+    """Mean change of the detected corners' distance from the marker's centre, per stop (px)."""
+    results, _ = staged
+
+    def radius(c: np.ndarray) -> float:
+        return float(np.linalg.norm(c - c.mean(axis=0), axis=1).mean())
+
+    return np.array(
+        [
+            radius(results[name, t].corners[0]) - radius(results["baseline", t].corners[0])
+            for t in THETAS_DEG
+        ]
+    )
+
+
+def test_an_edge_offset_moves_every_edge_by_its_pixels():
+    """:class:`~simgap.effects.camera_pipeline.EdgeOffset` on a 40 px dark square (supersampled
+    8x, sharp and blurred by 1 px, square and turned 20 deg): the dark area changes by the
+    perimeter times the offset (measured 0.483-0.502 px for +-0.5 px). Tolerance: 0.03 px,
+    twice the largest deviation measured."""
+    import cv2
+
+    from simgap.effects import make_effect
+
+    size = 800
+    for angle in (0.0, 20.0):
+        big = np.ones((size, size), np.float32)
+        big[200:600, 200:600] = 0.0
+        turn = cv2.getRotationMatrix2D((size / 2, size / 2), angle, 1.0)
+        big = cv2.warpAffine(big, turn, (size, size), flags=cv2.INTER_LINEAR, borderValue=1)
+        img = cv2.resize(big, (80, 80), interpolation=cv2.INTER_AREA)
+        for blur in (0.0, 1.0):
+            soft = cv2.GaussianBlur(img, (0, 0), blur) if blur else img
+            rgb = np.repeat(soft[..., None], 3, axis=2)
+            for offset in (-0.5, 0.5):
+                out = make_effect("edge_offset", {"offset_px": offset}).process(rgb, None)
+                moved = ((1.0 - out[..., 1]).sum() - (1.0 - soft).sum()) / 160.0
+                assert moved == pytest.approx(offset, abs=0.03), (angle, blur, offset)
+
+
+def test_an_edge_offset_moves_the_detected_corners_its_way(staged):
+    """The rendered tag through the pipeline with the edges moved 0.5 px out and in: its
+    detected corners move out and in. Measured: +0.38 / +0.33 px and -0.93 / -0.88 px from the
+    marker's centre against the sides' +-0.71 px (a marker that grows rounds its corners and its
+    inner edges move the other way, so the detector gives up part of the move; the diagnosis
+    therefore fits the offset by rendering, :mod:`simgap.analysis.candidates`). Tolerance: the
+    sign and at least a third of the sides' move."""
+    assert np.all(_radial_change_px(staged, "edge_grow") > 0.5 * np.sqrt(2) / 3)
+    assert np.all(_radial_change_px(staged, "edge_shrink") < -0.5 * np.sqrt(2) / 3)
+
+
+def test_an_edge_offset_is_a_candidate_only_where_the_sizes_show_one():
+    """The edge offset's signature on exact corners of 38 tags (tests/test_diagnose.py) with
+    0.2 px noise (seed 1): shown for corners drawn 0.3 px towards each marker's centre (the
+    offset stood -0.30 px out, measured), not for a focal length of +2 % (a share, no offset:
+    measured -0.004 px) nor for no effect."""
+    from test_diagnose import _items
+
+    from simgap.analysis.candidates import CANDIDATES
+    from simgap.core.rig import load_rig
+
+    rig = load_rig()
+    candidate = CANDIDATES["edge_offset"]
+    shrunk, _ = _items(rig, {}, noise_px=0.2, seed=1, shrink_px=0.3)
+    assert candidate.signature_shown(None, None, shrunk)
+    focal, _ = _items(rig, {"focal_length": {"scale": 0.02}}, noise_px=0.2, seed=1)
+    assert not candidate.signature_shown(None, None, focal)
+    none, _ = _items(rig, {}, noise_px=0.2, seed=1)
+    assert not candidate.signature_shown(None, None, none)

@@ -49,7 +49,7 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
     ``pytest -m slow tests/test_validate.py``.
     """
     from simgap.core.rig import load_rig
-    from simgap.diagnosis.camera_truth import light_spread_truth
+    from simgap.diagnosis.camera_truth import light_spread_truth, moves_edges
     from simgap.diagnosis.trial import camera_named
     from simgap.diagnosis.trial_score import TrialRecord
     from simgap.diagnosis.validate import OUTSIDE, ValidateSettings, run_validation
@@ -96,7 +96,11 @@ def test_blind_validation_runs_and_scores(tmp_path, session_cache):
         geometric = set(s.selected) & geometric_effects()
         # the camera's own exposure, noise and softness (crushed shadows' black level, uneven
         # light's direction) may be named; nothing else not hidden
-        own = camera_named(s.crushed_black_share, light_spread_truth(t.camera, load_rig()))
+        own = camera_named(
+            s.crushed_black_share,
+            light_spread_truth(t.camera, load_rig()),
+            moves_edges(t.camera),
+        )
         extra = set(s.selected) - set(s.hidden) - set(own)
         if set(s.hidden) & set(OUTSIDE):  # outside the catalogue: must read "unexplained"
             expected = s.unexplained and not geometric
@@ -379,6 +383,32 @@ def test_other_cameras_draw_their_own_image_pipeline_and_frontal_poses():
     assert not plain.pipeline()
     crushing = next(c for c in cameras if {"black_level", "tone_curve"} & set(c.pipeline()))
     assert exposure_truth(with_exposure(crushing, 0.7, rig), rig) == pytest.approx(0.7, abs=1e-2)
+
+
+def test_an_edge_offset_is_the_camera_own_only_where_its_pipeline_or_print_moves_edges():
+    """A camera with a stage that moves soft edges, another curve than sRGB or its own print may
+    be read with an edge offset; a plain sRGB camera with the simulation's print may not."""
+    import dataclasses
+
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_truth import EDGE_MOVING_STAGES, moves_edges
+    from simgap.diagnosis.nuisance import draw_nuisance
+    from simgap.diagnosis.trial import camera_named
+
+    camera = draw_nuisance(np.random.default_rng([5, 1]), load_rig())
+    scene = {**camera.scene, "materials": {}}
+    effects = {k: v for k, v in camera.effects.items() if k not in EDGE_MOVING_STAGES}
+    plain = dataclasses.replace(
+        camera, scene=scene, effects={**effects, "gamma": {"encoding": "srgb"}}
+    )
+    assert not moves_edges(plain)
+    assert moves_edges(dataclasses.replace(plain, effects={**plain.effects, "bayer": {}}))
+    gamma = {**plain.effects, "gamma": {"encoding": "gamma", "gamma": 2.2}}
+    assert moves_edges(dataclasses.replace(plain, effects=gamma))
+    inked = {"materials": {"tag": {"ink": 0.06}}}
+    assert moves_edges(dataclasses.replace(plain, scene={**plain.scene, **inked}))
+    assert "edge_offset" in camera_named(None, None, edges_moved=True)
+    assert "edge_offset" not in camera_named(None, None, edges_moved=False)
 
 
 def test_jpeg_behind_crushed_blacks_and_blur_only_trials_are_scored_apart():

@@ -200,6 +200,12 @@ SIZE_SLOPE_Z: Final[float] = Z_SIGNIFICANT
 #: docs/results/design_evidence.md#thresholds). Half: the offset is at most half the print's change
 #: on the smallest tag.
 SIZE_ZERO_SHARE: Final[float] = 0.5
+#: The camera's pipeline moving the marker edges (``edge_offset``) is a candidate only where the
+#: markers' size change real - simulated has an intercept (an edge offset, the same px at every
+#: size) this many standard errors from zero
+#: (:mod:`simgap.analysis.candidates._edge_offset`): the significance of :data:`Z_SIGNIFICANT`,
+#: as the print scale's slope.
+EDGE_OFFSET_Z: Final[float] = Z_SIGNIFICANT
 
 # -- which: the appearance gates ---------------------------------------------------------------
 

@@ -5,7 +5,8 @@ of effect as the hidden one (:data:`simgap.diagnosis.hidden_effects.CAMERA_NAMED
 exposure (:func:`exposure_truth`: the exposure setting, a light meter at the tags, the print's
 paper and the transfer curve) and its softness (:func:`softness_truth`: the pixel filter's width
 beyond the simulation's box), never read from the capture itself; how unevenly its lights light
-the tags against the simulation's (:func:`light_spread_truth`); and :func:`with_exposure`, which
+the tags against the simulation's (:func:`light_spread_truth`); whether it moves the markers'
+edges (:func:`moves_edges`); and :func:`with_exposure`, which
 sets a camera's exposure so that its total is a drawn one. The cameras are drawn by
 :mod:`simgap.diagnosis.nuisance`.
 """
@@ -157,6 +158,28 @@ def exposure_truth(camera: NuisanceCamera, rig: Rig) -> float:
     return setting + meter + transfer_ev(camera, PAPER_LEVEL * 2.0 ** (setting + meter))
 
 
+#: Stages of a camera's pipeline that move where a soft dark-to-light edge reads as an edge
+#: (:class:`simgap.effects.camera_pipeline.EdgeOffset`): those that change the levels across it
+#: (a black level, a tone curve) or resample it (demosaicing, denoising, sharpening). A gain
+#: change scales the levels and lateral colour moves edges by their place in the image, not by
+#: a marker's edge.
+EDGE_MOVING_STAGES = frozenset({"black_level", "tone_curve", "bayer", "denoise", "sharpen"})
+
+
+def moves_edges(camera: NuisanceCamera) -> bool:
+    """Whether the other camera moves the markers' soft edges against the simulation.
+
+    True where its pipeline has a stage of :data:`EDGE_MOVING_STAGES`, it encodes with another
+    curve than the simulation's sRGB, or it prints the tags with another ink or paper
+    (:func:`print_ev`'s print): each moves the level at which the soft edge is read, and with it
+    the edge (what an ``edge_offset`` finding reads).
+    """
+    other_curve = camera.effects["gamma"].get("encoding", "gamma") != "srgb"
+    return (
+        bool(EDGE_MOVING_STAGES & set(camera.pipeline())) or other_curve or bool(camera.tag_print())
+    )
+
+
 #: Variance of the simulation's own pixel footprint along one axis (px^2): a box of one pixel.
 BOX_VARIANCE_PX2 = 1.0 / 12.0
 
@@ -185,10 +208,12 @@ def softness_truth(camera: NuisanceCamera, blur_sigma_px: float = 0.0) -> float:
 
 
 __all__ = [
+    "EDGE_MOVING_STAGES",
     "PAPER_LEVEL",
     "exposure_truth",
     "filter_variance_px2",
     "light_meter_ev",
+    "moves_edges",
     "print_ev",
     "softness_truth",
     "transfer_ev",

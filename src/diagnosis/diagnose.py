@@ -32,7 +32,12 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.candidates import CANDIDATES, AppearanceCandidate, Candidate
+from simgap.analysis.candidates import (
+    CANDIDATES,
+    AppearanceCandidate,
+    Candidate,
+    EdgeOffsetCandidate,
+)
 from simgap.analysis.gap import corner_unit, gap_score, median_abs_gap
 from simgap.analysis.search import (
     ModelSearch,
@@ -339,11 +344,12 @@ def diagnose(
     # an appearance effect is a candidate only where the capture shows its signature: one of
     # its own image statistics differs significantly (the where step, over every comparable
     # tag; the measure split's pose gap, on which the reduction is measured, plays no part in
-    # it), or for a laminate the ink-to-paper ratios of those tags call for one
+    # it), or for a laminate the ink-to-paper ratios of those tags call for one; the camera's
+    # pipeline moving the marker edges only where the markers' sizes show an edge offset
     candidates = [
         c
         for c in candidates
-        if not isinstance(c, AppearanceCandidate)
+        if not isinstance(c, AppearanceCandidate | EdgeOffsetCandidate)
         or c.signature_shown(where.image_tests, d.runner, d.items)
     ]
     ranking = d.search.rank(candidates, where.significant) if len(d.items) >= 2 else []

@@ -11,7 +11,12 @@ import xarray as xr
 from simgap.analysis.candidates import geometric_effects
 from simgap.analysis.thresholds import SUN_MIN_ALTERNATIVE_MISFIT, image_floor
 from simgap.core.rig import Rig
-from simgap.diagnosis.camera_truth import exposure_truth, light_spread_truth, softness_truth
+from simgap.diagnosis.camera_truth import (
+    exposure_truth,
+    light_spread_truth,
+    moves_edges,
+    softness_truth,
+)
 from simgap.diagnosis.hidden_effects import (
     CAMERA_NAMED,
     HIDDEN,
@@ -69,7 +74,9 @@ def crushed_black_share(real: xr.Dataset) -> float | None:
 
 
 def camera_named(
-    crushed_black: float | None, light_spread_stops: float | None = None
+    crushed_black: float | None,
+    light_spread_stops: float | None = None,
+    edges_moved: bool = False,
 ) -> tuple[str, ...]:
     """Effects a diagnosis may name of a capture that was not hidden in it: the camera's own.
 
@@ -81,7 +88,9 @@ def camera_named(
     :func:`simgap.diagnosis.camera_truth.light_spread_truth`, at least the paper level's spread
     that calls for a light: :data:`~simgap.analysis.thresholds.SUN_MIN_ALTERNATIVE_MISFIT`
     floors of ``paper_linear``), a light the simulation lacks (``sun``): its key light stands
-    elsewhere, and the direction it lights the tags from is what the finding reads.
+    elsewhere, and the direction it lights the tags from is what the finding reads; and where
+    its pipeline or print moves the markers' soft edges (``edges_moved``,
+    :func:`simgap.diagnosis.camera_truth.moves_edges`), the edges' offset (``edge_offset``).
     """
     floor = image_floor("black_clipped_fraction")
     crushed = crushed_black is not None and crushed_black >= floor
@@ -89,7 +98,12 @@ def camera_named(
         light_spread_stops is not None
         and light_spread_stops >= SUN_MIN_ALTERNATIVE_MISFIT * image_floor("paper_linear")
     )
-    return CAMERA_NAMED + (("black_level",) if crushed else ()) + (("sun",) if uneven else ())
+    return (
+        CAMERA_NAMED
+        + (("black_level",) if crushed else ())
+        + (("sun",) if uneven else ())
+        + (("edge_offset",) if edges_moved else ())
+    )
 
 
 def pipeline_bins(camera: NuisanceCamera) -> dict[str, str]:
@@ -256,7 +270,8 @@ class Trial:
         light_spread = (
             light_spread_truth(self.camera, self.rig) if self.camera and self.rig else None
         )
-        camera_own = camera_named(self.crushed_black_share, light_spread)
+        edges_moved = self.camera is not None and moves_edges(self.camera)
+        camera_own = camera_named(self.crushed_black_share, light_spread, edges_moved)
         spurious = tuple(
             e
             for e in selected

@@ -6,6 +6,8 @@ Every real photo passes through them, and each leaves a signature in the image s
 =====================  =====  ======================================  ==============================
 effect                 order  what the camera does                    signature
 =====================  =====  ======================================  ==============================
+``edge_offset``        15     the pipeline's net shift of the edges   the markers' size change: the
+                              between dark and light (see below)      same px at every size
 ``auto_exposure``      29     meters the scene, sets exposure / gain  paper and ink levels; the
                                                                       chosen EV per frame
 ``gain_change``        31     exposure / gain that changes per frame  ``repeat_gain_ev``
@@ -20,8 +22,13 @@ effect                 order  what the camera does                    signature
 Stages below :data:`~simgap.effects.image.ENCODE_ORDER` act on linear float RGB (relative to
 full scale), those above it on the encoded 8-bit frame, as a camera's ISP does: black level and
 demosaicing on raw data, denoising, the tone curve and sharpening on the encoded image, JPEG
-last. Temporal denoising (frames blended over time) is not modelled: simgap renders each frame
-independently.
+last. ``edge_offset`` is no stage of its own but what the stages together do to a soft edge: a
+tone curve, a black level or demosaicing move the point where a blurred dark-to-light edge
+reads as an edge, by about the same pixels on every marker whatever its size (a print or a
+focal length changes the size by a share instead). It is the diagnosis's model of the
+pipeline's net effect on the corners (:mod:`simgap.analysis.candidates`), fitted where the
+stages themselves are not. Temporal denoising (frames blended over time) is not modelled:
+simgap renders each frame independently.
 
 References
 ----------
@@ -109,6 +116,64 @@ class AutoExposure(ImageEffect, name="auto_exposure", order=29):
         ev = float(np.clip(ev, p.ev_min, p.ev_max))
         ctx.record["auto_exposure_ev"] = ev
         return img * np.float32(2.0**ev)
+
+
+#: Standard deviation of the Gaussian the luminance is smoothed with before its gradient gives
+#: :class:`EdgeOffset` the direction across an edge (px): the Sobel kernel's own scale, so that
+#: the direction follows the edge, not the render's pixel noise.
+EDGE_DIRECTION_SIGMA_PX = 1.0
+#: Smallest squared length of the mean of nearby unit normals :class:`EdgeOffset` divides by:
+#: that of a corner of 60 deg, ``(1 - cos 60 deg) / 2`` (a marker's corners seen obliquely
+#: stay wider), so that where opposite edges meet (a thin stroke) the shift stays bounded.
+MIN_CORNER_NORMAL2 = 0.25
+
+
+class EdgeOffset(ImageEffect, name="edge_offset", order=15):
+    """Every edge between dark and light moved by ``offset_px`` towards the light side.
+
+    Each pixel takes the value found back along the directions in which the luminance rises
+    (the unit normals of the edges within :data:`EDGE_DIRECTION_SIGMA_PX`, weighted by their
+    gradient, averaged to ``m``), ``offset_px m / |m|^2`` away, read bilinearly: a straight
+    edge moves by exactly ``offset_px`` along its normal and keeps its profile, so a dark
+    marker on light paper grows by ``offset_px`` on every side (a negative offset shrinks it),
+    and a corner moves to where its two moved sides meet, kept sharp. Flat regions keep their
+    values. The detector's corners follow by a response of their own (a marker's inner edges
+    move too; :mod:`simgap.analysis.candidates._edge_offset`). Applied on the soft linear image,
+    after the optics.
+    """
+
+    class Params(EffectParams):
+        """The edges' shift."""
+
+        offset_px: float = param(0.3, "-3 < offset < 3 px", lambda v: -3 < v < 3)
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Resample every pixel ``offset_px`` back across its edges (bilinear)."""
+        lum = np.ascontiguousarray(img.astype(np.float32) @ np.float32(BT709_LUMINANCE))
+        lum = cv2.GaussianBlur(lum, (0, 0), EDGE_DIRECTION_SIGMA_PX, borderType=cv2.BORDER_REFLECT)
+        gx = cv2.Sobel(lum, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REFLECT)
+        gy = cv2.Sobel(lum, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REFLECT)
+        # the edge-weighted mean of the unit normals nearby: one normal n on a side, the mean of
+        # the two sides' normals m at a corner, where d m / |m|^2 is where the moved sides meet
+        # (n_a . v = n_b . v = d)
+        weight = np.sqrt(gx * gx + gy * gy)
+        total = cv2.GaussianBlur(weight, (0, 0), EDGE_DIRECTION_SIGMA_PX) + np.float32(1e-12)
+        mx = cv2.GaussianBlur(gx, (0, 0), EDGE_DIRECTION_SIGMA_PX) / total
+        my = cv2.GaussianBlur(gy, (0, 0), EDGE_DIRECTION_SIGMA_PX) / total
+        length2 = np.maximum(mx * mx + my * my, np.float32(MIN_CORNER_NORMAL2))
+        step = np.float32(self.params.offset_px) / length2
+        ys, xs = np.indices(lum.shape, dtype=np.float32)
+        return cv2.remap(
+            img.astype(np.float32),
+            xs - mx * step,
+            ys - my * step,
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REFLECT,
+        )
+
+    def reach_px(self) -> float:
+        """The shift, the direction's smoothing and the bilinear pixel (px)."""
+        return abs(self.params.offset_px) + 3.0 * EDGE_DIRECTION_SIGMA_PX + 2.0
 
 
 class GainChange(ImageEffect, name="gain_change", order=31):
@@ -297,4 +362,13 @@ class Sharpen(ImageEffect, name="sharpen", order=60):
         return 3.0 * self.params.radius_px
 
 
-__all__ = ["Bayer", "BlackLevel", "Denoise", "GainChange", "Sharpen", "ToneCurve", "crushed"]
+__all__ = [
+    "Bayer",
+    "BlackLevel",
+    "Denoise",
+    "EdgeOffset",
+    "GainChange",
+    "Sharpen",
+    "ToneCurve",
+    "crushed",
+]

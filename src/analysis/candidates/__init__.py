@@ -3,7 +3,8 @@
 One registry keyed by effect name (``CANDIDATES``, ``_registry``) holds every candidate; a
 ``Candidate`` is a ``ProjectionCandidate`` (effects that only move where corners project, fitted
 on the detected corners, ``_fitting``; several jointly, ``_projection_set``; the size signature
-of a print scale, ``_size_signature``) or a ``SimulationCandidate`` run through the pipeline by
+of a print scale, ``_size_signature``; the camera's pipeline moving the marker edges,
+``_edge_offset``) or a ``SimulationCandidate`` run through the pipeline by
 the ``Runner`` it is given (``_runner``): the appearance effects fitted on image evidence
 (``_appearance``, ``_exposure``, ``_black_level``, ``_sensor_noise``, ``_defocus``), the glossy
 laminate (``_gloss`` on the levels of ``_tag_levels``, ``_glint_ratio``, ``_lobe``, with
@@ -23,6 +24,7 @@ from simgap.analysis.candidates._appearance import (
 )
 from simgap.analysis.candidates._black_level import BlackLevelCandidate
 from simgap.analysis.candidates._defocus import DISK_10_90_PER_RADIUS, DefocusCandidate
+from simgap.analysis.candidates._edge_offset import EdgeOffsetCandidate
 from simgap.analysis.candidates._exposure import (
     ExposureCandidate,
     censored_median_ev,
@@ -74,6 +76,7 @@ __all__ = [
     "Candidate",
     "DISK_10_90_PER_RADIUS",
     "DefocusCandidate",
+    "EdgeOffsetCandidate",
     "ExposureCandidate",
     "FULL_WELL_BOUNDS_E",
     "Fit",

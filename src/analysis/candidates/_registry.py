@@ -7,7 +7,9 @@ effect's valid range). Appearance effects are fitted on
 the image statistics named with them (:mod:`simgap.analysis.candidates._appearance`,
 :mod:`simgap.analysis.candidates._exposure`, :mod:`simgap.analysis.candidates._black_level`,
 :mod:`simgap.analysis.candidates._sensor_noise`, :mod:`simgap.analysis.candidates._defocus`,
-:mod:`simgap.analysis.candidates._gloss`, :mod:`simgap.analysis.candidates._sun`); those
+:mod:`simgap.analysis.candidates._gloss`, :mod:`simgap.analysis.candidates._sun`; the
+camera's pipeline moving the marker edges on the corners' sizes,
+:mod:`simgap.analysis.candidates._edge_offset`); those
 statistics are also their signature: an appearance effect is a candidate only where the
 capture shows it (:meth:`simgap.analysis.candidates.AppearanceCandidate.signature_shown`: one of
 them differs significantly, for the laminate the ink-to-paper ratios call for one, for a sun the
@@ -25,6 +27,7 @@ from types import MappingProxyType
 from simgap.analysis.candidates._appearance import AppearanceCandidate, JpegCandidate
 from simgap.analysis.candidates._black_level import BlackLevelCandidate
 from simgap.analysis.candidates._defocus import DefocusCandidate
+from simgap.analysis.candidates._edge_offset import EdgeOffsetCandidate
 from simgap.analysis.candidates._exposure import ExposureCandidate
 from simgap.analysis.candidates._fitting import Candidate, ProjectionCandidate
 from simgap.analysis.candidates._gloss import GlossCandidate
@@ -63,6 +66,8 @@ CANDIDATES: Mapping[str, Candidate] = MappingProxyType(
             BlackLevelCandidate((ExposureCandidate(), SensorNoiseCandidate())),
             SensorNoiseCandidate(),
             DefocusCandidate(),
+            # the camera's pipeline moving the marker edges: the markers' size change at zero size
+            EdgeOffsetCandidate(),
             JpegCandidate(
                 "jpeg", ("blockiness",), "quality", (5.0, 100.0), 1.0, noise=SensorNoiseCandidate()
             ),

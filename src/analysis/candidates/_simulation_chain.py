@@ -6,16 +6,17 @@ simulation's edge widths comes out too small, and the pose gap its softness leav
 by geometric effects (measured on a development capture: a blur a third too small alone, within
 10 % on the exposed simulation; docs/results/design_evidence.md#simulation_chain).
 Each effect is therefore fitted on the simulation that already holds the effects before it in
-:data:`FIT_ORDER`, the order in which their evidence is least confounded by the others: the
-paper level first (exposure; a blur or a noise barely moves a level measured over a tag's
-paper), then a light the simulation lacks (a sun, read from the paper levels against the way
-the tags face), then the crushed shadows (a black level: the share of a tag at 0 DN depends on the
-exposure), then the edge widths (blur, defocus; clipping narrows them, a glint barely moves them),
+:data:`FIT_ORDER`, the order in which their evidence is least confounded by the others: the paper
+level first (exposure; a blur or a noise barely moves a level measured over a tag's paper), then a
+light the simulation lacks (a sun, read from the paper levels against the way the tags face), then
+the crushed shadows (a black level: the share of a tag at 0 DN depends on the exposure), then the
+edge widths (blur, defocus; clipping narrows them, a glint barely moves them), the edges' offset
+(the markers' size change at zero size, which a softness through the pipeline's levels makes too),
 the glint of a laminate (ink and paper levels against view angle; a soft edge bleeds paper into
 small tags' ink cells), the noise (sensor noise, whose excess over the simulation depends on its
-levels and softness) and last the compression (JPEG, whose blockiness depends on everything
-before it). With the laminate before the softness, a defocus fitted on the glinting simulation moved
-its focus and the poses away from the real ones (measured on a development capture, same page).
+levels and softness) and last the compression (JPEG, whose blockiness depends on everything before
+it). With the laminate before the softness, a defocus fitted on the glinting simulation moved its
+focus and the poses away from the real ones (measured on a development capture, same page).
 A model's prediction is the simulation with all its effects at once, as a camera forms its image.
 The order is a fitting order, not the camera's: an effect of the camera's image stage fitted
 before a softness (exposure, black level before a blur or a defocus) acts in the camera on the
@@ -47,6 +48,7 @@ FIT_ORDER = (
     "black_level",
     "blur",
     "defocus",
+    "edge_offset",
     "tag_gloss",
     "sensor_noise",
     "jpeg",
@@ -85,11 +87,13 @@ def conditioned(runner: Runner, base: VariantState, state: VariantState, items: 
     """``items`` whose simulated image evidence is that of ``state`` instead of ``base``.
 
     The change from ``base`` to ``state`` (both run through ``runner``) is added to the items'
-    own simulated image statistics and detections (the evidence simulation effects are fitted
-    on), so that the simulation's render noise and its repeats cancel as in every other
-    prediction of the search.
+    own simulated image statistics, detections and corners (the evidence simulation effects
+    are fitted on), so that the simulation's render noise and its repeats cancel as in every
+    other prediction of the search.
     """
     out = dataclasses.replace(items)
+    change = runner.corners(state, items) - runner.corners(base, items)
+    out.sim_corners = items.sim_corners + np.nan_to_num(change)
     if items.sim_stats is not None:
         change = runner.stats(state, items) - runner.stats(base, items)
         out.sim_stats = items.sim_stats + np.nan_to_num(change)

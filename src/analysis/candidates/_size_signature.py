@@ -42,6 +42,8 @@ class SizeChange:
         ``slope`` over its standard error (nan with fewer than 4 tags or no spread of sizes).
     offset_px : float
         Intercept: the size change at zero size (px), an edge offset.
+    offset_z : float
+        ``offset_px`` over its standard error (nan as ``slope_z``).
     smallest_px : float
         The smallest tag's size (px).
     """
@@ -50,6 +52,7 @@ class SizeChange:
     slope: float
     slope_z: float
     offset_px: float
+    offset_z: float
     smallest_px: float
 
     @property
@@ -86,7 +89,11 @@ def size_change(real_corners: np.ndarray, predicted_corners: np.ndarray) -> Size
     change = tag_sizes(real_corners[ok]) - size
     n = int(ok.sum())
     if n < 4 or np.ptp(size) <= 0:
-        return SizeChange(n, *[float("nan")] * 4)
+        return SizeChange(n, *[float("nan")] * 5)
     fit = stats.linregress(size, change)
     z = fit.slope / fit.stderr if fit.stderr > 0 else float(np.sign(fit.slope) * np.inf)
-    return SizeChange(n, float(fit.slope), float(z), float(fit.intercept), float(size.min()))
+    se = fit.intercept_stderr
+    offset_z = fit.intercept / se if se > 0 else float(np.sign(fit.intercept) * np.inf)
+    return SizeChange(
+        n, float(fit.slope), float(z), float(fit.intercept), float(offset_z), float(size.min())
+    )
