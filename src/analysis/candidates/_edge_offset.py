@@ -25,11 +25,12 @@ pipeline. A property of the camera, reported beside its black level and softness
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
 from simgap.analysis.candidates._appearance import signature_supported
-from simgap.analysis.candidates._fitting import Fit, SimulationCandidate
+from simgap.analysis.candidates._fitting import Fit, SimulationCandidate, on_bound
 from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._size_signature import size_change
 from simgap.analysis.gap import Items
@@ -73,13 +74,18 @@ class EdgeOffsetCandidate(SimulationCandidate):
         fitted before this one). ``extra``: ``supported`` (the offset explains its statistic:
         :func:`~simgap.analysis.candidates.signature_supported`, with the intercept in corner
         units, :data:`~simgap.analysis.thresholds.CORNER_UNIT_PX`), ``intercept_px`` (the
-        capture's) and ``intercept_left_px`` (what the fitted offset leaves).
+        capture's), ``intercept_left_px`` (what the fitted offset leaves) and ``at_bound``
+        (the offset on the end of its searched range, :data:`OFFSET_BOUND_PX`).
         """
         t0 = time.perf_counter()
         target = size_change(items.real_corners, items.sim_corners).offset_px
         if not np.isfinite(target) or target == 0.0:
-            extra = {"supported": False, "intercept_px": target, "intercept_left_px": target}
-            return Fit(self.effect, {"offset_px": 0.0}, time.perf_counter() - t0, extra)
+            nothing: dict[str, Any] = {
+                "supported": False,
+                "intercept_px": target,
+                "intercept_left_px": target,
+            }
+            return Fit(self.effect, {"offset_px": 0.0}, time.perf_counter() - t0, nothing)
         reference = runner.corners(base, items)
 
         def intercept(offset: float) -> float:
@@ -102,7 +108,13 @@ class EdgeOffsetCandidate(SimulationCandidate):
             r1 = intercept(x1)
         left = target - r1 if np.isfinite(r1) else target
         supported = signature_supported(abs(target) / CORNER_UNIT_PX, abs(left) / CORNER_UNIT_PX)
-        extra = {"supported": supported, "intercept_px": target, "intercept_left_px": left}
+        bound = ("offset_px",) if on_bound(x1, -OFFSET_BOUND_PX, OFFSET_BOUND_PX) else ()
+        extra = {
+            "supported": supported,
+            "intercept_px": target,
+            "intercept_left_px": left,
+            "at_bound": bound,
+        }
         return Fit(self.effect, {"offset_px": x1}, time.perf_counter() - t0, extra)
 
 

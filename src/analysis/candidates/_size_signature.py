@@ -91,9 +91,18 @@ def size_change(real_corners: np.ndarray, predicted_corners: np.ndarray) -> Size
     if n < 4 or np.ptp(size) <= 0:
         return SizeChange(n, *[float("nan")] * 5)
     fit = stats.linregress(size, change)
-    z = fit.slope / fit.stderr if fit.stderr > 0 else float(np.sign(fit.slope) * np.inf)
-    se = fit.intercept_stderr
-    offset_z = fit.intercept / se if se > 0 else float(np.sign(fit.intercept) * np.inf)
     return SizeChange(
-        n, float(fit.slope), float(z), float(fit.intercept), float(offset_z), float(size.min())
+        n,
+        float(fit.slope),
+        _z(fit.slope, fit.stderr),
+        float(fit.intercept),
+        _z(fit.intercept, fit.intercept_stderr),
+        float(size.min()),
     )
+
+
+def _z(value: float, stderr: float) -> float:
+    """``value`` over its standard error; +-inf for an exact nonzero value, 0 for an exact 0."""
+    if stderr > 0:
+        return float(value / stderr)
+    return float(np.copysign(np.inf, value)) if value else 0.0
