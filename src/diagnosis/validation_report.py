@@ -79,8 +79,10 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         "captures), with hidden effects drawn per trial. Correct: "
         "the hidden effect named (of a pair: at least one; the strict row asks for both, and the "
         "recall for pairs counts them) and nothing named that the capture does not have (the "
-        "camera's own exposure, sensor noise and softness may always be named, and its black "
-        "level where at least 2 % of a tag is at 0 DN).",
+        "camera's own exposure, sensor noise and softness may always be named, its black "
+        "level where at least 2 % of a tag is at 0 DN, a light the simulation lacks where its "
+        "own lights light the tags unevenly, and an edge offset where its pipeline or print "
+        "moves soft edges).",
         "",
         "| score | value |",
         "|---|---|",
