@@ -255,6 +255,37 @@ def test_an_undecided_finding_names_none_of_its_look_alikes():
     summary = summarize_scores([pair, faulty, scale])
     assert (summary.undecided_trials, summary.undecided_holding_hidden) == (3, 2)
     assert summary.top1_accuracy == pytest.approx(1 / 3)
+    # a minor mount undecided against the camera's own edge offset names nothing false where
+    # the camera's pipeline moves edges, and is spurious where it does not
+    import dataclasses
+
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_truth import EDGE_MOVING_STAGES
+    from simgap.diagnosis.nuisance import draw_nuisance
+
+    mount = Finding(
+        effect="camera_mount", params={}, pose_contribution=0.9, minor=True,
+        look_alikes=["edge_offset"],
+    )  # fmt: skip
+    blur = Finding(effect="blur", params={"sigma_px": 1.2}, pose_contribution=2.7, minor=False)
+    result = DiagnosisResult(
+        selection=Selection(findings=[blur, mount], n_params=0, items=0, scores=Scores())
+    )
+    camera = draw_nuisance(np.random.default_rng([5, 1]), load_rig())
+    plain = dataclasses.replace(
+        camera,
+        scene={**camera.scene, "materials": {}},
+        effects={
+            **{k: v for k, v in camera.effects.items() if k not in EDGE_MOVING_STAGES},
+            "gamma": {"encoding": "srgb"},
+        },
+    )
+    pipeline = dataclasses.replace(plain, effects={**plain.effects, "bayer": {}})
+    hidden_blur = {"blur": {"sigma_px": 1.2}}
+    through = Trial(0, hidden_blur, pipeline, result).score()
+    assert through.correct and through.spurious == () and through.top1 == "blur"
+    direct = Trial(0, hidden_blur, plain, result).score()
+    assert not direct.correct and direct.spurious == ("camera_mount",)
 
 
 def test_targeted_validation_draws_only_the_named_effects(tmp_path):

@@ -257,8 +257,10 @@ class Trial:
         or calibration effect that was not hidden; an appearance effect that neither was hidden
         nor is the camera's own, :func:`camera_named`); for an effect outside the catalogue,
         "unexplained" and no geometric effect; without a hidden effect, nothing but the camera's
-        own appearance. Magnitude errors are per scored parameter (``effect.parameter``),
-        relative to :meth:`truth`'s scale.
+        own appearance. A finding left undecided between look-alikes names none of them (no
+        hit), and is spurious only where none of them is hidden or the camera's own. Magnitude
+        errors are per scored parameter (``effect.parameter``), relative to :meth:`truth`'s
+        scale.
         """
         selected = tuple(self.result.selected)
         findings = self.result.selection.findings if self.result.selection else []
@@ -275,7 +277,9 @@ class Trial:
         spurious = tuple(
             e
             for e in selected
-            if e not in named and e not in camera_own and not set(undecided.get(e, ())) & named
+            if e not in named
+            and e not in camera_own
+            and not set(undecided.get(e, ())) & (named | set(camera_own))
         )
         own = [e for e in decided if e in named or e not in camera_own]
         catalogue = hides_catalogue_effects(hidden)

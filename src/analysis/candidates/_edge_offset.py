@@ -52,6 +52,9 @@ class EdgeOffsetCandidate(SimulationCandidate):
     """The camera's pipeline moving every marker edge by ``offset_px`` (module docstring)."""
 
     fit_stats: tuple[str, ...] = ()
+    #: its evidence is the corners: it may stand in for a minor projection effect
+    #: (:func:`simgap.analysis.search.corner_look_alikes`)
+    moves_corners = True
 
     def __init__(self) -> None:
         super().__init__("edge_offset")

@@ -102,20 +102,39 @@ def corner_effect_alone(ranking: Sequence[Scored]) -> Scored | None:
     return min(seen, key=lambda s: s.evidence_after) if seen else None
 
 
+def stands_in_corners(candidate: Candidate) -> bool:
+    """Whether a candidate may stand in for a minor projection effect: it moves the corners.
+
+    The projection effects, and the camera's own effects whose evidence is the corners
+    (``moves_corners``: the pipeline's edge offset, which moves every marker's corners by the
+    same pixels, :class:`~simgap.analysis.candidates.EdgeOffsetCandidate`).
+    """
+    return isinstance(candidate, ProjectionCandidate) or bool(
+        getattr(candidate, "moves_corners", False)
+    )
+
+
+def supported_in(scored: Scored, candidate: Candidate) -> bool:
+    """Whether ``candidate``'s fit in ``scored`` explains its own evidence (``supported``)."""
+    return all(f.extra.get("supported", True) for c, f in scored.fits if c is candidate)
+
+
 def corner_look_alikes(
     scored: Scored,
     minor: Sequence[str],
     pool: Sequence[Candidate],
     evaluate: Callable[[tuple[Candidate, ...]], Scored],
 ) -> dict[str, tuple[str, ...]]:
-    """Per minor projection effect of ``scored``: the projection effects as good in its place.
+    """Per minor projection effect of ``scored``: the effects as good in its place.
 
     A projection effect that moves no pose beyond the floor (``minor``) is seen in the corners
     alone, and is a finding only where the corners single it out. Where another projection
     effect of ``pool`` in its place explains every evidence channel indistinguishably from
     ``scored`` (:func:`~simgap.analysis.search.equivalent_models`: the search's own tolerances,
     0.05 px or 10 % on the corners and no consistent item-by-item difference), and could enter
-    the rest of the model on its own (:func:`admissible`, which also keeps it off its bounds),
+    the rest of the model on its own (:func:`admissible`, which also keeps it off its bounds;
+    the camera's own edge offset, :func:`stands_in_corners`, where its fit there explains its
+    own statistic, :func:`supported_in`),
     the corners do not single the effect out: the capture's poses cannot tell the two apart (a
     calibration file's wrong distortion and a focal length of a tenth of a percent, both
     lowering the corners of central tags alike, seen on a blind capture:
@@ -137,9 +156,10 @@ def corner_look_alikes(
         alikes = tuple(
             alt.effect
             for alt in pool
-            if isinstance(alt, ProjectionCandidate)
+            if stands_in_corners(alt)
             and alt not in model
             and admissible(swapped := evaluate((*rest, alt)), reference)
+            and supported_in(swapped, alt)
             and equivalent_models(swapped, scored)
         )
         if alikes:
