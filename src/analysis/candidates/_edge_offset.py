@@ -25,6 +25,7 @@ pipeline. A property of the camera, reported beside its black level and softness
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -46,6 +47,25 @@ PROBE_PX = 0.5
 #: Secant steps after the probe (each one render of the fit items): the response is nearly
 #: linear on each side of zero, so two steps leave the intercept within its noise.
 SECANT_STEPS = 2
+#: Halvings of a step whose render leaves too few tags detected to regress their sizes (an
+#: edge moved far into small, soft markers breaks their cells apart).
+BACKOFF_STEPS = 2
+
+
+def _measurable(
+    intercept: Callable[[float], float], start: float, offset: float
+) -> tuple[float, float]:
+    """``offset`` and its rendered intercept, halved back towards ``start`` while not finite.
+
+    At most :data:`BACKOFF_STEPS` halvings; the last intercept may still be nan.
+    """
+    value = intercept(offset)
+    for _ in range(BACKOFF_STEPS):
+        if np.isfinite(value):
+            break
+        offset = 0.5 * (start + offset)
+        value = intercept(offset)
+    return offset, value
 
 
 class EdgeOffsetCandidate(SimulationCandidate):
@@ -95,20 +115,20 @@ class EdgeOffsetCandidate(SimulationCandidate):
             moved = runner.corners(self.apply(base, {"offset_px": offset}), items)
             return size_change(moved, reference).offset_px
 
-        # secant search from no offset and a probe on the capture's side
+        # secant search from no offset and a probe on the capture's side; an offset whose
+        # render loses the small tags' detections (too few left to regress) is halved back
         x0, r0 = 0.0, 0.0
-        x1 = float(np.copysign(PROBE_PX, target))
-        r1 = intercept(x1)
+        x1, r1 = _measurable(intercept, x0, float(np.copysign(PROBE_PX, target)))
         for _ in range(SECANT_STEPS):
             if not np.isfinite(r1) or r1 == r0:
                 break
-            x2 = float(
-                np.clip(
-                    x1 + (target - r1) * (x1 - x0) / (r1 - r0), -OFFSET_BOUND_PX, OFFSET_BOUND_PX
-                )
+            step = x1 + (target - r1) * (x1 - x0) / (r1 - r0)
+            x2, r2 = _measurable(
+                intercept, x1, float(np.clip(step, -OFFSET_BOUND_PX, OFFSET_BOUND_PX))
             )
-            x0, r0, x1 = x1, r1, x2
-            r1 = intercept(x1)
+            if not np.isfinite(r2):
+                break
+            x0, r0, x1, r1 = x1, r1, x2, r2
         left = target - r1 if np.isfinite(r1) else target
         supported = signature_supported(abs(target) / CORNER_UNIT_PX, abs(left) / CORNER_UNIT_PX)
         bound = ("offset_px",) if on_bound(x1, -OFFSET_BOUND_PX, OFFSET_BOUND_PX) else ()
