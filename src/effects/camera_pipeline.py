@@ -137,7 +137,8 @@ class EdgeOffset(ImageEffect, name="edge_offset", order=15):
     edge moves by exactly ``offset_px`` along its normal and keeps its profile, so a dark
     marker on light paper grows by ``offset_px`` on every side (a negative offset shrinks it),
     and a corner moves to where its two moved sides meet, kept sharp. Flat regions keep their
-    values. The detector's corners follow by a response of their own (a marker's inner edges
+    values (a render's own noise there is resampled; the camera's noise comes after). The
+    detector's corners follow by a response of their own (a marker's inner edges
     move too; :mod:`simgap.analysis.candidates._edge_offset`). Applied on the soft linear image,
     after the optics.
     """
