@@ -32,12 +32,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis import gap as gapmod
-from simgap.analysis.candidates import (
-    CANDIDATES,
-    AppearanceCandidate,
-    Candidate,
-    EdgeOffsetCandidate,
-)
+from simgap.analysis.candidates import CANDIDATES, Candidate, SimulationCandidate
 from simgap.analysis.gap import corner_unit, gap_score, median_abs_gap
 from simgap.analysis.search import (
     ModelSearch,
@@ -315,10 +310,10 @@ def diagnose(
     settings : DiagnoseSettings, optional
         Splits, subsample sizes and thresholds (default: :class:`DiagnoseSettings`).
     candidates : list, optional
-        Candidate effects, projection or appearance (default: the whole catalogue,
-        :data:`simgap.analysis.candidates.CANDIDATES`). An appearance effect is kept only where
+        Candidate effects, projection or simulation (default: the whole catalogue,
+        :data:`simgap.analysis.candidates.CANDIDATES`). A simulation effect is kept only where
         the capture shows its signature
-        (:meth:`simgap.analysis.candidates.AppearanceCandidate.signature_shown`).
+        (:meth:`simgap.analysis.candidates.SimulationCandidate.signature_shown`).
     progress : ProgressCallback, optional
         Told the progress of every step after the simulation (whose progress is the
         simulator's): ``fitting candidates`` (one unit per candidate), ``model search`` (one per
@@ -341,7 +336,7 @@ def diagnose(
     where = where_summary(d.real, d.sim, d.field, d.axis_gaps)
     if candidates is None:
         candidates = list(CANDIDATES.values())
-    # an appearance effect is a candidate only where the capture shows its signature: one of
+    # a simulation effect is a candidate only where the capture shows its signature: one of
     # its own image statistics differs significantly (the where step, over every comparable
     # tag; the measure split's pose gap, on which the reduction is measured, plays no part in
     # it), or for a laminate the ink-to-paper ratios of those tags call for one; the camera's
@@ -349,7 +344,7 @@ def diagnose(
     candidates = [
         c
         for c in candidates
-        if not isinstance(c, AppearanceCandidate | EdgeOffsetCandidate)
+        if not isinstance(c, SimulationCandidate)
         or c.signature_shown(where.image_tests, d.runner, d.items)
     ]
     ranking = d.search.rank(candidates, where.significant) if len(d.items) >= 2 else []

@@ -34,6 +34,7 @@ from simgap.analysis.candidates._fitting import (
     Candidate,
     Fit,
     ProjectionCandidate,
+    SimulationCandidate,
     on_bound,
     project_items,
 )
@@ -92,6 +93,7 @@ __all__ = [
     "PaperLevels",
     "Runner",
     "SensorNoiseCandidate",
+    "SimulationCandidate",
     "SOFTNESS_EFFECTS",
     "SimulationChain",
     "SunCandidate",

@@ -34,7 +34,7 @@ from simgap.analysis.candidates._appearance import signature_supported
 from simgap.analysis.candidates._fitting import Fit, SimulationCandidate, on_bound
 from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._size_signature import size_change
-from simgap.analysis.gap import Items
+from simgap.analysis.gap import ImageTest, Items
 from simgap.analysis.thresholds import CORNER_UNIT_PX, EDGE_OFFSET_Z
 from simgap.effects.state import VariantState
 
@@ -79,7 +79,7 @@ class EdgeOffsetCandidate(SimulationCandidate):
     def __init__(self) -> None:
         super().__init__("edge_offset")
 
-    def signature_shown(self, image_tests: object, runner: Runner | None, items: Items) -> bool:
+    def signature_shown(self, image_tests: list[ImageTest], runner: Runner, items: Items) -> bool:
         """Whether the capture's corners show an edge offset (module docstring).
 
         The size change real - simulated over ``items`` (every comparable tag) regressed on the

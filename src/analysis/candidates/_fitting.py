@@ -34,7 +34,7 @@ from scipy.optimize import least_squares
 
 from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._size_signature import size_change
-from simgap.analysis.gap import Items, clearly_lower, item_residuals_px2
+from simgap.analysis.gap import ImageTest, Items, clearly_lower, item_residuals_px2
 from simgap.analysis.thresholds import AT_BOUND_SHARE
 from simgap.core import transforms as tf
 from simgap.core.rig import Rig
@@ -334,6 +334,14 @@ class SimulationCandidate(abc.ABC):
     def apply(self, base: VariantState, params: dict[str, Any]) -> VariantState:
         """The simulation's state with the effect at ``params``."""
         return make_effect(self.effect, params).apply(base)
+
+    @abc.abstractmethod
+    def signature_shown(self, image_tests: list[ImageTest], runner: Runner, items: Items) -> bool:
+        """Whether the capture shows this effect's signature, so that it is a candidate.
+
+        ``image_tests`` are the where step's tests over every comparable tag and ``items`` those
+        tags (each subclass reads what its signature is in).
+        """
 
     @abc.abstractmethod
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:

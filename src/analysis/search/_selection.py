@@ -421,10 +421,11 @@ class ModelSearch:
         return list(self._evaluated.values())
 
     def look_alikes(self, scored: Scored, ranking: list[Scored]) -> dict[str, tuple[str, ...]]:
-        """Per minor projection effect of a model, the projection effects as good in its place.
+        """Per minor projection effect of a model, the effects as good in its place.
 
         (:func:`~simgap.analysis.search.corner_look_alikes`, from the ranked effects and the
-        projection effects on a bound alone, as :meth:`select` draws from.)
+        projection effects on a bound alone, as :meth:`select` draws from: projection effects
+        and the camera's own edge offset.)
         """
         pool = self._pool(ranking, geometry=True)
         return corner_look_alikes(scored, self.minor(scored), pool, self.evaluate)
