@@ -16,13 +16,18 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from simgap.analysis.gap import PhotoCameraFit, fit_photo_camera
-from simgap.analysis.report import PHOTO_ERRORS_FIGURE, PHOTO_GAP_FIGURE, PHOTO_REPORT
+from simgap.analysis.report import (
+    PHOTO_ERRORS_FIGURE,
+    PHOTO_GAP_FIGURE,
+    PHOTO_REPORT,
+    dataset_calibration_check,
+)
 from simgap.cli import app
 from simgap.core import transforms as tf
 from simgap.core.board import Board, read_board
 from simgap.core.config import ConfigError
 from simgap.core.rig import CameraModel
-from simgap.pipeline.capture.calibration import read_calibration
+from simgap.pipeline.capture.calibration import calibration_to_yaml, read_calibration
 from simgap.pipeline.photos import (
     calibrate_photos,
     measure_photos,
@@ -140,6 +145,10 @@ def test_photo_dataset_reads_by_label_in_plain_xarray(tmp_path):
     assert "Board: ChArUco 5 x 7 squares of 40 mm, markers of 20 mm, DICT_6X6_250." in written
     for band, depth in printed.items():
         assert f"| {band} |" in written and f"| {float(depth):+.2f} |" in written
+    # the file as shipped, held against its photos by ingest too, is no fault
+    assert f"{CALIBRATION} describes the photos" in res.output
+    assert "## The calibration file held against the photos" in written
+    assert "The file describes the photos" in written and "does not describe" not in written
     model = CliRunner().invoke(app, ["report", str(out), "-o", str(rep), "--model", str(out)])
     assert model.exit_code == 2 and "--model" in model.output
     with xr.open_dataset(out) as ds:  # a file whose board attribute was lost
@@ -207,6 +216,36 @@ def test_a_calibration_file_held_against_the_photos(board, change, expected):
         assert faults[0].correction == pytest.approx(value, rel=0.25)
     if change == "focal":
         assert checks["focal length"].correction == pytest.approx(100 * (1 / 1.02 - 1), rel=0.25)
+
+
+def test_ingest_holds_a_faulty_file_against_its_photos_and_its_report_says_so(tmp_path):
+    """`ingest --board` with a k1 written 0.1 off: the dataset and its report name k1.
+
+    The check is :func:`test_a_calibration_file_held_against_the_photos`'s (measured -0.096,
+    RMS 0.459 -> 0.186 px); ingest records it in the dataset and its report reads it from there.
+    """
+    shifted = read_calibration(CALIBRATION)
+    shifted = dataclasses.replace(
+        shifted, distortion=(shifted.distortion[0] + 0.1, *shifted.distortion[1:])
+    )
+    faulty = tmp_path / "faulty.yaml"
+    faulty.write_text(calibration_to_yaml(shifted))
+    out = tmp_path / "photos.nc"
+    args = ["ingest", str(PHOTOS), "--board", str(BOARD), "--calibration", str(faulty)]
+    res = CliRunner().invoke(app, [*args, "-o", str(out), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    assert f"{faulty} does not describe this camera: its k1 corrected by -0.09" in res.output
+    with xr.open_dataset(out) as ds:
+        check = dataset_calibration_check(ds)
+    assert check.against == "the photos"
+    assert [c.name for c in check.faults][:1] == ["k1"]
+    assert check.faults[0].correction == pytest.approx(-0.1, rel=0.25)  # issue 50's bar
+    rep = tmp_path / "report"
+    done = CliRunner().invoke(app, ["report", str(out), "-o", str(rep), "--no-progress"])
+    assert done.exit_code == 0, done.output
+    written = (rep / PHOTO_REPORT).read_text()
+    assert "| k1 | -0.09" in written and "**does not describe the photos**" in written
+    assert "The file does not describe this camera: its k1 corrected by" in written
 
 
 @pytest.mark.parametrize("k1_shift", [0.0, 0.1])

@@ -247,7 +247,7 @@ def test_ingest_with_a_poses_file(board, photo_set, tmp_path):
     res = CliRunner().invoke(app, [*base, "--poses", str(poses), "-o", str(out)])
     assert res.exit_code == 0, res.output
     assert "marker sightings against the poses file" in res.output
-    assert f"{cal}: describes the photos" in res.output
+    assert f"{cal} describes the photos" in res.output
     with xr.open_dataset(out) as ds:
         assert ds.attrs["reference_poses"] == str(poses)
         assert ds.board_points_translation.attrs["units"] == "m"

@@ -47,9 +47,10 @@ if TYPE_CHECKING:
 
     import numpy as np
 
+    from simgap.core.board import Board
     from simgap.core.rig import CameraModel
     from simgap.pipeline.photo_references import PhotoReference, ResolvedReference
-    from simgap.pose.calibration_check import ReferencePoses
+    from simgap.pose.calibration_check import FileCheck, ReferencePoses
 
 
 @app.command()
@@ -243,7 +244,7 @@ def _ingest_photos(
     from simgap.cli.progress import StepBars
     from simgap.core.board import read_board
     from simgap.pipeline.capture.calibration import read_calibration
-    from simgap.pipeline.photos import measure_photos, write_photo_dataset
+    from simgap.pipeline.photos import measure_photos, with_calibration_check, write_photo_dataset
     from simgap.results.photo_summary import errors_by_distance, errors_table, gap_table
 
     if opts.calibration is None:
@@ -267,7 +268,11 @@ def _ingest_photos(
 
             spec = exp.scene_spec if exp is not None else None
             diagnosis = diagnose_photos(ds, board, camera, spec, opts.spp, opts.seed, bars)
-    write_photo_dataset(diagnosis.dataset if diagnosis is not None else ds, output)
+    checked = _checked_file(photos, board, camera, opts, reference, progress)
+    result = diagnosis.dataset if diagnosis is not None else ds
+    if checked is not None:  # the file's verdict travels with the dataset, for its report
+        result = with_calibration_check(result, checked)
+    write_photo_dataset(result, output)
     seen = int(ds.detected.sum())
     against = f"the board's {ds.attrs['reference']}"
     if reference is not None:
@@ -284,14 +289,10 @@ def _ingest_photos(
     )
     typer.echo(errors_table(errors_by_distance(ds)))
     typer.echo(f"its report (mm per third, figures): simgap report {output} -o REPORT_FOLDER")
-    if reference is not None:  # the file against the reference: what the calibration explains
-        from simgap.pipeline.photos import named_photo_points
-
-        names, points, _ = named_photo_points(photos, board, opts.max_pixels)
-        if points:
-            _check_file(opts.calibration, camera, names, points, reference, progress)
-        else:
-            typer.echo(f"{opts.calibration}: not checked: no photo shows enough of the board")
+    if checked is not None:
+        _print_check(opts.calibration, checked)
+    else:
+        typer.echo(f"{opts.calibration}: not checked: no photo shows enough of the board")
     if diagnosis is not None:
         fit = diagnosis.fit
         typer.echo(
@@ -382,7 +383,7 @@ def calibrate(
         if camera is not None:
             _warn_fold(name, camera, points)
     if given is not None:
-        _check_file(calibration, given, names, points, reference, progress)
+        _print_check(calibration, _hold_file(given, names, points, reference, progress))
     if output is not None:
         header = (
             f"{CALIBRATION_HEADER} {fit.photos} photos of {board.name}, RMS {fit.rms_px:.3f} px\n"
@@ -392,22 +393,40 @@ def calibrate(
         typer.echo(f"wrote {output}")
 
 
-def _check_file(
-    path: Path | None,
+def _checked_file(
+    photos: Path,
+    board: Board,
+    camera: CameraModel,
+    opts: _PhotoOptions,
+    reference: PhotoReference | None,
+    progress: bool,
+) -> FileCheck | None:
+    """``ingest --board``'s calibration file held against its photos (:func:`_hold_file`).
+
+    Against the reference where one is given, else each board posed from its own points, as
+    ``calibrate --calibration`` holds it. None where no photo shows enough of the board.
+    """
+    from simgap.pipeline.photos import named_photo_points
+
+    names, points, _ = named_photo_points(photos, board, opts.max_pixels)
+    return _hold_file(camera, names, points, reference, progress) if points else None
+
+
+def _hold_file(
     camera: CameraModel,
     names: list[str],
     points: list[tuple[np.ndarray, np.ndarray]],
     reference: PhotoReference | None,
     progress: bool,
-) -> None:
-    """Print the calibration file ``path`` held against the photos, parameter by parameter.
+) -> FileCheck:
+    """A calibration file ``camera`` held against the photos, parameter by parameter.
 
     :func:`simgap.pose.calibration_check.check_calibration`, each photo's board posed from its
     own points or held at its pose from ``reference`` (re-solved through each correction tried:
     a robot's board-in-base solved from the photos depends on the camera).
     """
     from simgap.cli.progress import StepBars
-    from simgap.pose.calibration_check import DISAGREE_SIGMAS, MIN_RMS_FALL, check_calibration
+    from simgap.pose.calibration_check import FileCheck, check_calibration
 
     held: list[np.ndarray] | ReferencePoses | None = None
     against = "the photos"
@@ -423,33 +442,23 @@ def _check_file(
                 return _reference_poses(chain, *chosen, checked).camera_from_board
 
             held = through
+    with StepBars(progress) as bars:
+        return FileCheck(against, tuple(check_calibration(points, camera, bars, reference=held)))
+
+
+def _print_check(path: Path | None, check: FileCheck) -> None:
+    """Print a file's check: each parameter's correction, its sd and the RMS; the verdict."""
     typer.echo(
-        f"{path} against {against}, each parameter corrected alone (the correction "
+        f"{path} against {check.against}, each parameter corrected alone (the correction "
         "+- its jackknife sd; the board points' RMS reprojection before -> after):"
     )
-    with StepBars(progress) as bars:
-        checks = check_calibration(points, camera, bars, reference=held)
-    for c in checks:
+    for c in check.parameters:
         flag = "  DOES NOT DESCRIBE THE PHOTOS" if c.disagrees else ""
         typer.echo(
             f"  {c.name:<13} {c.correction:+.4g} +- {c.std:.2g} {c.unit}".ljust(40)
             + f"RMS {c.rms_before_px:.3f} -> {c.rms_after_px:.3f} px{flag}"
         )
-    bad = sorted((c for c in checks if c.disagrees), key=lambda c: c.rms_after_px)
-    if bad:
-        worst, others = bad[0], ", ".join(c.name for c in bad[1:])
-        typer.echo(
-            f"{path}: the file does not describe this camera: its {worst.name} "
-            f"corrected by {worst.correction:+.4g} {worst.unit} lowers the RMS "
-            f"{worst.rms_before_px:.3f} -> {worst.rms_after_px:.3f} px"
-            + (f" ({others} alone explain less)" if others else "")
-        )
-    else:
-        typer.echo(
-            f"{path}: describes the photos: no correction is both "
-            f"{DISAGREE_SIGMAS:g} sd from zero and lowering the RMS by "
-            f"{100 * MIN_RMS_FALL:g} %"
-        )
+    typer.echo(check.verdict(str(path)))
 
 
 def _reference_poses(

@@ -43,6 +43,7 @@ from simgap.pipeline.photo_references import (
 )
 from simgap.pose.board_calibration import PhotoCalibration, board_points, calibrate_from_photos
 from simgap.pose.board_pose import BoardView, marker_error, view_board
+from simgap.pose.calibration_check import FileCheck
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
 from simgap.pose.image_stats import STAT_INDEX, MarkerLayout, tag_stats
@@ -55,6 +56,9 @@ from simgap.scene.spec import SceneSpec
 PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg")
 #: The ``source`` attribute of a photo dataset (what simgap's output checks recognise).
 PHOTO_SOURCE = "board_photos"
+#: The attribute of a photo dataset that holds its calibration file held against the photos
+#: (:meth:`simgap.pose.calibration_check.FileCheck.to_mapping`, written as its ``repr``).
+CALIBRATION_CHECK = "calibration_check"
 #: Per-marker image statistics of a photo dataset: variable -> the statistic of
 #: :mod:`simgap.pose.image_stats` it holds (the sticker's paper and ink levels, linear fraction of
 #: full scale, and the 10-90 % edge width of its black border, px).
@@ -527,6 +531,11 @@ def _dataset(
     return ds
 
 
+def with_calibration_check(ds: xr.Dataset, check: FileCheck) -> xr.Dataset:
+    """``ds`` with its calibration file's check (:data:`CALIBRATION_CHECK`), for its report."""
+    return ds.assign_attrs({CALIBRATION_CHECK: repr(check.to_mapping())})
+
+
 def write_photo_dataset(ds: xr.Dataset, path: str | Path) -> Path:
     """Write a photo dataset as netCDF4 atomically (temporary file + rename); return the path.
 
@@ -547,6 +556,7 @@ def write_photo_dataset(ds: xr.Dataset, path: str | Path) -> Path:
 
 __all__ = [
     "BOARD_AXES",
+    "CALIBRATION_CHECK",
     "CAMERA_AXES",
     "PHOTO_SOURCE",
     "PHOTO_SUFFIXES",
@@ -559,5 +569,6 @@ __all__ = [
     "reference_poses",
     "render_photos",
     "simulate_photos",
+    "with_calibration_check",
     "write_photo_dataset",
 ]

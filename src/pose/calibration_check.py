@@ -119,6 +119,80 @@ class ParameterCheck:
     disagrees: bool
 
 
+@dataclass(frozen=True)
+class FileCheck:
+    """A calibration file held against photos: what it was held against and each parameter.
+
+    Attributes
+    ----------
+    against : str
+        What held the board in each photo, in words (``the photos``: each board posed from its
+        own points; or the external reference).
+    parameters : tuple of ParameterCheck
+        Each parameter corrected alone (:func:`check_calibration`, :data:`CHECKS`' order).
+    """
+
+    against: str
+    parameters: tuple[ParameterCheck, ...]
+
+    @property
+    def faults(self) -> list[ParameterCheck]:
+        """The parameters the photos disagree with, the one that explains them best first."""
+        return sorted((c for c in self.parameters if c.disagrees), key=lambda c: c.rms_after_px)
+
+    def verdict(self, name: str) -> str:
+        """One sentence on the file ``name``: which parameter does not describe the photos.
+
+        The fault whose correction lowers the RMS most, with the others that alone explain
+        less; or that no correction is both clear and useful (module doc).
+        """
+        faults = self.faults
+        if not faults:
+            return (
+                f"{name} describes the photos: no correction is both {DISAGREE_SIGMAS:g} sd "
+                f"from zero and lowering the RMS by {100 * MIN_RMS_FALL:g} %"
+            )
+        worst, others = faults[0], ", ".join(c.name for c in faults[1:])
+        return (
+            f"{name} does not describe this camera: its {worst.name} corrected by "
+            f"{worst.correction:+.4g} {worst.unit} lowers the RMS {worst.rms_before_px:.3f} -> "
+            f"{worst.rms_after_px:.3f} px" + (f" ({others} alone explain less)" if others else "")
+        )
+
+    def to_mapping(self) -> dict:
+        """The check as plain Python values (a NaN standard deviation as None), for a file."""
+        return {
+            "against": self.against,
+            "parameters": [
+                {**dataclasses.asdict(c), "std": None if np.isnan(c.std) else c.std}
+                for c in self.parameters
+            ],
+        }
+
+    @classmethod
+    def from_mapping(cls, mapping: dict) -> FileCheck:
+        """The check :meth:`to_mapping` wrote.
+
+        Raises
+        ------
+        KeyError, TypeError
+            Where a key is missing or a value has the wrong type.
+        """
+        parameters = tuple(
+            ParameterCheck(
+                name=str(c["name"]),
+                unit=str(c["unit"]),
+                correction=float(c["correction"]),
+                std=float("nan") if c["std"] is None else float(c["std"]),
+                rms_before_px=float(c["rms_before_px"]),
+                rms_after_px=float(c["rms_after_px"]),
+                disagrees=bool(c["disagrees"]),
+            )
+            for c in mapping["parameters"]
+        )
+        return cls(against=str(mapping["against"]), parameters=parameters)
+
+
 #: Each photo's board points (n, 3) m and image points (n, 2) px.
 Points = list[tuple[np.ndarray, np.ndarray]]
 #: The reference poses (``camera_from_board``, 4 x 4, m) of the photos at the given indices of
@@ -240,6 +314,7 @@ __all__ = [
     "MIN_PHOTOS",
     "MIN_RMS_FALL",
     "Check",
+    "FileCheck",
     "ParameterCheck",
     "Points",
     "ReferencePoses",

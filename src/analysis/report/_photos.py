@@ -12,8 +12,9 @@ against an external reference), how far (the held-out gap after, mm).
 Files written (each atomically):
 
 ============================  ===================================================================
-``photo_report.md``           the set, errors near / mid / far (mm, mrad), and with a simulation
-                              the camera fitted, the gap before -> after per third, the rig
+``photo_report.md``           the set, errors near / mid / far (mm, mrad), the calibration file
+                              held against the photos, and with a simulation the camera fitted,
+                              the gap before -> after per third, the rig
 ``photo_errors.png``          x, y and depth error (mm) of every sighting against distance (m),
                               real and simulated, with each third's median
 ``photo_gap.png``             with a simulation: the median depth gap (mm) per third of
@@ -35,7 +36,8 @@ from simgap.analysis.report._output import save_figure, save_text
 from simgap.analysis.report._tables import markdown_table, signed
 from simgap.core.board import Board
 from simgap.core.config import ConfigError, from_mapping
-from simgap.pipeline.photos import PHOTO_SOURCE
+from simgap.pipeline.photos import CALIBRATION_CHECK, PHOTO_SOURCE
+from simgap.pose.calibration_check import DISAGREE_SIGMAS, MIN_RMS_FALL, FileCheck
 from simgap.results.photo_summary import COVARIATES, BandGap, errors_by_distance
 
 #: The report's Markdown file.
@@ -165,10 +167,58 @@ def photo_report_markdown(
         for b in errors_by_distance(real)
     ]
     lines += markdown_table(header, rows)
+    if CALIBRATION_CHECK in ds.attrs:
+        lines += calibration_check_lines(dataset_calibration_check(ds))
     if gaps is not None:
         lines += _simulation_lines(ds, gaps)
     lines += ["", "## Figures", ""] + [f"![{name}]({name})" for name in figures]
     return "\n".join(lines) + "\n"
+
+
+def dataset_calibration_check(ds: xr.Dataset) -> FileCheck:
+    """The calibration file held against the photos, as ``ingest --board`` recorded it.
+
+    Raises
+    ------
+    simgap.core.config.ConfigError
+        Naming the attribute (:data:`CALIBRATION_CHECK`) where it holds no such check.
+    """
+    mapping = attribute_mapping(ds, CALIBRATION_CHECK)
+    try:
+        return FileCheck.from_mapping(mapping)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(
+            f"attribute {CALIBRATION_CHECK}: expected the check simgap ingest --board writes "
+            f"({exc!r} in {mapping!r})"
+        ) from None
+
+
+def calibration_check_lines(check: FileCheck) -> list[str]:
+    """The report's section on the calibration file held against the photos."""
+    header = ["parameter", "correction", "jackknife sd", "RMS before -> after (px)", "verdict"]
+    rows = [
+        [
+            c.name,
+            f"{c.correction:+.4g} {c.unit}".rstrip(),
+            f"{c.std:.2g} {c.unit}".rstrip(),
+            f"{c.rms_before_px:.3f} -> {c.rms_after_px:.3f}",
+            "**does not describe the photos**" if c.disagrees else "-",
+        ]
+        for c in check.parameters
+    ]
+    return [
+        "",
+        "## The calibration file held against the photos",
+        "",
+        f"Against {check.against}: each parameter corrected alone, the file's others kept, to "
+        "the least RMS reprojection of all board points; a fault where the correction is "
+        f"{DISAGREE_SIGMAS:g} jackknife sd from zero and lowers the RMS by "
+        f"{100 * MIN_RMS_FALL:g} % (simgap.pose.calibration_check).",
+        "",
+        *markdown_table(header, rows),
+        "",
+        check.verdict("The file") + ".",
+    ]
 
 
 def _simulation_lines(ds: xr.Dataset, gaps: PhotoGaps) -> list[str]:
