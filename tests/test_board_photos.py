@@ -36,7 +36,7 @@ from simgap.pipeline.photos import (
     simulate_photos,
 )
 from simgap.pose.board_pose import BoardView, marker_error, view_board
-from simgap.pose.calibration_check import CHECKS, check_calibration
+from simgap.pose.calibration_check import CHECKS, FileCheck, check_calibration
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.results.photo_summary import COVARIATES, errors_by_distance, gap_by
 from tests.board_views import synthetic_view
@@ -216,6 +216,10 @@ def test_a_calibration_file_held_against_the_photos(board, change, expected):
         assert faults[0].correction == pytest.approx(value, rel=0.25)
     if change == "focal":
         assert checks["focal length"].correction == pytest.approx(100 * (1 / 1.02 - 1), rel=0.25)
+        # not a fault, but said: clear (4.2 sd) and lowering the RMS by 6 % only
+        verdict = FileCheck("the photos", tuple(checks.values())).verdict("the file")
+        assert "the file describes the photos" in verdict
+        assert "clear but small, each alone: focal length -1.5" in verdict
 
 
 def test_ingest_holds_a_faulty_file_against_its_photos_and_its_report_says_so(tmp_path):

@@ -81,10 +81,12 @@ class Check:
     scale: float = 1.0  # of the correction as printed (100 for a fraction shown in %)
 
 
+#: The focal length's name among the checks (fx and fy together).
+FOCAL_LENGTH: Final[str] = "focal length"
 #: The parameters checked: the focal length (fx and fy together, relative), the principal
 #: point (px) and the first two distortion coefficients (additive).
 CHECKS: Final = (
-    Check("focal length", "%", _focal, 0.10, 100.0),
+    Check(FOCAL_LENGTH, "%", _focal, 0.10, 100.0),
     Check("cx", "px", lambda c, x: dataclasses.replace(c, cx=c.cx + x), 50.0),
     Check("cy", "px", lambda c, x: dataclasses.replace(c, cy=c.cy + x), 50.0),
     Check("k1", "", _coefficient(0), 0.5),
@@ -118,6 +120,16 @@ class ParameterCheck:
     rms_after_px: float
     disagrees: bool
 
+    @property
+    def clear(self) -> bool:
+        """The correction stands :data:`DISAGREE_SIGMAS` jackknife sd from zero."""
+        return bool(self.std > 0 and abs(self.correction) >= DISAGREE_SIGMAS * self.std)
+
+    @property
+    def value(self) -> str:
+        """The correction and its unit, in words (``-1.545 %``, ``-0.09601``)."""
+        return f"{self.correction:+.4g} {self.unit}".rstrip()
+
 
 @dataclass(frozen=True)
 class FileCheck:
@@ -144,20 +156,38 @@ class FileCheck:
         """One sentence on the file ``name``: which parameter does not describe the photos.
 
         The fault whose correction lowers the RMS most, with the others that alone explain
-        less; or that no correction is both clear and useful (module doc).
+        less; or that no correction is both clear and useful (module doc), with the corrections
+        that are clear but lower the RMS too little (a focal length 2 % long, held against
+        photos that pose their boards themselves).
         """
         faults = self.faults
-        if not faults:
+        if faults:
+            worst, others = faults[0], ", ".join(c.name for c in faults[1:])
             return (
-                f"{name} describes the photos: no correction is both {DISAGREE_SIGMAS:g} sd "
-                f"from zero and lowering the RMS by {100 * MIN_RMS_FALL:g} %"
+                f"{name} does not describe this camera: its {worst.name} corrected by "
+                f"{worst.value} lowers the RMS {worst.rms_before_px:.3f} -> "
+                f"{worst.rms_after_px:.3f} px"
+                + (f" ({others} alone explain less)" if others else "")
             )
-        worst, others = faults[0], ", ".join(c.name for c in faults[1:])
-        return (
-            f"{name} does not describe this camera: its {worst.name} corrected by "
-            f"{worst.correction:+.4g} {worst.unit} lowers the RMS {worst.rms_before_px:.3f} -> "
-            f"{worst.rms_after_px:.3f} px" + (f" ({others} alone explain less)" if others else "")
+        text = (
+            f"{name} describes the photos: no correction is both {DISAGREE_SIGMAS:g} sd from "
+            f"zero and lowering the RMS by {100 * MIN_RMS_FALL:g} %"
         )
+        leaning = [c for c in self.parameters if c.clear]
+        if not leaning:
+            return text
+        each = ", ".join(
+            f"{c.name} {c.value} (+- {c.std:.2g} {c.unit}".rstrip()
+            + f"; RMS -{100 * (1.0 - c.rms_after_px / c.rms_before_px):.1f} %)"
+            for c in leaning
+        )
+        text += f"; clear but small, each alone: {each}"
+        if any(c.name == FOCAL_LENGTH for c in leaning):
+            text += (
+                " (a board's distance absorbs most of a focal length's error; a reference "
+                "pose per photo, --poses or --robot-poses, would pin it)"
+            )
+        return text
 
     def to_mapping(self) -> dict:
         """The check as plain Python values (a NaN standard deviation as None), for a file."""
@@ -291,19 +321,12 @@ def check_calibration(
                 for i in range(n)
             ]
             std = float(jackknife_std(np.array(loo)))
-        clear = bool(std > 0 and abs(correction) >= DISAGREE_SIGMAS * std)
         useful = after <= (1.0 - MIN_RMS_FALL) * before
-        out.append(
-            ParameterCheck(
-                check.name,
-                check.unit,
-                correction * check.scale,
-                std * check.scale,
-                before,
-                after,
-                clear and useful,
-            )  # fmt: skip
-        )
+        found = ParameterCheck(
+            check.name, check.unit, correction * check.scale, std * check.scale, before, after,
+            disagrees=False,
+        )  # fmt: skip
+        out.append(dataclasses.replace(found, disagrees=found.clear and useful))
         steps.advance()
     return out
 
@@ -311,6 +334,7 @@ def check_calibration(
 __all__ = [
     "CHECKS",
     "DISAGREE_SIGMAS",
+    "FOCAL_LENGTH",
     "MIN_PHOTOS",
     "MIN_RMS_FALL",
     "Check",
