@@ -36,7 +36,7 @@ from simgap.pipeline.photos import (
     simulate_photos,
 )
 from simgap.pose.board_pose import BoardView, marker_error, view_board
-from simgap.pose.calibration_check import CHECKS, FileCheck, check_calibration
+from simgap.pose.calibration_check import CHECKS, OWN_POINTS, FileCheck, check_calibration
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.results.photo_summary import COVARIATES, errors_by_distance, gap_by
 from tests.board_views import synthetic_view
@@ -217,9 +217,10 @@ def test_a_calibration_file_held_against_the_photos(board, change, expected):
     if change == "focal":
         assert checks["focal length"].correction == pytest.approx(100 * (1 / 1.02 - 1), rel=0.25)
         # not a fault, but said: clear (4.2 sd) and lowering the RMS by 6 % only
-        verdict = FileCheck("the photos", tuple(checks.values())).verdict("the file")
+        verdict = FileCheck(OWN_POINTS, tuple(checks.values())).verdict("the file")
         assert "the file describes the photos" in verdict
         assert "clear but small, each alone: focal length -1.5" in verdict
+        assert "a reference pose per photo" in verdict  # what would pin it
 
 
 def test_ingest_holds_a_faulty_file_against_its_photos_and_its_report_says_so(tmp_path):
@@ -241,7 +242,7 @@ def test_ingest_holds_a_faulty_file_against_its_photos_and_its_report_says_so(tm
     assert f"{faulty} does not describe this camera: its k1 corrected by -0.09" in res.output
     with xr.open_dataset(out) as ds:
         check = dataset_calibration_check(ds)
-    assert check.against == "the photos"
+    assert check.against == OWN_POINTS
     assert [c.name for c in check.faults][:1] == ["k1"]
     assert check.faults[0].correction == pytest.approx(-0.1, rel=0.25)  # issue 50's bar
     rep = tmp_path / "report"
@@ -346,7 +347,6 @@ def test_photos_simulated_at_their_reference_poses(tmp_path):
         assert f"| **{float(row.split()[5]):+.2f}** |" in written, (row, written)
     res = CliRunner().invoke(app, ["ingest", str(PHOTOS), "-o", str(out), "--simulate"])
     assert res.exit_code == 2 and "--simulate" in res.output
-
 
 
 def test_calibrate_says_where_a_file_folds_inside_the_image(board, capsys):

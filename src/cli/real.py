@@ -426,10 +426,10 @@ def _hold_file(
     a robot's board-in-base solved from the photos depends on the camera).
     """
     from simgap.cli.progress import StepBars
-    from simgap.pose.calibration_check import FileCheck, check_calibration
+    from simgap.pose.calibration_check import OWN_POINTS, FileCheck, check_calibration
 
     held: list[np.ndarray] | ReferencePoses | None = None
-    against = "the photos"
+    against = OWN_POINTS
     if reference is not None:
         resolved = _reference_poses(reference, names, points, camera)
         held = resolved.camera_from_board

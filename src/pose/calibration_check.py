@@ -81,6 +81,8 @@ class Check:
     scale: float = 1.0  # of the correction as printed (100 for a fraction shown in %)
 
 
+#: :attr:`FileCheck.against` where each photo's board was posed from its own points.
+OWN_POINTS: Final[str] = "the photos"
 #: The focal length's name among the checks (fx and fy together).
 FOCAL_LENGTH: Final[str] = "focal length"
 #: The parameters checked: the focal length (fx and fy together, relative), the principal
@@ -138,8 +140,8 @@ class FileCheck:
     Attributes
     ----------
     against : str
-        What held the board in each photo, in words (``the photos``: each board posed from its
-        own points; or the external reference).
+        What held the board in each photo, in words (:data:`OWN_POINTS`: each board posed
+        from its own points; or the external reference).
     parameters : tuple of ParameterCheck
         Each parameter corrected alone (:func:`check_calibration`, :data:`CHECKS`' order).
     """
@@ -182,7 +184,7 @@ class FileCheck:
             for c in leaning
         )
         text += f"; clear but small, each alone: {each}"
-        if any(c.name == FOCAL_LENGTH for c in leaning):
+        if self.against == OWN_POINTS and any(c.name == FOCAL_LENGTH for c in leaning):
             text += (
                 " (a board's distance absorbs most of a focal length's error; a reference "
                 "pose per photo, --poses or --robot-poses, would pin it)"
@@ -337,6 +339,7 @@ __all__ = [
     "FOCAL_LENGTH",
     "MIN_PHOTOS",
     "MIN_RMS_FALL",
+    "OWN_POINTS",
     "Check",
     "FileCheck",
     "ParameterCheck",

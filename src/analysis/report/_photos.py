@@ -199,7 +199,7 @@ def calibration_check_lines(check: FileCheck) -> list[str]:
     rows = [
         [
             c.name,
-            f"{c.correction:+.4g} {c.unit}".rstrip(),
+            c.value,
             f"{c.std:.2g} {c.unit}".rstrip(),
             f"{c.rms_before_px:.3f} -> {c.rms_after_px:.3f}",
             "**does not describe the photos**" if c.disagrees else "-",
