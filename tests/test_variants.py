@@ -143,9 +143,9 @@ def test_dask_schedulers_give_the_same_result(tmp_path, monkeypatch):
     """Two local worker processes, and a real scheduler and worker process on loopback,
     reproduce the default run (one in-process worker) exactly.
 
-    Local worker processes are used from :data:`sweep.PROCESS_SWEEP_MIN_CONFIGS`
-    configurations on (the baseline study's 540 run that way); the threshold is lowered to this
-    4-configuration experiment.
+    Local worker processes are used from :data:`sweep.PROCESS_SWEEP_MIN_PAIRS`
+    configuration-variant pairs on (the baseline study's 540 run that way); the threshold is
+    lowered to this experiment's 4 configurations x 2 variants.
     """
     from distributed import LocalCluster
 
@@ -171,7 +171,7 @@ def test_dask_schedulers_give_the_same_result(tmp_path, monkeypatch):
             exp, tmp_path / "cache-remote", show_progress=False, scheduler=address
         )
     assert remote.attrs["scheduler"] == address
-    monkeypatch.setattr(sweep, "PROCESS_SWEEP_MIN_CONFIGS", 4)
+    monkeypatch.setattr(sweep, "PROCESS_SWEEP_MIN_PAIRS", 8)
     procs = sweep.run_experiment(exp, tmp_path / "cache-procs", show_progress=False)
     assert procs.attrs["scheduler"] == "LocalCluster, 2 worker processes"
     for other in (remote, procs):

@@ -42,7 +42,7 @@ class Simulator:
         Cache folder of renders, frames and results (see :mod:`simgap.pipeline.cache`).
     scheduler : str, optional
         Address of a Dask scheduler for :meth:`dataset`; default: a LocalCluster on
-        this machine (:data:`simgap.pipeline.sweep.PROCESS_SWEEP_MIN_CONFIGS`).
+        this machine (:data:`simgap.pipeline.sweep.PROCESS_SWEEP_MIN_PAIRS`).
     show_progress : bool
         Show a progress bar while :meth:`dataset` runs.
     """

@@ -19,9 +19,9 @@ in their bounding crop; the detector reads the window of the full-size frame aro
 with its size-relative thresholds set for the real image size (docs/conventions.md §4), which
 finds what the whole frame would (:attr:`simgap.pose.detect.Detector.window_pad_px`).
 Work is spread over a Dask scheduler: a ``LocalCluster`` by default (two worker processes from
-:data:`PROCESS_SWEEP_MIN_CONFIGS` configurations on, else one in-process worker thread), or any
-cluster by address; one task is one (p, theta) for all variants and repeats, so renders are
-shared in a task.
+:data:`PROCESS_SWEEP_MIN_PAIRS` configuration-variant pairs on, else one in-process worker
+thread), or any cluster by address; one task is one (p, theta) for all variants and repeats, so
+renders are shared in a task.
 """
 
 from __future__ import annotations
@@ -116,12 +116,15 @@ def _progress() -> Progress:
     )
 
 
-#: Sweeps of at least this many configurations run on two local worker processes; smaller ones
-#: on one in-process worker thread (starting the processes costs about 6 s).
-PROCESS_SWEEP_MIN_CONFIGS = 100
+#: Sweeps of at least this many configuration-variant pairs (each a render and its frames) run
+#: on two local worker processes; smaller ones on one in-process worker thread (starting the
+#: processes costs about 6 s; docs/results/sweep_breakdown.md). A task is one configuration with
+#: all its variants, so a sweep of few configurations and many variants is large too (the
+#: orbital study: 12 configurations x 73 sun directions).
+PROCESS_SWEEP_MIN_PAIRS = 100
 
 
-def _client(scheduler: str | None, configurations: int):
+def _client(scheduler: str | None, configurations: int, variants: int):
     """A Dask client, its local cluster (None for an address) and what the scheduler is.
 
     Every render already uses all cores (Dr.Jit's thread pool), but a third of a
@@ -134,7 +137,11 @@ def _client(scheduler: str | None, configurations: int):
 
     if scheduler:
         return Client(scheduler), None, scheduler
-    processes = configurations >= PROCESS_SWEEP_MIN_CONFIGS and (os.cpu_count() or 1) >= 2
+    processes = (
+        configurations >= 2
+        and configurations * variants >= PROCESS_SWEEP_MIN_PAIRS
+        and (os.cpu_count() or 1) >= 2
+    )
     # a worker whose heartbeat races the scheduler's shutdown on a busy machine logs a
     # traceback at ERROR after the sweep is done and written (seen on 2 cores under load); the
     # sweep's own failures reach the caller through its futures, so the cluster's logs are
@@ -168,7 +175,7 @@ def run_experiment(
         Show a progress bar with counts and rate.
     scheduler : str, optional
         Address of a Dask scheduler (``tcp://HOST:PORT``); default: a LocalCluster on
-        this machine (:data:`simgap.pipeline.sweep.PROCESS_SWEEP_MIN_CONFIGS`).
+        this machine (:data:`simgap.pipeline.sweep.PROCESS_SWEEP_MIN_PAIRS`).
     """
     from distributed import as_completed
 
@@ -178,7 +185,7 @@ def run_experiment(
     res = empty_results(shape)
     configs = [(i, j) for i in range(len(ps)) for j in range(len(thetas))]
     preflight(exp)
-    client, cluster, where = _client(scheduler, len(configs))
+    client, cluster, where = _client(scheduler, len(configs), len(names))
     try:
         futures = {
             client.submit(run_task, exp, str(cache_dir), ps[i], float(thetas[j]), pure=False): (
