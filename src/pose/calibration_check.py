@@ -110,8 +110,6 @@ class ParameterCheck:
         Its jackknife standard deviation (in ``unit``; NaN with too few photos).
     rms_before_px, rms_after_px : float
         RMS reprojection of all board points with the file's value and with the correction.
-    disagrees : bool
-        The correction is clear and useful (module doc): the file does not describe the camera.
     """
 
     name: str
@@ -120,12 +118,21 @@ class ParameterCheck:
     std: float
     rms_before_px: float
     rms_after_px: float
-    disagrees: bool
 
     @property
     def clear(self) -> bool:
         """The correction stands :data:`DISAGREE_SIGMAS` jackknife sd from zero."""
         return bool(self.std > 0 and abs(self.correction) >= DISAGREE_SIGMAS * self.std)
+
+    @property
+    def useful(self) -> bool:
+        """The correction lowers the board points' RMS by :data:`MIN_RMS_FALL`."""
+        return self.rms_after_px <= (1.0 - MIN_RMS_FALL) * self.rms_before_px
+
+    @property
+    def disagrees(self) -> bool:
+        """Clear and useful (module doc): the file does not describe the camera."""
+        return self.clear and self.useful
 
     @property
     def value(self) -> str:
@@ -192,11 +199,19 @@ class FileCheck:
         return text
 
     def to_mapping(self) -> dict:
-        """The check as plain Python values (a NaN standard deviation as None), for a file."""
+        """The check as plain Python values (a NaN standard deviation as None), for a file.
+
+        Each parameter's ``disagrees`` is written for a reader of the file; it is derived again
+        on reading (:meth:`from_mapping`).
+        """
         return {
             "against": self.against,
             "parameters": [
-                {**dataclasses.asdict(c), "std": None if np.isnan(c.std) else c.std}
+                {
+                    **dataclasses.asdict(c),
+                    "std": None if np.isnan(c.std) else c.std,
+                    "disagrees": c.disagrees,
+                }
                 for c in self.parameters
             ],
         }
@@ -218,7 +233,6 @@ class FileCheck:
                 std=float("nan") if c["std"] is None else float(c["std"]),
                 rms_before_px=float(c["rms_before_px"]),
                 rms_after_px=float(c["rms_after_px"]),
-                disagrees=bool(c["disagrees"]),
             )
             for c in mapping["parameters"]
         )
@@ -323,12 +337,11 @@ def check_calibration(
                 for i in range(n)
             ]
             std = float(jackknife_std(np.array(loo)))
-        useful = after <= (1.0 - MIN_RMS_FALL) * before
-        found = ParameterCheck(
-            check.name, check.unit, correction * check.scale, std * check.scale, before, after,
-            disagrees=False,
-        )  # fmt: skip
-        out.append(dataclasses.replace(found, disagrees=found.clear and useful))
+        out.append(
+            ParameterCheck(
+                check.name, check.unit, correction * check.scale, std * check.scale, before, after
+            )
+        )
         steps.advance()
     return out
 
