@@ -33,7 +33,7 @@ from simgap.pipeline.region import OUTLINE_POINTS_PER_SIDE, Region, sticker_regi
 from simgap.pose.detect import Detector
 from simgap.pose.tags import ConfigResult, add_image_stats, estimate_tags
 from simgap.render import imaging
-from simgap.render.converged import CONVERGED_VERSION, converged_pixels
+from simgap.render.converged import converged_pixels, render_version
 from simgap.render.scene import projected_sticker_outlines
 
 #: Part of every render key: bump when what a render holds changes (its pixels or their samples).
@@ -221,7 +221,8 @@ class VariantPipeline:
     def render_key(self, p: int, theta: float, render_repeat: int) -> str:
         """Cache key of the linear render of one configuration."""
         # a converged render's own version; a path render's key stays what it was
-        converged = (CONVERGED_VERSION,) if self.state.scene.quality.mode == "converged" else ()
+        s = self.state.scene
+        converged = render_version(s.spec) if s.quality.mode == "converged" else ()
         return content_hash(
             self.scene_key, int(p), round(float(theta), 9), render_repeat, self.margin_px,
             RENDER_VERSION, *converged,

@@ -50,10 +50,17 @@ from simgap.render.print_footprint import (
     exact_footprint_applies,
     print_footprint,
 )
-from simgap.render.sun_direct import SUN_DIRECT_POINTS, split_sun, sun_direct
+from simgap.render.sun_direct import (
+    SUN_DIRECT_POINTS,
+    SUN_DIRECT_VERSION,
+    SUN_LIGHT,
+    split_sun,
+    sun_direct,
+)
 
 if TYPE_CHECKING:
     from simgap.render.scene import FixtureScene
+    from simgap.scene.spec import SceneSpec
 
 #: Part of the render key of a converged render: bump when what it holds changes.
 #: 9: a sun's direct light on matte stickers from the footprint pass (sun_direct);
@@ -81,6 +88,17 @@ COATED = "smooth (coated print)"
 #: Appended to a sticker's treatment where the sun's direct light was added from the footprint
 #: pass (:mod:`simgap.render.sun_direct`) to the treated rest of its light.
 SUN_SUFFIX = " + sun direct"
+
+
+def render_version(spec: SceneSpec) -> tuple[str, ...]:
+    """What a converged render of a scene holds, as part of its render key.
+
+    :data:`CONVERGED_VERSION`, and :data:`~simgap.render.sun_direct.SUN_DIRECT_VERSION` where the
+    scene has a sun (so that a change to the sun's direct pass leaves every other render's key
+    as it was).
+    """
+    sun = (SUN_DIRECT_VERSION,) if SUN_LIGHT in spec.lights else ()
+    return (CONVERGED_VERSION, *sun)
 
 
 @dataclass(frozen=True)

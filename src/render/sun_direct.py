@@ -47,6 +47,20 @@ SUN_LIGHT = "sun"
 #: 0.533 deg disc (its penumbra), RMS 0.17 / 0.05 / 0.01 %, max 2.6 / 0.8 / 0.2 % under parallel
 #: rays; on the 44 k pixels of top_edge it took 0.23 / 0.77 / 3.5 s.
 SUN_DIRECT_POINTS = 256
+#: Part of the render key of a converged render under a sun (:func:`simgap.render.converged.
+#: render_version`): bump when what :func:`sun_direct` returns changes. adaptive-1: a coarse
+#: first pass, the full pattern only where a pixel is not settled.
+SUN_DIRECT_VERSION = "adaptive-1"
+#: Points per pixel of :func:`sun_direct`'s first pass: a pixel it settles (:func:`settled`)
+#: keeps that value, every other one takes :data:`SUN_DIRECT_POINTS`.
+SUN_COARSE_POINTS = 16
+#: A pixel's value and its neighbours' agree when they differ by at most this share of the
+#: region's largest value: on a flat matte print the cosine changes far less over a pixel.
+SUN_SETTLED_RTOL = 1e-4
+#: A pixel within this many pixels (a square) of one whose points disagreed or whose value
+#: differs from a neighbour's takes the full pattern too (px): a disc's penumbra fades over
+#: several pixels, and its faint end escapes the coarse directions.
+SUN_SETTLED_REACH_PX = 3
 #: Scrambling seed of the fixed pattern of directions over the sun's disc (:func:`disc_pattern`).
 DISC_PATTERN_SEED = 29
 #: Shadow rays towards a distant disc stop this far short of it (m): the disc is a shape of the
@@ -183,6 +197,13 @@ def sun_direct(
     the sun's disc (:func:`sun_points`). Linear RGB radiance (W m^-2 sr^-1 x the light's
     tint), the same for every render seed.
 
+    Evaluated first with :data:`SUN_COARSE_POINTS` points per pixel; a pixel keeps that value
+    only where it is settled (:func:`settled`: its points are all lit on one albedo or all
+    unlit, and its neighbours' values agree with its own), which on a flat print in full sun or
+    full shadow is the value the full pattern gives to within the cosine's change over the
+    pixel and the disc. Every other pixel (a print edge,
+    a shadow edge or penumbra, the sticker's border) takes the full ``points``.
+
     Parameters
     ----------
     scene : FixtureScene
@@ -196,13 +217,75 @@ def sun_direct(
     points : int
         Points per pixel (a power of two).
     """
+    pixels = np.asarray(pixels).reshape(-1, 2)
+    tags = np.asarray(tags).reshape(-1)
+    coarse = min(SUN_COARSE_POINTS, points)
+    total, uniform = sun_direct_pattern(scene, pixels, tags, light, coarse)
+    refine = ~settled(pixels, total, uniform) if coarse < points else np.zeros(len(pixels), bool)
+    if refine.any():
+        total[refine] = sun_direct_pattern(scene, pixels[refine], tags[refine], light, points)[0]
+    return total
+
+
+def settled(pixels: np.ndarray, values: np.ndarray, uniform: np.ndarray) -> np.ndarray:
+    """Pixels whose coarse value stands for their footprint (N,) bool.
+
+    A pixel is settled where its own points agreed (``uniform``) and no pixel of the set within
+    :data:`SUN_SETTLED_REACH_PX` (px, a square) is unsettled in that way or holds another value
+    (beyond :data:`SUN_SETTLED_RTOL` of the largest value): an edge that cuts off less of a
+    pixel than the coarse points resolve, or a penumbra's faint end, still differs from a
+    neighbour's value.
+
+    Parameters
+    ----------
+    pixels : ndarray of int (N, 2)
+        Pixel columns and rows (px).
+    values : ndarray (N, 3)
+        The coarse values.
+    uniform : ndarray of bool (N,)
+        Whether each pixel's coarse points gave one value.
+    """
+    from scipy.ndimage import binary_dilation, maximum_filter, minimum_filter
+
+    if len(pixels) == 0:
+        return np.zeros(0, bool)
+    lum = values.sum(axis=1)
+    tol = SUN_SETTLED_RTOL * max(float(lum.max()), 1e-30)
+    lo = pixels.min(axis=0)
+    cols, rows = (pixels - lo).T
+    shape = (int(rows.max()) + 1, int(cols.max()) + 1)
+    grid = np.full(shape, np.nan)
+    grid[rows, cols] = lum
+    present = ~np.isnan(grid)
+    high = maximum_filter(np.where(present, grid, -np.inf), size=3)
+    low = minimum_filter(np.where(present, grid, np.inf), size=3)
+    differs = (high - grid > tol) | (grid - low > tol)  # False where absent (NaN)
+    unsettled = np.zeros(shape, bool)
+    unsettled[rows, cols] = ~uniform
+    unsettled |= differs & present
+    reach = SUN_SETTLED_REACH_PX - 1
+    if reach > 0:
+        unsettled = binary_dilation(unsettled, np.ones((2 * reach + 1,) * 2, bool))
+    return ~unsettled[rows, cols]
+
+
+def sun_direct_pattern(
+    scene: FixtureScene, pixels: np.ndarray, tags: np.ndarray, light: LightSpec, points: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`sun_direct` with ``points`` per pixel everywhere, and whether each pixel's agreed.
+
+    Returns
+    -------
+    radiance : ndarray (N, 3)
+        The mean over the pixel's points (as :func:`sun_direct`).
+    agreed : ndarray of bool (N,)
+        Whether every point of the pixel was lit on one albedo, or none was.
+    """
     import drjit as dr
 
     from simgap.render.scene import launches
 
     mi = scene.mi
-    pixels = np.asarray(pixels).reshape(-1, 2)
-    tags = np.asarray(tags).reshape(-1)
     n = len(pixels)
     pattern = footprint_pattern(points)
     aims, disc = sun_points(light, points)
@@ -210,6 +293,7 @@ def sun_direct(
         shape.id(): shape for shape in scene.scene.shapes() if shape.id().startswith(STICKER_PREFIX)
     }
     total = np.zeros((n, 3))
+    uniform = np.ones(n, bool)
     for start, padded, _ in launches(pixels, 0, points, 2):
         m = min(len(padded), n - start)
         ray, _ = scene.camera_rays(padded, 0, None, pattern)
@@ -241,4 +325,10 @@ def sun_direct(
         dr.eval(value)
         rgb = np.stack([np.asarray(c, np.float64) for c in (value.x, value.y, value.z)], -1)
         total[start : start + m] = rgb.reshape(-1, points, 3)[:m].mean(axis=1)
-    return total * np.asarray(light.rgb, float) * light.irradiance / np.pi
+        # agreed: every point lit with one albedo, or none lit (the cosine differs between the
+        # directions over the disc, by up to its half-angle)
+        shade = np.asarray(dr.select(lit, albedo.x + albedo.y + albedo.z, -1.0), np.float64)
+        shade = shade.reshape(-1, points)[:m]
+        spread = shade.max(axis=1) - shade.min(axis=1)
+        uniform[start : start + m] = spread <= SUN_SETTLED_RTOL * max(float(shade.max()), 1e-30)
+    return total * np.asarray(light.rgb, float) * light.irradiance / np.pi, uniform
