@@ -7,7 +7,8 @@ radiance (the sun's 0.53 deg) it is the mean of that over the disc's directions.
 Monte Carlo samples: :func:`sun_direct` evaluates it over each pixel's footprint with the fixed
 point pattern of the footprint pass (:func:`simgap.render.pixel_samples.footprint_pattern`) and
 one shadow ray per point, each towards one point of a fixed pattern over the disc:
-the same for every render seed, and as sharp at a shadow edge as the geometry.
+the same for every render seed, and as sharp at a shadow edge as the geometry (a first pass
+with fewer points settles the flat pixels, :func:`settled`).
 
 The rest of a sticker's light (the sky, light reflected by other surfaces, the sun's included)
 is what :func:`rest_trace` returns for a camera sample whose primary ray lands on a sticker: the
