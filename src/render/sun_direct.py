@@ -55,8 +55,9 @@ SUN_DIRECT_VERSION = "adaptive-1"
 #: Points per pixel of :func:`sun_direct`'s first pass: a pixel it settles (:func:`settled`)
 #: keeps that value, every other one takes :data:`SUN_DIRECT_POINTS`.
 SUN_COARSE_POINTS = 16
-#: A pixel's value and its neighbours' agree when they differ by at most this share of the
-#: region's largest value: on a flat matte print the cosine changes far less over a pixel.
+#: Two values agree when they differ by at most this share of the largest (a pixel's and its
+#: neighbours' over the region; the albedos of a pixel's points): on a flat matte print the
+#: cosine changes far less over a pixel, and a print's albedo is one value per cell.
 SUN_SETTLED_RTOL = 1e-4
 #: A pixel within this many pixels (a square) of one whose points disagreed or whose value
 #: differs from a neighbour's takes the full pattern too (px): a disc's penumbra fades over
@@ -202,8 +203,8 @@ def sun_direct(
     only where it is settled (:func:`settled`: its points are all lit on one albedo or all
     unlit, and its neighbours' values agree with its own), which on a flat print in full sun or
     full shadow is the value the full pattern gives to within the cosine's change over the
-    pixel and the disc. Every other pixel (a print edge,
-    a shadow edge or penumbra, the sticker's border) takes the full ``points``.
+    pixel and the disc. Every other pixel (a print edge, a shadow edge or penumbra, the
+    sticker's border) takes the full ``points``.
 
     Parameters
     ----------
@@ -221,17 +222,17 @@ def sun_direct(
     pixels = np.asarray(pixels).reshape(-1, 2)
     tags = np.asarray(tags).reshape(-1)
     coarse = min(SUN_COARSE_POINTS, points)
-    total, uniform = sun_direct_pattern(scene, pixels, tags, light, coarse)
-    refine = ~settled(pixels, total, uniform) if coarse < points else np.zeros(len(pixels), bool)
+    total, agreed = sun_direct_pattern(scene, pixels, tags, light, coarse)
+    refine = ~settled(pixels, total, agreed) if coarse < points else np.zeros(len(pixels), bool)
     if refine.any():
         total[refine] = sun_direct_pattern(scene, pixels[refine], tags[refine], light, points)[0]
     return total
 
 
-def settled(pixels: np.ndarray, values: np.ndarray, uniform: np.ndarray) -> np.ndarray:
+def settled(pixels: np.ndarray, values: np.ndarray, agreed: np.ndarray) -> np.ndarray:
     """Pixels whose coarse value stands for their footprint (N,) bool.
 
-    A pixel is settled where its own points agreed (``uniform``) and no pixel of the set within
+    A pixel is settled where its own points agreed (``agreed``) and no pixel of the set within
     :data:`SUN_SETTLED_REACH_PX` (px, a square) is unsettled in that way or holds another value
     (beyond :data:`SUN_SETTLED_RTOL` of the largest value): an edge that cuts off less of a
     pixel than the coarse points resolve, or a penumbra's faint end, still differs from a
@@ -243,8 +244,9 @@ def settled(pixels: np.ndarray, values: np.ndarray, uniform: np.ndarray) -> np.n
         Pixel columns and rows (px).
     values : ndarray (N, 3)
         The coarse values.
-    uniform : ndarray of bool (N,)
-        Whether each pixel's coarse points gave one value.
+    agreed : ndarray of bool (N,)
+        Whether every coarse point of each pixel was lit on one albedo, or none was
+        (:func:`sun_direct_pattern`).
     """
     from scipy.ndimage import binary_dilation, maximum_filter, minimum_filter
 
@@ -262,7 +264,7 @@ def settled(pixels: np.ndarray, values: np.ndarray, uniform: np.ndarray) -> np.n
     low = minimum_filter(np.where(present, grid, np.inf), size=3)
     differs = (high - grid > tol) | (grid - low > tol)  # False where absent (NaN)
     unsettled = np.zeros(shape, bool)
-    unsettled[rows, cols] = ~uniform
+    unsettled[rows, cols] = ~agreed
     unsettled |= differs & present
     reach = SUN_SETTLED_REACH_PX - 1
     if reach > 0:
@@ -294,7 +296,7 @@ def sun_direct_pattern(
         shape.id(): shape for shape in scene.scene.shapes() if shape.id().startswith(STICKER_PREFIX)
     }
     total = np.zeros((n, 3))
-    uniform = np.ones(n, bool)
+    agreed = np.ones(n, bool)
     for start, padded, _ in launches(pixels, 0, points, 2):
         m = min(len(padded), n - start)
         ray, _ = scene.camera_rays(padded, 0, None, pattern)
@@ -331,5 +333,5 @@ def sun_direct_pattern(
         shade = np.asarray(dr.select(lit, albedo.x + albedo.y + albedo.z, -1.0), np.float64)
         shade = shade.reshape(-1, points)[:m]
         spread = shade.max(axis=1) - shade.min(axis=1)
-        uniform[start : start + m] = spread <= SUN_SETTLED_RTOL * max(float(shade.max()), 1e-30)
-    return total * np.asarray(light.rgb, float) * light.irradiance / np.pi, uniform
+        agreed[start : start + m] = spread <= SUN_SETTLED_RTOL * max(float(shade.max()), 1e-30)
+    return total * np.asarray(light.rgb, float) * light.irradiance / np.pi, agreed
