@@ -16,7 +16,7 @@ from simgap.analysis.candidates import (
     project_items,
 )
 from simgap.analysis.gap import Items
-from simgap.analysis.search import ModelSearch, Scored, parsimonious
+from simgap.analysis.search import ModelSearch, Scored, admissible, parsimonious
 from simgap.core.axes import AXES
 from simgap.core.rig import load_rig
 from simgap.effects import make_effect
@@ -127,9 +127,13 @@ def test_joint_fit_separates_principal_point_and_focal_length():
 
 def _scored(effect: str, n_params: int, corner_after: float) -> Scored:
     cand = ProjectionCandidate(effect, [(f"x{i}", 1.0, 1.0) for i in range(n_params)])
+    return _with_fits([(cand, Fit(effect, {}))], corner_after)
+
+
+def _with_fits(fits: list, corner_after: float) -> Scored:
     nan6 = np.full(6, np.nan)
     return Scored(
-        fits=[(cand, Fit(effect, {}))],
+        fits=fits,
         pose_gap_before=5.0,
         pose_gap_after=0.2,
         median_abs_gap_before=nan6,
@@ -139,6 +143,28 @@ def _scored(effect: str, n_params: int, corner_after: float) -> Scored:
         corner_gap_before_px=12.9,
         corner_gap_after_px=corner_after,
     )
+
+
+def test_a_model_is_admissible_only_where_each_effect_explains_its_own_evidence():
+    """Regression (fresh seed 90, trial 2): a laminate fitted alone to a 0.04 W/sr light was
+    refitted beside an exposure that entered after it, found no light to mirror (1.8e-13 W/sr:
+    its fit not ``supported``) and was still named. A model holding any fit that does not explain
+    its own evidence may not be entered, whichever effect was added last."""
+
+    def model(*supported: bool) -> Scored:
+        names = ("exposure", "tag_gloss")
+        fits = [
+            (CANDIDATES[name], Fit(name, {}, 0.0, {"supported": ok}))
+            for name, ok in zip(names, supported, strict=False)
+        ]
+        return _with_fits(fits, 0.3)
+
+    laminate_alone = dataclasses.replace(model(True, True), fits=model(True, True).fits[1:])
+    assert admissible(laminate_alone, None)
+    assert admissible(model(True, True), laminate_alone)
+    # the exposure enters, the laminate's refit beside it explains nothing of its own
+    assert not admissible(model(True, False), laminate_alone)
+    assert not admissible(model(False, True), laminate_alone)
 
 
 def test_parsimony_prefers_the_simpler_of_equivalent_explanations():

@@ -16,6 +16,7 @@ The modules are private; other packages import the names of ``__all__`` from her
 from __future__ import annotations
 
 from simgap.analysis.search._admission import (
+    admissible,
     at_bound,
     clearly_smaller,
     grows_with_size,
@@ -45,6 +46,7 @@ from simgap.analysis.search._selection import ModelSearch
 __all__ = [
     "ModelSearch",
     "Scored",
+    "admissible",
     "as_good",
     "as_good_cross_fitted",
     "at_bound",

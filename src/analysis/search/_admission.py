@@ -25,16 +25,22 @@ def admissible(scored: Scored, reference: Scored | None) -> bool:
     """Whether the effect ``scored`` adds to ``reference`` (or to no effect) may enter a model.
 
     No fitted parameter on its bound (:func:`at_bound`: a joint refit that pushes one there is
-    a proxy too); a new print-scale-like effect changes the tags' size in proportion to it
-    (:func:`grows_with_size`); and a geometric effect must bring the pose
-    :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real one
-    (:func:`~simgap.analysis.search.worsens_pose`), have its own pattern in the corners
+    a proxy too); every effect's fit explains its own evidence beside the model's others
+    (``supported``, as :meth:`~simgap.analysis.search.ModelSearch.rank` asks of every effect
+    alone; an effect fitted after one that enters is fitted again: a laminate refitted beside
+    an exposure found no light to mirror and was named on a blind capture,
+    docs/results/design_evidence.md#admission); a new print-scale-like effect changes the
+    tags' size in proportion to it (:func:`grows_with_size`); and a geometric effect must
+    bring the pose :data:`~simgap.analysis.thresholds.MIN_POSE_REDUCTION` closer to the real
+    one (:func:`~simgap.analysis.search.worsens_pose`), have its own pattern in the corners
     (:func:`seen_in_corners`) or move the tag centres as they moved (:func:`seen_in_centres`).
     Appearance effects are judged on their evidence alone.
     """
     if at_bound(scored):
         return False
     new = new_effects(scored, reference)
+    if not all(f.extra.get("supported", True) for _, f in scored.fits):
+        return False
     if not all(grows_with_size(f) for c, f in scored.fits if c in new):
         return False
     if not any(isinstance(c, ProjectionCandidate) for c in new):
