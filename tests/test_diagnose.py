@@ -155,13 +155,14 @@ def test_a_model_is_admissible_only_where_each_effect_explains_its_own_evidence(
         names = ("exposure", "tag_gloss")
         fits = [
             (CANDIDATES[name], Fit(name, {}, 0.0, {"supported": ok}))
-            for name, ok in zip(names, supported, strict=False)
+            for name, ok in zip(names, supported, strict=True)
         ]
         return _with_fits(fits, 0.3)
 
-    laminate_alone = dataclasses.replace(model(True, True), fits=model(True, True).fits[1:])
+    both = model(True, True)
+    laminate_alone = dataclasses.replace(both, fits=both.fits[1:])
     assert admissible(laminate_alone, None)
-    assert admissible(model(True, True), laminate_alone)
+    assert admissible(both, laminate_alone)
     # the exposure enters, the laminate's refit beside it explains nothing of its own
     assert not admissible(model(True, False), laminate_alone)
     assert not admissible(model(False, True), laminate_alone)
