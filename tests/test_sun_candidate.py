@@ -66,6 +66,20 @@ def test_a_transfer_curve_or_one_gain_calls_for_no_sun():
     assert fit.rms_gain < 0.5  # one gain within half a floor: exposure is the simpler answer
 
 
+def test_a_paper_darker_than_the_searched_exposure_is_fitted_as_an_outlier():
+    """Regression (fresh seed 91, trial 0): one tag's paper read 8.1 stops darker than simulated,
+    the exposure's start (the darkest ratio) lay outside its searched range (+-8 EV) and the
+    diagnosis stopped with SciPy's "initial guess is outside of provided bounds". One gain and 24
+    tags, one of them at -8.1 stops: the fit runs, finds the gain within 0.1 EV (measured
+    0.04) and calls for no sun."""
+    normal = _normals()
+    y = np.full(len(normal), -1.2) + np.random.default_rng(4).normal(0, 0.05, len(normal))
+    y[5] = -8.1
+    fit = fit_sun(_levels(y, np.full(len(y), 0.3), normal))
+    assert fit is not None and not fit.supported
+    assert fit.ev == pytest.approx(-1.2, abs=0.1)
+
+
 def test_too_few_tags_fit_no_sun():
     """Under six tags with a paper level (three parameters and three more) nothing is fitted."""
     normal = _normals()[:5]

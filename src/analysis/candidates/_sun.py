@@ -187,12 +187,16 @@ def fit_sun(levels: PaperLevels) -> SunFit | None:
         loss="soft_l1",
     )
     lower, upper = (-8.0, IRRADIANCE_W_M2[0], -720.0), (8.0, IRRADIANCE_W_M2[1], 720.0)
-    start_irradiance = float(np.median(levels.irradiance))
+    # the sun only adds light, so the exposure starts at the darkest tag's ratio; one tag's
+    # paper can read darker than the searched range (an outlier the soft loss then discounts),
+    # and every start lies inside the bounds
+    start_ev = float(np.clip(np.min(y), lower[0], upper[0]))
+    start_irradiance = float(np.clip(np.median(levels.irradiance), lower[1], upper[1]))
     best = min(
         (
             least_squares(
                 sun_residual,
-                x0=[float(np.min(y)), start_irradiance, float(azimuth)],
+                x0=[start_ev, start_irradiance, float(azimuth)],
                 bounds=(lower, upper),
                 loss="soft_l1",
             )
