@@ -114,11 +114,6 @@ def stands_in_corners(candidate: Candidate) -> bool:
     )
 
 
-def supported_in(scored: Scored, candidate: Candidate) -> bool:
-    """Whether ``candidate``'s fit in ``scored`` explains its own evidence (``supported``)."""
-    return all(f.extra.get("supported", True) for c, f in scored.fits if c is candidate)
-
-
 def corner_look_alikes(
     scored: Scored,
     minor: Sequence[str],
@@ -132,9 +127,9 @@ def corner_look_alikes(
     effect of ``pool`` in its place explains every evidence channel indistinguishably from
     ``scored`` (:func:`~simgap.analysis.search.equivalent_models`: the search's own tolerances,
     0.05 px or 10 % on the corners and no consistent item-by-item difference), and could enter
-    the rest of the model on its own (:func:`admissible`, which also keeps it off its bounds;
-    the camera's own edge offset, :func:`stands_in_corners`, where its fit there explains its
-    own statistic, :func:`supported_in`),
+    the rest of the model on its own (:func:`admissible`, which also keeps it off its bounds
+    and asks every fit there, the camera's own edge offset's included
+    (:func:`stands_in_corners`), to explain its own evidence),
     the corners do not single the effect out: the capture's poses cannot tell the two apart (a
     calibration file's wrong distortion and a focal length of a tenth of a percent, both
     lowering the corners of central tags alike, seen on a blind capture:
@@ -159,7 +154,6 @@ def corner_look_alikes(
             if stands_in_corners(alt)
             and alt not in model
             and admissible(swapped := evaluate((*rest, alt)), reference)
-            and supported_in(swapped, alt)
             and equivalent_models(swapped, scored)
         )
         if alikes:
