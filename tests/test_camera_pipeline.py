@@ -371,3 +371,61 @@ def test_an_edge_offset_is_a_candidate_only_where_the_sizes_show_one():
     assert not candidate.signature_shown(None, None, focal)
     none, _ = _items(rig, {}, noise_px=0.2, seed=1)
     assert not candidate.signature_shown(None, None, none)
+
+
+def test_a_capture_read_through_its_measured_response_shows_the_scenes_levels(
+    tmp_path, session_cache
+):
+    """Frames of a camera with a black level and an S-curve, ingested with the response an
+    exposure bracket measures of it: its levels read as the simulation's, through the same
+    response, where read with sRGB its ink is crushed and its paper brighter."""
+    import dataclasses
+    import json
+
+    from simgap.diagnosis.items import simulation_experiment
+    from simgap.pipeline.capture import ingest, write_capture
+    from simgap.pipeline.simulator import Simulator
+    from simgap.pose.camera_response import estimate_response
+    from tests.test_camera_response import TIMES, bracket
+
+    black, tone = 0.03, {"contrast": 5.0, "midpoint": 0.5}
+    path = tmp_path / "camera.yaml"
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "camera",
+                "inherit": str(REPO / "experiments" / "smoke.yaml"),
+                "configurations": {"p": [P], "theta_deg": list(THETAS_DEG)},
+                "effects": {"black_level": {"level": black}, "tone_curve": tone},
+            }
+        )
+    )
+    exp = load_experiment(path)
+    folder = tmp_path / "capture"
+    simulator = Simulator(session_cache, show_progress=False)
+    write_capture(folder, simulator.frames(exp), exp.rig_model.camera)
+    response = estimate_response(bracket(black, None, tone), TIMES)
+    plain = dataclasses.replace(exp, effects={})
+    levels = ["ink_linear", "paper_linear"]
+
+    def log_ratio(real) -> np.ndarray:
+        sim = simulator.dataset(simulation_experiment(real, plain))
+        return np.log2(
+            real.image_stats.sel(stat=levels).isel(variant=0, repeat=0)
+            / sim.image_stats.sel(stat=levels).isel(variant=0, repeat=0)
+        ).values
+
+    measured = ingest(folder, exp.rig_model, response=response)
+    assert len(json.loads(measured.attrs["camera_response"])) == 256
+    assert "camera_response" in simulation_experiment(measured, plain).effects
+    with np.errstate(divide="ignore"):  # a crushed ink's level is 0 read with sRGB
+        through = log_ratio(measured)
+        srgb = log_ratio(ingest(folder, exp.rig_model))
+    seen = np.isfinite(through[..., 1])  # the visible tag, at both stops
+    ink, paper = through[..., 0][seen], through[..., 1][seen]
+    # measured: ink 0.00 stops (crushed alike, read through the response), paper +0.10 / +0.12
+    # stops (the response's few codes off); the paper level's floor is 0.3 stops
+    assert seen.sum() == 2
+    assert np.all(np.abs(ink) < 0.05) and np.all(np.abs(paper) < 0.2)
+    # read with sRGB: the ink crushed to no level at all, the paper +0.26 / +0.22 stops
+    assert np.all(np.isneginf(srgb[..., 0][seen]))

@@ -193,7 +193,7 @@ def test_version_prints_the_package_version(runner):
 
 def test_every_command_has_plain_help_under_h_and_help(runner):
     paths = command_paths()
-    assert len(paths) == 14  # the app and its 13 commands (see simgap.cli)
+    assert len(paths) == 15  # the app and its 14 commands (see simgap.cli)
     for path in paths:
         short = runner.invoke(app, path + ["-h"], prog_name="simgap")
         assert short.exit_code == 0, (path, short.output)

@@ -281,6 +281,13 @@ def validate(
         help="Give each other camera its own tag print: ink 0.5-8 % and paper 65-90 % "
         "reflectance (the default); --nominal-print keeps the simulation's print.",
     ),
+    measured_response: bool = typer.Option(
+        False,
+        "--measured-response/--no-measured-response",
+        help="Ingest each capture with the response a lab measures of its camera from an "
+        "exposure bracket (as ingest --response); default: read with sRGB, as a capture "
+        "without one.",
+    ),
     stages: str = typer.Option(
         "",
         "--stages",
@@ -317,6 +324,7 @@ def validate(
             converged_simulation=converged_simulation,
             camera_pipeline=camera_pipeline,
             print_reflectance=print_reflectance,
+            measured_response=measured_response,
             stages=tuple(s.strip() for s in stages.split(",") if s.strip()),
         )
     except ValueError as exc:  # "stages: expected ...": name the option

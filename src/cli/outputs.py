@@ -7,7 +7,7 @@ writes at each (an :class:`~simgap.core.outputs.OutputKind` of this module) and 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from simgap.cli.options import FOLDER_SPELLED
@@ -114,21 +114,33 @@ INGESTED_DATASET = OutputKind(
 )
 #: First line of a calibration file ``calibrate`` writes (how it knows one of its own).
 CALIBRATION_HEADER = "# simgap calibrate:"
+#: First line of a response file ``camera-response`` writes (how it knows one of its own).
+RESPONSE_HEADER = "# simgap camera-response:"
 
 
-def _is_calibration_output(path: Path) -> bool:
-    """A calibration file ``simgap calibrate`` wrote (its first line)."""
-    try:
-        with path.open("rb") as f:
-            return f.readline().startswith(CALIBRATION_HEADER.encode())
-    except OSError:
-        return False
+def _first_line_is(header: str) -> Callable[[Path], bool]:
+    """Whether a file is one a simgap command wrote: its first line starts with ``header``."""
+
+    def is_ours(path: Path) -> bool:
+        try:
+            with path.open("rb") as f:
+                return f.readline().startswith(header.encode())
+        except OSError:
+            return False
+
+    return is_ours
 
 
 #: What ``calibrate`` writes.
 CALIBRATION_OUTPUT = OutputKind(
     "calibration file (ROS camera_info YAML)",
-    is_ours=_is_calibration_output,
+    is_ours=_first_line_is(CALIBRATION_HEADER),
+    suffixes=(".yaml", ".yml"),
+)
+#: What ``camera-response`` writes.
+RESPONSE_OUTPUT = OutputKind(
+    "camera response file (YAML)",
+    is_ours=_first_line_is(RESPONSE_HEADER),
     suffixes=(".yaml", ".yml"),
 )
 #: What ``ingest --board`` writes.

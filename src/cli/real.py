@@ -33,6 +33,8 @@ from simgap.cli.outputs import (
     INGESTED_DATASET,
     OUTPUT,
     PHOTO_DATASET,
+    RESPONSE_HEADER,
+    RESPONSE_OUTPUT,
     ROS1_BAG,
     ROS2_BAG,
     ROS2_BAG_FILE,
@@ -100,6 +102,12 @@ def ingest(
         "any decode, whatever the calibration states (covers real cameras up to 50 MP).",
         min=1,
     ),
+    response: Path | None = typer.Option(
+        None,
+        "--response",
+        help="The camera's measured response (simgap camera-response): its frames' levels are "
+        "read through it, and the diagnosis simulates through it instead of sRGB.",
+    ),
     simulate: bool = typer.Option(
         False,
         "--simulate",
@@ -134,6 +142,8 @@ def ingest(
     """
     experiment = one_experiment(experiment, experiment_alias, "--experiment")
     reference = _ReferenceFiles(poses, robot_poses, hand_eye, board_in_base)
+    if board is not None and response is not None:
+        fail("--response: not with --board (a board's photos are measured in DN)")
     if board is not None:
         photo_options = _PhotoOptions(
             calibration, experiment, max_pixels, simulate, spp, seed, reference
@@ -147,15 +157,19 @@ def ingest(
     from simgap.core.outputs import claimed_folder
     from simgap.pipeline.bag import ingest_bag, is_bag
     from simgap.pipeline.capture import ingest as ingest_capture
+    from simgap.pipeline.capture.response_file import read_response
     from simgap.results.dataset import write_netcdf
 
     bag = is_bag(capture)
     inputs = [("CAPTURE", capture), ("--ranges", ranges), ("--calibration", calibration)]
+    inputs += [("--response", response)]
     inputs += experiment_inputs(experiment, "EXPERIMENT") if experiment is not None else []
     outputs = [(OUTPUT, output, INGESTED_DATASET)]
     outputs += [("--keep-capture", keep_capture, CAPTURE_FOLDER)] if bag else []
     check_outputs(outputs, inputs, overwrite)
     kwargs: dict = {"calibration_file": calibration, "max_pixels": max_pixels}
+    if response is not None:
+        kwargs["response"] = read_response(response)
     if experiment is not None:
         exp = read_experiment(experiment)
         kwargs |= {"rig": exp.rig_model, "detector": exp.detector, "pnp": exp.pnp}
@@ -391,6 +405,44 @@ def calibrate(
         text = header + calibration_to_yaml(cam)
         atomic_write(output, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         typer.echo(f"wrote {output}")
+
+
+@app.command("camera-response")
+def camera_response(
+    bracket: Annotated[
+        Path,
+        typer.Argument(
+            help="Folder of photos of one still scene at several exposure times, with "
+            "exposures.csv (image,exposure_s)."
+        ),
+    ],
+    output: Annotated[Path, output_option("Response file to write (YAML).")],
+    overwrite: OverwriteOption = False,
+) -> None:
+    """Measure the camera's response curve from an exposure bracket (for ingest --response).
+
+    Debevec and Malik's estimate (OpenCV): the relative exposure at each 8-bit code, which the
+    camera's own black level, encoding and tone curve make. A capture ingested with it is read
+    through it, and its diagnosis simulates through it instead of sRGB.
+    """
+    from simgap.core.atomic import atomic_write
+    from simgap.pipeline.capture.response_file import read_bracket, response_to_yaml
+    from simgap.pose.camera_response import estimate_response
+
+    check_outputs([(OUTPUT, output, RESPONSE_OUTPUT)], [("BRACKET", bracket)], overwrite)
+    photos, times = read_bracket(bracket)
+    try:
+        response = estimate_response(photos, times)
+    except ValueError as exc:
+        fail(f"{bracket}: {exc}")
+    mid = int(response.encode(0.18).round())
+    typer.echo(
+        f"{len(photos)} photos, {min(times):g}-{max(times):g} s; an 18 % grey at full-scale "
+        f"exposure reads {mid} DN (sRGB: 118 DN)"
+    )
+    text = f"{RESPONSE_HEADER} {len(photos)} photos of {bracket}\n" + response_to_yaml(response)
+    atomic_write(output, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    typer.echo(f"wrote {output}")
 
 
 def _checked_file(

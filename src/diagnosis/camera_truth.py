@@ -22,6 +22,7 @@ import numpy as np
 from simgap.core.rig import Rig
 from simgap.effects import make_effect
 from simgap.effects.state import SceneState, VariantState
+from simgap.pose.camera_response import CameraResponse, estimate_response
 from simgap.pose.image_stats import linearise
 from simgap.scene.lights import lights_irradiance
 from simgap.scene.spec import default_scene_spec
@@ -118,25 +119,66 @@ def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
     darker by this much: the level through those pixel-wise stages (their own code), rounded to
     the delivered DN and linearised with sRGB. 0 for a plain sRGB camera (quantisation aside).
     """
-    gamma = camera.effects["gamma"]
     level = float(np.clip(paper_linear, 1e-4, 1.0))
-    black, tone = camera.effects.get("black_level"), camera.effects.get("tone_curve")
-    if gamma.get("encoding", "gamma") == "srgb" and black is None and tone is None:
+    srgb = camera.effects["gamma"].get("encoding", "gamma") == "srgb"
+    if srgb and not {"black_level", "tone_curve"} & set(camera.effects):
         return 0.0
+    dn = np.round(float(pixel_codes(camera, np.array([level]))[0]))
+    return float(np.log2(max(float(linearise(dn)), 1e-4) / level))
+
+
+def pixel_codes(camera: NuisanceCamera, linear: np.ndarray) -> np.ndarray:
+    """The other camera's 8-bit codes (float, 0-255) of linear exposures: its pixel-wise stages.
+
+    Its black level, its encoding (sRGB or a pure gamma) and its tone curve, in the camera's
+    order (:mod:`simgap.effects.camera_pipeline`), each by its own code; the spatial stages
+    (demosaicing, denoising, sharpening) and the noise left out.
+    """
+    gamma = camera.effects["gamma"]
+    black, tone = camera.effects.get("black_level"), camera.effects.get("tone_curve")
     # (the ignores: make_effect returns the Effect base class; black_level is an ImageEffect,
     # with process, and tone_curve a ToneCurve, with curve)
-    x = np.array(level, np.float32)
+    x = np.asarray(linear, np.float32)
     if black is not None:
         x = make_effect("black_level", black).process(x, None)  # type: ignore[attr-defined]
-    linear = float(np.clip(x, 0.0, 1.0))
+    x = np.clip(x, 0.0, 1.0)
     if gamma.get("encoding", "gamma") == "srgb":
-        encoded = float(colour.cctf_encoding(linear, function="sRGB"))
+        encoded = np.asarray(colour.cctf_encoding(x, function="sRGB"), float)
     else:
-        encoded = linear ** (1.0 / float(gamma.get("gamma", 2.2)))
+        encoded = np.asarray(x, float) ** (1.0 / float(gamma.get("gamma", 2.2)))
     if tone is not None:
-        encoded = float(make_effect("tone_curve", tone).curve(encoded))  # type: ignore[attr-defined]
-    dn = np.round(255.0 * encoded)
-    return float(np.log2(max(float(linearise(dn)), 1e-4) / level))
+        encoded = make_effect("tone_curve", tone).curve(encoded)  # type: ignore[attr-defined]
+    return 255.0 * np.asarray(encoded, float)
+
+
+#: The lab's exposure bracket (:func:`lab_response`): eight photos a stop apart of a grey ramp
+#: over 0.2-100 % of full scale at the middle one, each code with Gaussian noise of this standard
+#: deviation (DN; a lab averages frames), quantised.
+LAB_BRACKET_STOPS = tuple(range(-4, 4))
+LAB_RAMP = (2e-3, 1.0)
+LAB_NOISE_DN = 0.5
+
+
+def lab_response(camera: NuisanceCamera) -> CameraResponse:
+    """The response a lab measures of the other camera from an exposure bracket.
+
+    The camera's pixel-wise stages (:func:`pixel_codes`) photograph a grey ramp at
+    :data:`LAB_BRACKET_STOPS`, and Debevec's estimate reads the response back
+    (:func:`simgap.pose.camera_response.estimate_response`), as ``simgap camera-response``
+    does of a real camera's bracket. The same camera gives the same response.
+    """
+    rng = np.random.default_rng(0)
+    ramp = np.geomspace(*LAB_RAMP, 512)[None, :] * np.exp(rng.normal(0.0, 0.2, (64, 1)))
+    times = [2.0**k for k in LAB_BRACKET_STOPS]
+    photos = [
+        np.clip(
+            np.round(pixel_codes(camera, ramp * t) + rng.normal(0.0, LAB_NOISE_DN, ramp.shape)),
+            0,
+            255,
+        ).astype(np.uint8)
+        for t in times
+    ]
+    return estimate_response(photos, times)
 
 
 #: Paper level (linear) of the simulation's default scene at a mid-range frontal tag, at which
@@ -146,15 +188,18 @@ def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
 PAPER_LEVEL = 0.34
 
 
-def exposure_truth(camera: NuisanceCamera, rig: Rig) -> float:
+def exposure_truth(camera: NuisanceCamera, rig: Rig, measured_response: bool = False) -> float:
     """The exposure change (EV) that matches the simulation's paper level to this camera's.
 
     Camera exposure setting + light meter (:func:`light_meter_ev`) + paper (:func:`print_ev`) +
     transfer curve (:func:`transfer_ev` at the paper's level): what an exposure finding should
-    read.
+    read. With ``measured_response`` (the capture read through the camera's measured response,
+    :func:`lab_response`) the levels are linear exposures and the transfer curve adds nothing.
     """
     setting = float(camera.effects["exposure"]["ev"])
     meter = light_meter_ev(camera, rig) + print_ev(camera)
+    if measured_response:
+        return setting + meter
     return setting + meter + transfer_ev(camera, PAPER_LEVEL * 2.0 ** (setting + meter))
 
 
@@ -212,8 +257,10 @@ __all__ = [
     "PAPER_LEVEL",
     "exposure_truth",
     "filter_variance_px2",
+    "lab_response",
     "light_meter_ev",
     "moves_edges",
+    "pixel_codes",
     "print_ev",
     "softness_truth",
     "transfer_ev",

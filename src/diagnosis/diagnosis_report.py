@@ -52,6 +52,11 @@ def _render_seeds_sentence(result: DiagnosisResult) -> str:
             + "): the simulation images through it, demosaiced "
             f"{cfa.method.replace('_', '-')}."
         )
+    if result.measured_response:
+        rendered += (
+            " The capture's levels are read through its camera's measured response, and the "
+            "simulation images through the same response instead of sRGB."
+        )
     return rendered + _pose_noise_sentence(result)
 
 

@@ -62,14 +62,26 @@ def demosaicing_from_attrs(real: xr.Dataset) -> CfaVerdict | None:
     return verdict if verdict.layout is not None else None
 
 
+def response_from_attrs(real: xr.Dataset) -> tuple[float, ...] | None:
+    """The camera's measured response a capture was ingested with (``camera_response``), or None.
+
+    The relative exposure at each 8-bit code (:class:`simgap.pose.camera_response.CameraResponse`).
+    """
+    text = real.attrs.get("camera_response")
+    return None if not text else tuple(float(v) for v in json.loads(text))
+
+
 def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
     """``exp`` restricted to the real dataset's configurations, imaging as its camera does.
 
-    With the capture's calibration (:func:`calibration_from_attrs`) and, where its colour
+    With the capture's calibration (:func:`calibration_from_attrs`), its camera's measured
+    response where it was ingested with one (:func:`response_from_attrs`: the simulation images
+    and reads its levels through it, ``camera_response`` effect) and, where its colour
     frames show a Bayer colour filter array (:func:`demosaicing_from_attrs`), its layout
     demosaiced with the nearest method of the catalogue (``bayer`` effect): demosaicing moves
     the corners of a frame's grey image by a fraction of a pixel, which a simulation without it
-    would read as a geometric gap. An experiment that names its own ``bayer`` keeps it.
+    would read as a geometric gap. An experiment that names its own ``bayer`` or
+    ``camera_response`` keeps it.
     """
     rig = dict(exp.rig)
     cal = calibration_from_attrs(real)
@@ -81,6 +93,9 @@ def simulation_experiment(real: xr.Dataset, exp: Experiment) -> Experiment:
         tuple(int(t) for t in real.tag.values),
     )
     effects = dict(exp.effects)
+    response = response_from_attrs(real)
+    if response is not None and "camera_response" not in effects:
+        effects["camera_response"] = {"linear_at_dn": response}
     cfa = demosaicing_from_attrs(real)
     if cfa is not None and "bayer" not in effects:
         effects["bayer"] = {"pattern": cfa.layout, "method": cfa.method}

@@ -446,6 +446,9 @@ class DiagnosisResult(VersionedRecord):
     simulation_render: str = ""
     #: the capture's demosaicing, simulated with it; None where its frames show none
     demosaicing: Demosaicing | None = None
+    #: whether the capture was ingested with its camera's measured response (``ingest
+    #: --response``): its levels read through it and the simulation imaged through it
+    measured_response: bool = False
     #: what the capture and the simulation show of each stage of a camera's own pipeline
     camera_pipeline: list[PipelineSignature] = field(default_factory=list)
     #: the marker sizes' change split into a share and an edge offset; None where fewer than

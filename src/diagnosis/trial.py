@@ -209,7 +209,9 @@ class Trial:
         Per effect: the parameters it should read, and per scored parameter the size an error is
         relative to. The hidden effects' own parameters (relative to themselves), except where
         the other camera has the same kind of effect (:data:`CAMERA_NAMED`): exposure reads the
-        camera's total exposure and blur its total softness (:func:`exposure_truth`,
+        camera's total exposure (through its measured response where the capture was read
+        through one, ``result.measured_response``) and blur its total softness
+        (:func:`exposure_truth`,
         :func:`softness_truth`); a sun is read as its azimuth (the error the shorter way round,
         relative to :data:`AZIMUTH_SCALE_DEG`) and the irradiance an upright tag facing it gets
         (``E cos(elevation)``); a faulty calibration file is read as the lens it
@@ -242,7 +244,8 @@ class Trial:
                 continue
             if self.camera is not None and self.rig is not None:
                 if name == "exposure":
-                    params = {"ev": exposure_truth(self.camera, self.rig)}
+                    measured = self.result.measured_response
+                    params = {"ev": exposure_truth(self.camera, self.rig, measured)}
                 if name == "blur":
                     params = {"sigma_px": softness_truth(self.camera, params["sigma_px"])}
             keys = HIDDEN[name][1]

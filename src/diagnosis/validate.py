@@ -30,7 +30,7 @@ import numpy as np
 from simgap.core.atomic import atomic_write
 from simgap.core.config import deep_merge
 from simgap.core.rig import Rig
-from simgap.diagnosis.camera_truth import with_exposure
+from simgap.diagnosis.camera_truth import lab_response, with_exposure
 from simgap.diagnosis.diagnose import diagnose
 from simgap.diagnosis.hidden_effects import (
     APPEARANCE,
@@ -110,6 +110,11 @@ class ValidateSettings:
         Give every other camera its own tag print, ink and paper drawn
         (:func:`simgap.diagnosis.nuisance.draw_print`); False keeps the simulation's print (the
         same draws of a seed otherwise).
+    measured_response : bool
+        Ingest every capture with the response a lab measures of its camera from an exposure
+        bracket (:func:`simgap.diagnosis.camera_truth.lab_response`; ``ingest --response``):
+        the diagnosis reads the levels through it and simulates through it. False: as a capture
+        without one, read with sRGB (the same draws of a seed either way).
     """
 
     trials: int = 30
@@ -127,6 +132,7 @@ class ValidateSettings:
     camera_pipeline: bool = True
     stages: tuple[str, ...] = ()
     print_reflectance: bool = True
+    measured_response: bool = False
 
     def __post_init__(self) -> None:
         k, n = self.shard
@@ -291,13 +297,16 @@ def run_validation(
     mode = diagnose_settings.simulation(base).render.mode
     for i, (hidden, camera) in enumerate(draws):
         path = out_dir / "trials" / f"trial_{i:03d}.json"
-        if i % shards != shard or _kept_trial(path, hidden, camera, mode) is not None:
+        if i % shards != shard:
+            continue
+        if _kept_trial(path, hidden, camera, mode, settings.measured_response) is not None:
             continue
         t0 = time.perf_counter()
         folder = out_dir / "captures" / f"trial_{i:03d}"
         exp = pseudo_real_experiment(base, hidden, camera, 1000 + settings.seed * 1000 + i)
         render_capture(exp, simulator, folder, hidden)
-        real = ingest(folder, rig)
+        response = lab_response(camera) if settings.measured_response else None
+        real = ingest(folder, rig, response=response)
         result, _ = diagnose(real, base, simulator, diagnose_settings)
         crushed = crushed_black_share(real)
         trial = Trial(i, hidden, camera, result, time.perf_counter() - t0, rig, crushed)
@@ -310,7 +319,10 @@ def run_validation(
             f"({'ok' if score.correct else 'MISS'}, {trial.seconds:.0f} s)"
         )
     trials_dir = out_dir / "trials"
-    kept = (_kept_trial(trials_dir / f"trial_{i:03d}.json", *d, mode) for i, d in enumerate(draws))
+    kept = (
+        _kept_trial(trials_dir / f"trial_{i:03d}.json", *d, mode, settings.measured_response)
+        for i, d in enumerate(draws)
+    )
     records = [r for r in kept if r is not None]  # every shard's trials finished so far
     summary = summarize_scores([r.score for r in records], settings.trials)
     write_json(validation_json(summary, records), out_dir / "validation.json")
@@ -319,12 +331,17 @@ def run_validation(
 
 
 def _kept_trial(
-    path: Path, hidden: dict[str, Any], camera: NuisanceCamera, mode: str
+    path: Path,
+    hidden: dict[str, Any],
+    camera: NuisanceCamera,
+    mode: str,
+    measured_response: bool = False,
 ) -> TrialRecord | None:
     """The trial kept at ``path`` (None if there is none yet), checked against its draw.
 
-    ``mode``: the render mode this run simulates with (``converged`` or ``path``); a trial
-    diagnosed with the other is refused, so that one summary never mixes the two.
+    ``mode``: the render mode this run simulates with (``converged`` or ``path``);
+    ``measured_response``: whether this run reads the captures through their cameras' measured
+    responses. A trial diagnosed otherwise is refused, so that one summary never mixes them.
 
     Raises
     ------
@@ -340,6 +357,13 @@ def _kept_trial(
         raise ValueError(
             f"{path}: diagnosed with a {kept_mode} simulation, this run simulates {mode}; use "
             "another output folder, or --converged-simulation / --path-simulation as before"
+        )
+    if record.result.measured_response != measured_response:
+        how = "with" if record.result.measured_response else "without"
+        raise ValueError(
+            f"{path}: diagnosed {how} its camera's measured response, this run "
+            f"{'reads one' if measured_response else 'does not'}; use another output folder, "
+            "or --measured-response / --no-measured-response as before"
         )
     drawn = jsonable(hidden)
     if jsonable(record.hidden_params) != drawn or jsonable(record.camera) != jsonable(camera):

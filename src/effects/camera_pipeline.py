@@ -14,6 +14,8 @@ effect                 order  what the camera does                    signature
 ``black_level``        42     subtracts a black level, crushing       ``black_clipped_fraction``,
                               the shadows to 0                        lower ``ink_linear``
 ``bayer``              44     colour filter array + demosaicing       ``colour_fringe_dn``
+``camera_response``    52     a measured response instead of sRGB     every level (what a tone
+                              (exposure bracket, ISO 14524 OECF)      curve and black level do)
 ``denoise``            55     spatial edge-preserving denoising       lower noise, edges kept
 ``tone_curve``         56     an S-shaped output LUT (not sRGB)       ink and paper levels, contrast
 ``sharpen``            60     unsharp mask                            ``edge_overshoot``
@@ -39,6 +41,7 @@ color images", ICCV 1998. ImageMagick's ``-sigmoidal-contrast`` (the tone curve'
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Literal
 
 import cv2
@@ -47,7 +50,8 @@ from numpy.typing import ArrayLike
 
 from simgap.effects.base import EffectParams, param
 from simgap.effects.image import METER_STRIDE_PX, ImageContext, ImageEffect
-from simgap.pose import cfa
+from simgap.effects.state import VariantState
+from simgap.pose import camera_response, cfa
 from simgap.scene.lights import BT709_LUMINANCE
 
 #: Raw code of linear 0 in the 16-bit frame handed to OpenCV's demosaicing, as a fraction of
@@ -331,6 +335,49 @@ class ToneCurve(ImageEffect, name="tone_curve", order=56):
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Look every value up."""
         return cv2.LUT(img, self.lut())
+
+
+class CameraResponse(ImageEffect, name="camera_response", order=52):
+    """A camera's measured response curve in place of the simulation's sRGB encoding.
+
+    ``linear_at_dn`` is the relative exposure (fraction of full scale) at each 8-bit code 0-255,
+    non-decreasing, 1 at code 255 (:class:`simgap.pose.camera_response.CameraResponse`, measured
+    from an exposure bracket by ``simgap camera-response``). The encoded frame is looked up from
+    the simulation's sRGB code to the camera's: every level, and with them the point where a
+    soft edge reads as an edge, as the camera's own black level, encoding and tone curve
+    deliver them. The estimator then reads the levels through the same response, as it reads
+    the capture's (:func:`simgap.pose.image_stats.linearised`).
+    """
+
+    class Params(EffectParams):
+        """The measured response."""
+
+        linear_at_dn: tuple[float, ...] = param(
+            tuple(float(v) for v in np.linspace(0.0, 1.0, 256)),
+            "256 non-decreasing values from 0 to 1 (fraction of full scale)",
+            lambda v: (
+                len(v) == 256
+                and all(np.isfinite(v))
+                and float(v[0]) >= 0.0
+                and float(v[-1]) <= 1.0 + 1e-9
+                and bool(np.all(np.diff(np.asarray(v, float)) >= 0))
+            ),
+        )
+
+    def apply(self, state: VariantState) -> VariantState:
+        """Append the lookup to the pipeline; the estimator linearises through the response too.
+
+        The simulation's levels are then read as the capture's are
+        (:attr:`simgap.pose.tags.Estimation.response`).
+        """
+        state = super().apply(state)
+        estimation = dataclasses.replace(state.estimation, response=self.params.linear_at_dn)
+        return dataclasses.replace(state, estimation=estimation)
+
+    def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
+        """Look every code up (:meth:`simgap.pose.camera_response.CameraResponse.lut_from_srgb`)."""
+        response = camera_response.CameraResponse(np.asarray(self.params.linear_at_dn, float))
+        return cv2.LUT(img, response.lut_from_srgb())
 
 
 class Sharpen(ImageEffect, name="sharpen", order=60):

@@ -20,7 +20,9 @@ corners, and every pixel centre of the sticker's bounding box is classified by m
 Statistics (see :data:`STATS` for names, units and meanings):
 
 - levels: medians of the ink and paper regions, in 8-bit DN and linearised with the sRGB
-  transfer curve (IEC 61966-2-1, via colour-science) as a fraction of full scale;
+  transfer curve (IEC 61966-2-1, via colour-science), or with the camera's measured response
+  where one is given (:func:`linearised`; every linearised statistic alike), as a fraction of
+  full scale;
 - contrast: Michelson contrast of the linear levels;
 - edge width: the 10-90 % rise of an edge-spread function fitted across the marker's outer border
   (the slanted-edge idea of ISO 12233: pixels at many sub-pixel distances from a straight edge
@@ -78,6 +80,7 @@ Statistics (see :data:`STATS` for names, units and meanings):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import colour
@@ -95,8 +98,18 @@ TEMPORAL = "temporal noise sigma in flat {} pixels (two frames of one pose), lin
 STATS: tuple[tuple[str, str, str], ...] = (
     ("ink_dn", "DN", "median 8-bit level of the marker's black border"),
     ("paper_dn", "DN", "median 8-bit level of the white quiet zone"),
-    ("ink_linear", "1", "ink level linearised with the sRGB curve (fraction of full scale)"),
-    ("paper_linear", "1", "paper level linearised with the sRGB curve (fraction of full scale)"),
+    (
+        "ink_linear",
+        "1",
+        "ink level linearised with the sRGB curve or the camera's measured response "
+        "(fraction of full scale)",
+    ),
+    (
+        "paper_linear",
+        "1",
+        "paper level linearised with the sRGB curve or the camera's measured response "
+        "(fraction of full scale)",
+    ),
     ("contrast", "1", "Michelson contrast of the linear levels (paper - ink) / (paper + ink)"),
     ("edge_width_px", "px", "10-90 % rise of the edge-spread function across the outer border"),
     ("edge_width_x_px", "px", "edge width across the marker's left and right sides (along x)"),
@@ -170,6 +183,19 @@ _UNIT_SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]], np
 def linearise(dn: ArrayLike) -> np.ndarray:
     """8-bit sRGB-encoded values (DN) to linear values (fraction of full scale)."""
     return _SRGB_TO_LINEAR[np.clip(np.asarray(dn), 0, 255).astype(np.intp)]
+
+
+def linearised(dn: np.ndarray, response: Sequence[float] | None = None) -> np.ndarray:
+    """8-bit codes (DN) to linear values: through the camera's ``response`` where given.
+
+    ``response`` (256,): the relative exposure at each code (fraction of full scale,
+    :class:`simgap.pose.camera_response.CameraResponse`); None: the sRGB curve
+    (:func:`linearise`).
+    """
+    if response is None:
+        return linearise(dn)
+    codes = np.clip(np.rint(np.asarray(dn, float)), 0, 255).astype(np.intp)
+    return np.asarray(response, float)[codes]
 
 
 def is_grey(image: np.ndarray) -> bool:
@@ -368,6 +394,7 @@ def tag_stats(
     edge_widths: tuple[str, ...] = EDGE_WIDTH_STATS,
     repeat: np.ndarray | None = None,
     rgb: np.ndarray | None = None,
+    response: Sequence[float] | None = None,
 ) -> np.ndarray:
     """Statistics of one tag, in the order of :data:`STATS`; NaN where not measurable.
 
@@ -393,6 +420,11 @@ def tag_stats(
     rgb : ndarray of uint8 (H, W, 3), optional
         The same frame in 8-bit RGB (same crop and offset as ``gray``): the colour fringe is
         measured from it (NaN without it, or where it is grey: 2-D or all channels equal).
+
+    response : sequence of float (256,), optional
+        The camera's measured response, the relative exposure at each code
+        (:class:`simgap.pose.camera_response.CameraResponse`): the linearised statistics are
+        read through it instead of the sRGB curve (:func:`linearised`).
 
     Raises
     ------
@@ -426,7 +458,7 @@ def tag_stats(
     sticker_mask = r <= reach
     if ink_mask.sum() < MIN_PIXELS or paper_mask.sum() < MIN_PIXELS or layout.quiet_cells < 2:
         return out
-    lin = linearise(patch)
+    lin = linearised(patch, response)
     ink_dn, paper_dn = float(np.median(patch[ink_mask])), float(np.median(patch[paper_mask]))
     ink_lin, paper_lin = float(np.median(lin[ink_mask])), float(np.median(lin[paper_mask]))
     s = STAT_INDEX
@@ -439,7 +471,7 @@ def tag_stats(
     out[s["noise_ink_linear"]] = _noise(lin, ink_mask)
     out[s["noise_paper_linear"]] = _noise(lin, paper_mask)
     if repeat is not None:
-        lin_repeat = linearise(repeat[y0:y1, x0:x1])
+        lin_repeat = linearised(repeat[y0:y1, x0:x1], response)
         out[s["temporal_noise_ink_linear"]] = _temporal_noise(lin, lin_repeat, ink_mask)
         out[s["temporal_noise_paper_linear"]] = _temporal_noise(lin, lin_repeat, paper_mask)
         repeat_paper = float(np.median(lin_repeat[paper_mask]))

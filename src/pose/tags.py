@@ -49,12 +49,17 @@ class Estimation:
         :data:`simgap.pose.image_stats.EDGE_WIDTH_STATS`; the others are NaN). Each is an
         edge-spread fit, most of the statistics' time: a search that reads none of them (an
         appearance fit of exposure, say) leaves them out.
+    response : tuple of float or None
+        The camera's measured response (relative exposure at each 8-bit code,
+        :class:`simgap.pose.camera_response.CameraResponse`) the frames' levels are linearised
+        with; None: the sRGB curve.
     """
 
     calibration: CameraModel = field(default_factory=CameraModel)
     detector: DetectorSettings = field(default_factory=DetectorSettings)
     pnp: PnPSettings = field(default_factory=PnPSettings)
     edge_widths: tuple[str, ...] = EDGE_WIDTH_STATS
+    response: tuple[float, ...] | None = None
 
 
 def empty_tag_arrays(shape: tuple[int, ...]) -> dict[str, np.ndarray]:
@@ -187,12 +192,18 @@ def add_image_stats(
         if tag in found:
             corners, edge_widths = found[tag], estimation.edge_widths
         elif rig.is_visible(tag, p, theta):
-            corners = project_tag_corners(
-                rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal
-            )
+            corners = project_tag_corners(rig.eyepoint_from_tag(tag, p, theta), rig.tags.size, cal)
             edge_widths = ()
         else:
             continue
         out.image_stats[i] = tag_stats(
-            gray, corners, layout, offset, rejected, edge_widths, repeat, rgb=rgb
+            gray,
+            corners,
+            layout,
+            offset,
+            rejected,
+            edge_widths,
+            repeat,
+            rgb=rgb,
+            response=estimation.response,
         )

@@ -19,6 +19,7 @@ from simgap.core.paths import CALIBRATION_FILE
 from simgap.core.rig import CameraModel, Rig, load_rig
 from simgap.pipeline.capture.folder import CaptureWarning, read_capture, read_image
 from simgap.pipeline.capture.manifest import CaptureFrame
+from simgap.pose.camera_response import CameraResponse
 from simgap.pose.cfa import CfaTraces, around_markers
 from simgap.pose.detect import Detector, DetectorSettings
 from simgap.pose.estimate import PnPSettings
@@ -74,6 +75,7 @@ def ingest(
     show_progress: bool = False,
     calibration_file: Path | None = None,
     max_pixels: int = MAX_PIXELS,
+    response: CameraResponse | None = None,
 ) -> xr.Dataset:
     """Detect markers and estimate poses in a capture; return the result dataset.
 
@@ -106,6 +108,10 @@ def ingest(
         :func:`~simgap.pipeline.capture.folder.read_capture`); ``calibration`` still wins.
     max_pixels : int
         The pixel budget (:data:`~simgap.core.limits.MAX_PIXELS`).
+    response : CameraResponse, optional
+        The camera's measured response (``simgap camera-response``): the frames' levels are
+        linearised through it (:func:`simgap.pose.image_stats.linearised`) and the diagnosis
+        simulates through it; recorded in the attrs.
 
     Returns
     -------
@@ -121,7 +127,8 @@ def ingest(
         readable frames are identical pixels: no temporal noise is measured there),
         ``camera_demosaicing`` (JSON: the colour filter layout and nearest demosaicing method
         the colour frames show around their markers, :class:`simgap.pose.cfa.CfaVerdict`; null
-        layout where none shows), versions.
+        layout where none shows), ``camera_response`` (JSON list: ``response``'s relative
+        exposure at each 8-bit code; absent without one), versions.
 
     Raises
     ------
@@ -139,7 +146,8 @@ def ingest(
     cal_path = cap.calibration_path or cap.folder / CALIBRATION_FILE
     source = CALIBRATION_FILE if calibration_file is None else "--calibration"
     source = "override" if calibration is not None else source
-    estimation = Estimation(calibration=cal, detector=detector, pnp=pnp)
+    measured = None if response is None else tuple(float(v) for v in response.linear)
+    estimation = Estimation(calibration=cal, detector=detector, pnp=pnp, response=measured)
     det = Detector(detector)
     tags = rig.tags.ids
     ps = sorted({f.p for f in cap.frames})
@@ -220,6 +228,7 @@ def ingest(
         "detector": json.dumps({VARIANT: f"{detector}"}),
         "pnp": json.dumps({VARIANT: f"{pnp}"}),
         "camera_demosaicing": json.dumps(dataclasses.asdict(cfa_traces.verdict())),
+        **({} if measured is None else {"camera_response": json.dumps(measured)}),
         **software_versions(),
         "conventions": CONVENTIONS,
     }
