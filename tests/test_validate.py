@@ -511,3 +511,38 @@ def test_other_cameras_draw_their_own_tag_print_and_keep_every_other_draw():
         assert "print ink" not in nuisance_bins(camera_n, rig)
     # 40 draws uniform in density over 1.1-2.3: both ends of the range are reached
     assert min(inks) < 0.01 and max(inks) > 0.05
+
+
+def test_the_lab_measures_a_drawn_cameras_response_and_the_exposure_truth_follows():
+    """validate --measured-response: the response a lab's bracket gives of a drawn camera with a
+    black level and a tone curve reproduces its codes, and the exposure an answer read through it
+    is scored against is the camera's linear exposure, without its transfer curve's part."""
+    from simgap.core.rig import load_rig
+    from simgap.diagnosis.camera_truth import (
+        PAPER_LEVEL,
+        exposure_truth,
+        lab_response,
+        light_meter_ev,
+        pixel_codes,
+        print_ev,
+        transfer_ev,
+    )
+    from simgap.diagnosis.nuisance import draw_nuisance
+    from simgap.pose.image_stats import linearise
+
+    rig = load_rig()
+    rngs = [np.random.default_rng([7, k]) for k in (1, 2)]
+    camera = draw_nuisance(*rngs[:1], rig, rngs[1], always=("black_level", "tone_curve"))
+    response = lab_response(camera)
+    error = np.abs(
+        response.lut_from_srgb() - np.round(pixel_codes(camera, linearise(np.arange(256))))
+    )
+    # measured: median 2 codes off, at most 6 over codes 5-250 (bounds of
+    # tests/test_camera_response.py's brackets)
+    assert np.median(error) <= 6 and error[5:251].max() <= 12
+    measured = exposure_truth(camera, rig, measured_response=True)
+    meter = light_meter_ev(camera, rig) + print_ev(camera)
+    assert measured == pytest.approx(camera.effects["exposure"]["ev"] + meter, abs=1e-9)
+    transfer = transfer_ev(camera, PAPER_LEVEL * 2.0**measured)
+    assert exposure_truth(camera, rig) == pytest.approx(measured + transfer, abs=1e-9)
+    assert abs(transfer) > 0.01  # this camera's curve is not sRGB's

@@ -49,8 +49,19 @@ def effects(
         typer.echo(json.dumps(entries, indent=1, default=repr))
         return
     for e in entries:
-        params = ", ".join(f"{k}={v!r}" for k, v in e["params"].items())
+        params = ", ".join(f"{k}={shown_default(v)}" for k, v in e["params"].items())
         typer.echo(f"{e['name']:20s} [{e['stage']}] {e['doc']}\n{'':21s} {params}")
+
+
+#: Longest sequence default listed value by value (a response curve's 256 are summarised).
+MAX_LISTED_VALUES = 8
+
+
+def shown_default(value: object) -> str:
+    """A parameter default as the listing shows it: its repr, a long sequence summarised."""
+    if isinstance(value, tuple) and len(value) > MAX_LISTED_VALUES:
+        return f"({len(value)} values, {value[0]!r} ... {value[-1]!r})"
+    return repr(value)
 
 
 #: A Sphinx cross-reference in a docstring (``:class:`~pkg.Name```): shown as its target's name.
