@@ -114,7 +114,8 @@ def print_ev(camera: NuisanceCamera) -> float:
 def transfer_ev(camera: NuisanceCamera, paper_linear: float) -> float:
     """Apparent exposure change of the camera's transfer curve at the paper's level (EV).
 
-    The diagnosis linearises every frame with the sRGB curve; a camera encoding with a pure
+    The diagnosis linearises a capture ingested without a measured response with the sRGB
+    curve; a camera encoding with a pure
     gamma, subtracting a black level or applying a tone curve makes the paper look brighter or
     darker by this much: the level through those pixel-wise stages (their own code), rounded to
     the delivered DN and linearised with sRGB. 0 for a plain sRGB camera (quantisation aside).

@@ -145,20 +145,26 @@ def _print_ink_bin(camera: NuisanceCamera) -> dict[str, str]:
 
 
 def nuisance_bins(
-    camera: NuisanceCamera, rig: Rig, crushed_black: float | None = None
+    camera: NuisanceCamera,
+    rig: Rig,
+    crushed_black: float | None = None,
+    measured_response: bool = False,
 ) -> dict[str, str]:
     """The camera's bin in each nuisance dimension.
 
-    Exposure, softness, noise, frames a pose, poses (mostly frontal or spread), where drawn the
-    print's ink reflectance (:data:`INK_BINS_PCT`), the stages of the camera's own image pipeline
-    (:func:`pipeline_bins`) and, where measured, whether the capture's blacks are crushed
-    (:data:`CRUSHED_BLACK_SHARE`).
+    Exposure (through the camera's measured response where the capture was read through one,
+    ``measured_response``), softness, noise, frames a pose, poses (mostly frontal or spread),
+    where drawn the print's ink reflectance (:data:`INK_BINS_PCT`), the stages of the camera's
+    own image pipeline (:func:`pipeline_bins`) and, where measured, whether the capture's blacks
+    are crushed (:data:`CRUSHED_BLACK_SHARE`).
     """
     frontal = set(camera.theta_deg) <= {*FRONTAL_HEAVY_STOPS_DEG, *OBLIQUE_STOPS_DEG} and (
         sum(t not in FRONTAL_HEAVY_STOPS_DEG for t in camera.theta_deg) <= 1
     )
     bins = {
-        "exposure": _bin(abs(exposure_truth(camera, rig)), EXPOSURE_BINS_EV, "EV"),
+        "exposure": _bin(
+            abs(exposure_truth(camera, rig, measured_response)), EXPOSURE_BINS_EV, "EV"
+        ),
         "softness": _bin(softness_truth(camera), SOFTNESS_BINS_PX, "px"),
         "noise": _bin(camera.effects["sensor_noise"]["full_well_e"], FULL_WELL_BINS_E, "e-"),
         "frames": f"{camera.frames_per_pose} a pose",
@@ -307,7 +313,12 @@ class Trial:
             spurious=spurious,
             on_bound=tuple(self.result.selected_on_bound()),
             nuisance_bins=(
-                nuisance_bins(self.camera, self.rig, self.crushed_black_share)
+                nuisance_bins(
+                    self.camera,
+                    self.rig,
+                    self.crushed_black_share,
+                    self.result.measured_response,
+                )
                 if self.camera and self.rig
                 else {}
             ),

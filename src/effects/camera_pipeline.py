@@ -354,25 +354,27 @@ class CameraResponse(ImageEffect, name="camera_response", order=52):
 
         linear_at_dn: tuple[float, ...] = param(
             tuple(float(v) for v in np.linspace(0.0, 1.0, 256)),
-            "256 non-decreasing values from 0 to 1 (fraction of full scale)",
+            "256 non-decreasing values from 0 or more to 1 (fraction of full scale)",
             lambda v: (
                 len(v) == 256
                 and all(np.isfinite(v))
                 and float(v[0]) >= 0.0
-                and float(v[-1]) <= 1.0 + 1e-9
+                and abs(float(v[-1]) - 1.0) <= 1e-6
                 and bool(np.all(np.diff(np.asarray(v, float)) >= 0))
             ),
         )
 
     def apply(self, state: VariantState) -> VariantState:
-        """Append the lookup to the pipeline; the estimator linearises through the response too.
+        """Append the lookup to an sRGB-encoding pipeline; the estimator reads through it too.
 
         The simulation's levels are then read as the capture's are
         (:attr:`simgap.pose.tags.Estimation.response`).
         """
         state = super().apply(state)
+        # the lookup starts from the sRGB codes (another encoding would be looked up as if sRGB)
+        image = dataclasses.replace(state.image, encoding="srgb")
         estimation = dataclasses.replace(state.estimation, response=self.params.linear_at_dn)
-        return dataclasses.replace(state, estimation=estimation)
+        return dataclasses.replace(state, image=image, estimation=estimation)
 
     def process(self, img: np.ndarray, ctx: ImageContext) -> np.ndarray:
         """Look every code up (:meth:`simgap.pose.camera_response.CameraResponse.lut_from_srgb`)."""

@@ -47,6 +47,10 @@ RELIABLE_TOP = 240
 SLOPE_CODES = 10
 #: Fewest photos of a bracket: two exposures give one ratio per pixel, three check each other.
 MIN_PHOTOS = 3
+#: Least ratio of exposure between :data:`RELIABLE_TOP` and :data:`RELIABLE_BOTTOM` a response
+#: must show: a real camera's codes 16 and 240 lie about 5 stops apart (sRGB: 2.0 % and 87 % of
+#: full scale, a factor 43); a bracket of a flat field or of one photo's range estimates none.
+MIN_RANGE = 4.0
 
 
 @dataclass(frozen=True)
@@ -66,21 +70,22 @@ class CameraResponse:
         values = np.asarray(self.linear, float)
         if values.shape != (CODES,) or not np.isfinite(values).all():
             raise ValueError(f"response: expected {CODES} finite values")
-        if np.any(np.diff(values) < 0) or values[0] < 0:
-            raise ValueError("response: expected non-negative values that never decrease")
+        if np.any(np.diff(values) < 0) or values[0] < 0 or abs(values[-1] - 1.0) > 1e-6:
+            raise ValueError("response: expected non-negative values that never decrease, to 1")
         object.__setattr__(self, "linear", values)
 
     def encode(self, linear: np.ndarray) -> np.ndarray:
         """The camera's code (float, 0-255) of linear exposures (fraction of full scale).
 
         The inverse of :attr:`linear` by linear interpolation between codes; below code 0's
-        exposure 0, above code 255's 255 (the camera clips).
+        exposure 0, above code 255's 255 (the camera clips); an exposure that several codes
+        share, the first of them.
         """
         codes = np.arange(CODES, dtype=float)
         x = np.asarray(linear, float)
-        # a flat run of the response (crushed shadows) maps to its brightest code's exposure
-        # the darkest code that reaches it: np.interp needs strictly increasing x-values
-        keep = np.concatenate([np.diff(self.linear) > 0, [True]])
+        # a flat run of the response (codes of one exposure) maps to its first code: np.interp
+        # needs strictly increasing x-values
+        keep = np.concatenate([[True], np.diff(self.linear) > 0])
         return np.interp(x, self.linear[keep], codes[keep], left=0.0, right=float(CODES - 1))
 
     def lut_from_srgb(self) -> np.ndarray:
@@ -106,12 +111,20 @@ def scaled(raw: np.ndarray) -> CameraResponse:
     values = np.interp(codes, codes[seen], values[seen])
     values = np.maximum.accumulate(np.clip(values, 0.0, None))
     top, bottom = RELIABLE_TOP, RELIABLE_BOTTOM
+    if not values[top] >= MIN_RANGE * values[bottom]:
+        raise ValueError(
+            f"response: codes {bottom}-{top} span less than a factor {MIN_RANGE:g} of exposure "
+            "(expected a bracket of one still scene whose photos reach from dark to bright)"
+        )
     slope = (values[top] - values[top - SLOPE_CODES]) / SLOPE_CODES
     values[top + 1 :] = values[top] + slope * np.arange(1, CODES - top)
+    # below the darkest kept code: the estimate where it lies above the line through the codes
+    # above (a camera without a black level keeps its dark codes), the line where the estimate
+    # falls under it (crushed pixels pull a black level's codes down)
     slope = (values[bottom + SLOPE_CODES] - values[bottom]) / SLOPE_CODES
-    values[:bottom] = np.clip(values[bottom] - slope * np.arange(bottom, 0, -1), 0.0, None)
-    if not values[-1] > 0:
-        raise ValueError("response: no exposure reaches the brightest code")
+    line = values[bottom] - slope * np.arange(bottom, 0, -1)
+    values[:bottom] = np.maximum(values[:bottom], np.clip(line, 0.0, None))
+    values = np.maximum.accumulate(values)
     return CameraResponse(values / values[-1])
 
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from simgap.core.aruco import project_tag_corners
 from simgap.core.axes import AXES
+from simgap.core.config import OMIT_DEFAULT
 from simgap.core.rig import CameraModel, Rig
 from simgap.pose.detect import DetectorSettings
 from simgap.pose.estimate import PnPSettings, estimate_pose, pose_error
@@ -59,7 +60,7 @@ class Estimation:
     detector: DetectorSettings = field(default_factory=DetectorSettings)
     pnp: PnPSettings = field(default_factory=PnPSettings)
     edge_widths: tuple[str, ...] = EDGE_WIDTH_STATS
-    response: tuple[float, ...] | None = None
+    response: tuple[float, ...] | None = field(default=None, metadata=OMIT_DEFAULT)
 
 
 def empty_tag_arrays(shape: tuple[int, ...]) -> dict[str, np.ndarray]:

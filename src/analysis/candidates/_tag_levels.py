@@ -22,16 +22,17 @@ class TagLevels:
     Attributes
     ----------
     real_ink, real_paper : ndarray (N,)
-        Real linear levels (sRGB-linearised medians; fraction of full scale).
+        Real linear levels (medians linearised with sRGB or the camera's measured response;
+        fraction of full scale).
     sim_ink, sim_paper : ndarray (N,)
         Simulated (matte, the simulation's lights) linear levels.
     clipped, ink_clipped : ndarray of bool (N,)
         Real paper, real ink at or beyond :data:`CLIPPED_DN` (a lower bound of its level, no
         more: a glint can saturate the ink too).
     ink_crushed : ndarray of bool (N,)
-        Real ink at or below :data:`CLIPPED_DN` ``[0]``: its ``real_ink`` is that level's, an
-        upper bound (a black level crushed it; how far is what the level model's black level
-        reads).
+        Real ink at or below :data:`CLIPPED_DN` ``[0]``: its ``real_ink`` is an upper bound, the
+        level of :data:`CLIPPED_DN` ``[0]`` or, through a measured response, of its own code (a
+        black level crushed it; how far is what the level model's black level reads).
     eye_from_tag : ndarray (N, 4, 4)
         Each tag's pose in the eyepoint frame (m).
     """
@@ -49,9 +50,10 @@ class TagLevels:
     def of(cls, real: np.ndarray, sim: np.ndarray, eye_from_tag: np.ndarray) -> TagLevels:
         """From real and simulated image statistics (N, S).
 
-        Left out: tags missing a level, and tags whose real paper is crushed (its median at or
+        Left out: tags missing a level, tags whose real paper is crushed (its median at or
         below :data:`CLIPPED_DN` ``[0]``: a black tag, ink and paper alike, whose log levels
-        have nothing to compare).
+        have nothing to compare), and tags whose uncrushed real ink reads no level (0: none to
+        take a log of).
         """
         col = {k: STAT_INDEX[k] for k in ("ink_linear", "paper_linear", "paper_dn", "ink_dn")}
         ok = np.isfinite(real[:, [col["ink_linear"], col["paper_linear"]]]).all(1) & np.isfinite(
@@ -59,10 +61,16 @@ class TagLevels:
         ).all(1)
         ok &= (sim[:, col["paper_linear"]] > 0) & (sim[:, col["ink_linear"]] > 0)
         ok &= real[:, col["paper_dn"]] > CLIPPED_DN[0]
-        crushed = real[ok, col["ink_dn"]] <= CLIPPED_DN[0]
-        bound = float(linearise(CLIPPED_DN[0]))
+        crushed = real[:, col["ink_dn"]] <= CLIPPED_DN[0]
+        ok &= crushed | (real[:, col["ink_linear"]] > 0)
+        crushed = crushed[ok]
+        # a crushed ink's level is at most that of the code it reads: linearised with sRGB
+        # (0 DN reads 0) the clipping code's, through a camera's measured response its own code's
+        # (the black level the response carries), whichever is higher
+        own = real[ok, col["ink_linear"]]
+        bound = np.maximum(own, float(linearise(CLIPPED_DN[0])))
         return cls(
-            np.where(crushed, bound, real[ok, col["ink_linear"]]),
+            np.where(crushed, bound, own),
             real[ok, col["paper_linear"]],
             sim[ok, col["ink_linear"]],
             sim[ok, col["paper_linear"]],
