@@ -92,6 +92,7 @@ def test_schema_1_trial_files_read_as_the_current_code_scores_them():
         expected = upgrade_v2(raw["result"])
         # added to schema 3 later: absent reads as none
         expected.setdefault("edge_offset", None)
+        expected.setdefault("measured_response", False)
         for finding in (expected.get("selection") or {}).get("findings", []):
             finding.setdefault("look_alikes", [])
         assert kept.result.to_json() == expected
