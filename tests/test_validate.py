@@ -234,11 +234,12 @@ def test_an_undecided_finding_names_none_of_its_look_alikes():
         minor=True,
         look_alikes=["lens_distortion"],
     )
-    gloss = Finding(effect="tag_gloss", params={}, pose_contribution=0.05, minor=True)
+    laminate = {"alpha": 0.15, "light_intensity_w_sr": 0.3}  # the laminate's scored parameters
+    gloss = Finding(effect="tag_gloss", params=laminate, pose_contribution=0.05, minor=True)
     both = DiagnosisResult(
         selection=Selection(findings=[undecided, gloss], n_params=0, items=0, scores=Scores())
     )
-    hidden = {"tag_gloss": {"alpha": 0.15}, "faulty_calibration": {"k1": -0.06}}
+    hidden = {"tag_gloss": laminate, "faulty_calibration": {"k1": -0.06}}
     pair = Trial(0, hidden, None, both).score()
     assert pair.correct and pair.spurious == () and pair.recall == 0.5
     assert pair.undecided == {"focal_length": ("lens_distortion",)}
