@@ -63,6 +63,19 @@ def staged(tmp_path_factory, session_cache):
     return out, pipes
 
 
+def camera_experiment(folder: Path, name: str, effects: dict):
+    """smoke.yaml's render of tag 0 at the stops of this module, through a camera's ``effects``."""
+    path = folder / f"{name}.yaml"
+    data = {
+        "name": name,
+        "inherit": str(REPO / "experiments" / "smoke.yaml"),
+        "configurations": {"p": [P], "theta_deg": list(THETAS_DEG)},
+        "effects": effects,
+    }
+    path.write_text(yaml.safe_dump(data))
+    return load_experiment(path)
+
+
 def _stat(staged, name: str, stat: str) -> np.ndarray:
     results, _ = staged
     return np.array([results[name, t].image_stats[0, STAT_INDEX[stat]] for t in THETAS_DEG])
@@ -213,18 +226,8 @@ def test_an_ingested_demosaiced_capture_is_simulated_through_its_demosaicing(
     from simgap.pipeline.capture import ingest, write_capture
     from simgap.pipeline.simulator import Simulator
 
-    path = tmp_path / "bayer.yaml"
-    path.write_text(
-        yaml.safe_dump(
-            {
-                "name": "bayer",
-                "inherit": str(REPO / "experiments" / "smoke.yaml"),
-                "configurations": {"p": [P], "theta_deg": list(THETAS_DEG)},
-                "effects": {"bayer": {"pattern": "GBRG", "method": "edge_aware"}},
-            }
-        )
-    )
-    exp = load_experiment(path)
+    bayer = {"bayer": {"pattern": "GBRG", "method": "edge_aware"}}
+    exp = camera_experiment(tmp_path, "bayer", bayer)
     folder = tmp_path / "capture"
     write_capture(folder, Simulator(session_cache).frames(exp), exp.rig_model.camera)
     real = ingest(folder, exp.rig_model)
@@ -389,18 +392,9 @@ def test_a_capture_read_through_its_measured_response_shows_the_scenes_levels(
     from tests.test_camera_response import TIMES, bracket
 
     black, tone = 0.03, {"contrast": 5.0, "midpoint": 0.5}
-    path = tmp_path / "camera.yaml"
-    path.write_text(
-        yaml.safe_dump(
-            {
-                "name": "camera",
-                "inherit": str(REPO / "experiments" / "smoke.yaml"),
-                "configurations": {"p": [P], "theta_deg": list(THETAS_DEG)},
-                "effects": {"black_level": {"level": black}, "tone_curve": tone},
-            }
-        )
+    exp = camera_experiment(
+        tmp_path, "camera", {"black_level": {"level": black}, "tone_curve": tone}
     )
-    exp = load_experiment(path)
     folder = tmp_path / "capture"
     simulator = Simulator(session_cache, show_progress=False)
     write_capture(folder, simulator.frames(exp), exp.rig_model.camera)

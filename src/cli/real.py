@@ -1,4 +1,4 @@
-"""Commands on real data: ingest a capture folder or a ROS bag, export a bag."""
+"""Commands on real data: ingest, calibrate, measure the camera's response, export a bag."""
 
 from __future__ import annotations
 

@@ -353,15 +353,9 @@ class CameraResponse(ImageEffect, name="camera_response", order=52):
         """The measured response."""
 
         linear_at_dn: tuple[float, ...] = param(
-            tuple(float(v) for v in np.linspace(0.0, 1.0, 256)),
-            "256 non-decreasing values from 0 or more to 1 (fraction of full scale)",
-            lambda v: (
-                len(v) == 256
-                and all(np.isfinite(v))
-                and float(v[0]) >= 0.0
-                and abs(float(v[-1]) - 1.0) <= 1e-6
-                and bool(np.all(np.diff(np.asarray(v, float)) >= 0))
-            ),
+            tuple(float(v) for v in np.linspace(0.0, 1.0, camera_response.CODES)),
+            f"{camera_response.RESPONSE_VALUES} (fraction of full scale)",
+            camera_response.is_response,
         )
 
     def apply(self, state: VariantState) -> VariantState:

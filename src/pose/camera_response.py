@@ -53,6 +53,22 @@ MIN_PHOTOS = 3
 MIN_RANGE = 4.0
 
 
+#: What a response's values must be (:func:`is_response`).
+RESPONSE_VALUES = f"{CODES} non-decreasing numbers from 0 or more to 1"
+
+
+def is_response(values: Sequence[float] | np.ndarray) -> bool:
+    """Whether ``values`` are a response: :data:`RESPONSE_VALUES` (1 within 1e-6 at code 255)."""
+    v = np.asarray(values, float)
+    return (
+        v.shape == (CODES,)
+        and bool(np.isfinite(v).all())
+        and v[0] >= 0.0
+        and abs(v[-1] - 1.0) <= 1e-6
+        and bool(np.all(np.diff(v) >= 0))
+    )
+
+
 @dataclass(frozen=True)
 class CameraResponse:
     """A camera's response: relative linear exposure per 8-bit code.
@@ -67,12 +83,9 @@ class CameraResponse:
     linear: np.ndarray
 
     def __post_init__(self) -> None:
-        values = np.asarray(self.linear, float)
-        if values.shape != (CODES,) or not np.isfinite(values).all():
-            raise ValueError(f"response: expected {CODES} finite values")
-        if np.any(np.diff(values) < 0) or values[0] < 0 or abs(values[-1] - 1.0) > 1e-6:
-            raise ValueError("response: expected non-negative values that never decrease, to 1")
-        object.__setattr__(self, "linear", values)
+        if not is_response(self.linear):
+            raise ValueError(f"response: expected {RESPONSE_VALUES}")
+        object.__setattr__(self, "linear", np.asarray(self.linear, float))
 
     def encode(self, linear: np.ndarray) -> np.ndarray:
         """The camera's code (float, 0-255) of linear exposures (fraction of full scale).
@@ -168,7 +181,9 @@ __all__ = [
     "MIN_PHOTOS",
     "RELIABLE_BOTTOM",
     "RELIABLE_TOP",
+    "RESPONSE_VALUES",
     "CameraResponse",
     "estimate_response",
+    "is_response",
     "scaled",
 ]

@@ -185,17 +185,15 @@ def linearise(dn: ArrayLike) -> np.ndarray:
     return _SRGB_TO_LINEAR[np.clip(np.asarray(dn), 0, 255).astype(np.intp)]
 
 
-def linearised(dn: np.ndarray, response: Sequence[float] | None = None) -> np.ndarray:
+def linearised(dn: ArrayLike, response: Sequence[float] | None = None) -> np.ndarray:
     """8-bit codes (DN) to linear values: through the camera's ``response`` where given.
 
     ``response`` (256,): the relative exposure at each code (fraction of full scale,
     :class:`simgap.pose.camera_response.CameraResponse`); None: the sRGB curve
     (:func:`linearise`).
     """
-    if response is None:
-        return linearise(dn)
-    codes = np.clip(np.rint(np.asarray(dn, float)), 0, 255).astype(np.intp)
-    return np.asarray(response, float)[codes]
+    table = _SRGB_TO_LINEAR if response is None else np.asarray(response, float)
+    return table[np.clip(np.asarray(dn), 0, 255).astype(np.intp)]
 
 
 def is_grey(image: np.ndarray) -> bool:

@@ -20,7 +20,7 @@ import numpy as np
 import yaml
 
 from simgap.core.config import ConfigError
-from simgap.pose.camera_response import CODES, CameraResponse
+from simgap.pose.camera_response import RESPONSE_VALUES, CameraResponse
 
 #: The bracket folder's list of photos and exposure times.
 BRACKET_MANIFEST = "exposures.csv"
@@ -74,9 +74,7 @@ def read_response(path: Path) -> CameraResponse:
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ConfigError(f"{path}: not a readable YAML file ({exc})") from None
     values = data.get("linear_at_dn") if isinstance(data, dict) else None
-    expected = (
-        f"{CODES} non-decreasing numbers from 0 or more to 1 (relative exposure per 8-bit code)"
-    )
+    expected = f"{RESPONSE_VALUES} (relative exposure per 8-bit code)"
     numbers = isinstance(values, list) and all(
         isinstance(v, (int, float)) and not isinstance(v, bool) for v in values
     )
