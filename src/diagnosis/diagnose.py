@@ -39,7 +39,7 @@ from simgap.analysis.search import (
     Scored,
     bootstrap_reductions,
     corner_effect_alone,
-    equivalent_models,
+    stands_in_for,
 )
 from simgap.core.axes import AXES
 from simgap.core.progress import ProgressCallback, Steps
@@ -390,17 +390,20 @@ def diagnose(
 def equivalent_alternatives(chosen: Scored, tried: list[Scored], limit: int = 5) -> list[Scored]:
     """Models of ``tried`` that explain the choose split's evidence like ``chosen``.
 
-    Only models within :func:`equivalent_models` on every channel are listed (a model that is
-    clearly better or worse is not a look-alike). Supersets of ``chosen`` are left out: that
-    an extra effect changes nothing is no news. Simplest first.
+    Only models that stand in for it (:func:`~simgap.analysis.search.stands_in_for`: within
+    :func:`~simgap.analysis.search.equivalent_models` on every channel, and geometry no worse on
+    the cross-fit folds) are listed (a model that is clearly better or worse is not a
+    look-alike). Supersets of ``chosen`` are left out: that
+    an extra effect changes nothing is no news. Simplest first, each set of effects once (the
+    search may have scored one set in two orders).
     """
-    same = [
-        s
-        for s in tried
-        if not set(chosen.effects) <= set(s.effects)  # not the choice plus extras
-        and equivalent_models(s, chosen)
-    ]
-    return sorted(same, key=lambda s: (s.n_params, s.evidence_after))[:limit]
+    same: dict[frozenset[str], Scored] = {}
+    for s in sorted(tried, key=lambda s: (s.n_params, s.evidence_after)):
+        if set(chosen.effects) <= set(s.effects):  # not the choice plus extras
+            continue
+        if stands_in_for(s, chosen):
+            same.setdefault(frozenset(s.effects), s)
+    return list(same.values())[:limit]
 
 
 def equivalent_model(scored: Scored) -> EquivalentModel:

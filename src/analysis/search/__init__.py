@@ -39,6 +39,7 @@ from simgap.analysis.search._scoring import (
     generalises_better,
     improves_on_nothing,
     parsimonious,
+    stands_in_for,
     worsens_pose,
 )
 from simgap.analysis.search._selection import ModelSearch
@@ -60,6 +61,7 @@ __all__ = [
     "grows_with_size",
     "improves_on_nothing",
     "parsimonious",
+    "stands_in_for",
     "pruned",
     "seen_in_centres",
     "seen_in_corners",

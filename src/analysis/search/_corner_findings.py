@@ -29,7 +29,7 @@ from simgap.analysis.search._admission import (
     seen_in_corners,
 )
 from simgap.analysis.search._scored import Scored
-from simgap.analysis.search._scoring import equivalent_models
+from simgap.analysis.search._scoring import stands_in_for
 
 
 def with_corner_effects(
@@ -125,8 +125,9 @@ def corner_look_alikes(
     A projection effect that moves no pose beyond the floor (``minor``) is seen in the corners
     alone, and is a finding only where the corners single it out. Where another projection
     effect of ``pool`` in its place explains every evidence channel indistinguishably from
-    ``scored`` (:func:`~simgap.analysis.search.equivalent_models`: the search's own tolerances,
-    0.05 px or 10 % on the corners and no consistent item-by-item difference), and could enter
+    ``scored`` (:func:`~simgap.analysis.search.stands_in_for`: the search's own tolerances,
+    0.05 px or 10 % on the corners and no consistent item-by-item difference, on the choose
+    split and, for the geometry, on both cross-fit folds), and could enter
     the rest of the model on its own (:func:`admissible`, which also keeps it off its bounds
     and asks every fit there, the camera's own edge offset's included
     (:func:`stands_in_corners`), to explain its own evidence),
@@ -154,7 +155,7 @@ def corner_look_alikes(
             if stands_in_corners(alt)
             and alt not in model
             and admissible(swapped := evaluate((*rest, alt)), reference)
-            and equivalent_models(swapped, scored)
+            and stands_in_for(swapped, scored)
         )
         if alikes:
             out[member.effect] = alikes

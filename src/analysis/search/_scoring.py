@@ -29,6 +29,19 @@ def equivalent_models(a: Scored, b: Scored) -> bool:
     return not (improves(a, b) or improves(b, a))
 
 
+def stands_in_for(alternative: Scored, chosen: Scored) -> bool:
+    """Whether ``alternative`` explains the evidence as well as ``chosen``: a look-alike.
+
+    Equivalent on every channel of the choose split (:func:`equivalent_models`), and
+    ``chosen``'s geometry does not predict the cross-fit folds' corners consistently better
+    (:func:`generalises_better`): the tie the search breaks the same way
+    (:func:`parsimonious`). A choose split of a few items ties a lens distortion with a focal
+    length or a print scale whose cross-fitted corners are clearly worse on every item of both
+    folds (measured on blind captures: docs/results/design_evidence.md#corner_findings).
+    """
+    return equivalent_models(alternative, chosen) and not generalises_better(chosen, alternative)
+
+
 def distinguishably_lower(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether some channel misfit of ``a`` is lower than ``b``'s beyond the tolerance.
 
