@@ -99,6 +99,7 @@ def image_floor(stat: str) -> float:
         raise ValueError(f"{stat} has no floor: it is reported only, never scored")
     return floor
 
+
 # -- which: channel units and telling models apart ---------------------------------------------
 
 #: Unit of the corner channel (px): the ArUco detector's own corner bias on ideal renders
@@ -219,8 +220,9 @@ SIGNATURE_MIN_MISFIT: Final[float] = 1.0
 #: The gain is the channels' tolerance, a quarter unit (:data:`EQUIVALENT_UNITS`).
 SIGNATURE_MIN_GAIN: Final[float] = EQUIVALENT_UNITS
 #: A light the simulation lacks (:mod:`simgap.analysis.candidates._sun`) is called for only where
-#: what moves every tag's paper alike or by its level (one gain, a transfer curve) leaves the
-#: paper levels at least this far off (RMS over the tags, floors): half a floor, under which one
-#: gain fits every tag within the paper's smallest difference that matters, and exposure is the
-#: simpler answer. Set a priori, not fitted to any capture.
-SUN_MIN_ALTERNATIVE_MISFIT: Final[float] = 0.5
+#: what moves every tag's paper alike (one gain) leaves the paper levels at least this far off
+#: (RMS over the tags, floors): half a floor, under which one gain fits every tag within the
+#: paper's smallest difference that matters, and exposure is the simpler answer; and where the
+#: sun then beats one gain and a transfer curve by :data:`SIGNATURE_MIN_GAIN`. Set a priori, not
+#: fitted to any capture.
+SUN_MIN_GAIN_MISFIT: Final[float] = 0.5

@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from simgap.analysis.candidates import geometric_effects
-from simgap.analysis.thresholds import SUN_MIN_ALTERNATIVE_MISFIT, image_floor
+from simgap.analysis.thresholds import SUN_MIN_GAIN_MISFIT, image_floor
 from simgap.core.rig import Rig
 from simgap.diagnosis.camera_truth import (
     exposure_truth,
@@ -86,7 +86,7 @@ def camera_named(
     :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`), its black level; and where its lights
     light the tags unevenly against the simulation's (``light_spread_stops``,
     :func:`simgap.diagnosis.camera_truth.light_spread_truth`, at least the paper level's spread
-    that calls for a light: :data:`~simgap.analysis.thresholds.SUN_MIN_ALTERNATIVE_MISFIT`
+    that calls for a light: :data:`~simgap.analysis.thresholds.SUN_MIN_GAIN_MISFIT`
     floors of ``paper_linear``), a light the simulation lacks (``sun``): its key light stands
     elsewhere, and the direction it lights the tags from is what the finding reads; and where
     its pipeline or print moves the markers' soft edges (``edges_moved``,
@@ -96,7 +96,7 @@ def camera_named(
     crushed = crushed_black is not None and crushed_black >= floor
     uneven = (
         light_spread_stops is not None
-        and light_spread_stops >= SUN_MIN_ALTERNATIVE_MISFIT * image_floor("paper_linear")
+        and light_spread_stops >= SUN_MIN_GAIN_MISFIT * image_floor("paper_linear")
     )
     return (
         CAMERA_NAMED
