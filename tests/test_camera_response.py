@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from simgap.cli import app
 from simgap.effects import make_effect
 from simgap.pipeline.capture.response_file import read_response
-from simgap.pose.camera_response import CameraResponse, estimate_response
+from simgap.pose.camera_response import CameraResponse, estimate_response, saturation_exposure
 from simgap.pose.image_stats import linearise
 
 #: Exposure times of the bracket (s): eight photos a stop apart, as a lab brackets.
@@ -49,15 +49,23 @@ CAMERAS = {
     # sRGB and a plain gamma with no black level: their darkest codes are levels, not crushed
     "srgb": (1e-9, None, None),
     "gamma": (1e-9, 2.2, None),
+    # the steepest drawn S-curve at a low midpoint: its shoulder spreads exposures 0.55-0.97 of
+    # full scale over codes 240-255
+    "srgb_steep_shoulder": (1e-9, None, {"contrast": 6.0, "midpoint": 0.35}),
 }
 #: Measured (Debevec, this bracket): per camera the median and the largest error (codes) of the
 #: sRGB codes looked up through the estimated response, over codes 0-250.
 MEASURED_CODES_OFF = {
-    "srgb_tone_black": (5, 9),
-    "gamma_black": (1, 9),
-    "srgb": (1, 3),
-    "gamma": (1, 3),
+    "srgb_tone_black": (1, 3),
+    "gamma_black": (0, 10),
+    "srgb": (0, 1),
+    "gamma": (1, 1),
+    "srgb_steep_shoulder": (2, 4),
 }
+#: Measured: per camera the exposure the estimated response gives codes 64, 128 and 192 against
+#: the camera's own, largest |log2| (EV); 0.48 for the steep shoulder before its saturation
+#: exposure was read from the bracket (extrapolated from codes 230-240).
+MEASURED_SCALE_EV = 0.04
 
 
 @pytest.mark.parametrize("name", sorted(CAMERAS))
@@ -72,6 +80,26 @@ def test_bracket_recovers_the_cameras_codes(name):
     median, largest = MEASURED_CODES_OFF[name]
     assert np.median(error) <= median + 2
     assert error[:251].max() <= largest + 3
+    # the response's scale: the camera's exposure at mid codes, within 0.06 EV of the measured
+    fine = np.geomspace(1e-5, 1.0, 200_001)
+    own = np.interp([64, 128, 192], camera_codes(fine, black, gamma, tone), fine)
+    off = np.abs(np.log2(response.linear[[64, 128, 192]] / own))
+    assert off.max() <= MEASURED_SCALE_EV + 0.06
+
+
+def test_a_bracket_that_never_saturates_has_no_saturation_exposure():
+    # no pixel reads 255 in any photo: the codes above RELIABLE_TOP are extrapolated, as the
+    # saturation cannot be read; a pixel at 255 beside one at 245 of half its exposure splits
+    raw = np.arange(256) / 255.0
+    times = np.array([1.0, 2.0, 4.0])
+    codes = np.array([[60, 120, 200], [120, 200, 245], [200, 245, 250]], np.uint8)
+    assert saturation_exposure(codes, times, raw) is None
+    codes = np.array([[100, 100], [200, 200], [245, 255]], np.uint8)
+    saturation = saturation_exposure(codes, times, raw)
+    assert saturation is not None
+    # the pixels' exposures in the last photo: 4 raw[100] = 4 raw[200] / 2 (both 1.57); the
+    # threshold lies between the unclipped and clipped exposures of the photo, at 1.57
+    assert saturation == pytest.approx(4.0 * raw[100], rel=1e-6)
 
 
 def test_response_of_srgb_is_the_identity():

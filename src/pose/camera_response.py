@@ -19,7 +19,11 @@ clipped pixels beside them, and so is the estimate of the darkest codes by the c
 (measured on synthetic brackets through a known curve: the exposure of the codes from about 245
 up read up to 1.25 times too high, of those below 10 down to a third of the truth under a black
 level), so the codes beyond :data:`RELIABLE_BOTTOM` and :data:`RELIABLE_TOP` are extrapolated
-from those inside (tests/test_camera_response.py).
+from those inside (tests/test_camera_response.py). Above the top, the line runs to the exposure
+at which the bracket's pixels first read 255 (:func:`saturation_exposure`, each pixel's exposure
+from its unbiased codes): a tone curve's shoulder spreads exposures 0.55-0.97 of full scale over
+its last 15 codes, and the slope below them put full scale 0.2-0.5 EV low, every exposure that
+much high.
 
 References
 ----------
@@ -45,6 +49,10 @@ CODES = 256
 RELIABLE_BOTTOM = 16
 RELIABLE_TOP = 240
 SLOPE_CODES = 10
+#: Most pixel values per photo read for the saturation exposure (:func:`saturation_exposure`;
+#: every so many of a larger photo): a bracket of a grey ramp has some hundred thousand values
+#: per photo, and a 12-megapixel camera's would take gigabytes.
+SATURATION_SAMPLES = 2**18
 #: Fewest photos of a bracket: two exposures give one ratio per pixel, three check each other.
 MIN_PHOTOS = 3
 #: Least ratio of exposure between :data:`RELIABLE_TOP` and :data:`RELIABLE_BOTTOM` a response
@@ -106,14 +114,18 @@ class CameraResponse:
         return np.round(self.encode(linearise(np.arange(CODES)))).astype(np.uint8)
 
 
-def scaled(raw: np.ndarray) -> CameraResponse:
+def scaled(raw: np.ndarray, saturation: float | None = None) -> CameraResponse:
     """A response from relative exposures per code (any scale), made monotone and scaled.
 
     ``raw`` (256,): as an estimation returns it, NaN at codes no photo delivered (interpolated
     from their neighbours). Each code takes at least the exposure of the code below (an
     estimation's noise at the ends of the range, where few pixels fall), the codes beyond
     :data:`RELIABLE_BOTTOM` and :data:`RELIABLE_TOP` are extrapolated (no lower than 0), and
-    the whole is scaled to 1 at code 255 (module doc).
+    the whole is scaled to 1 at code 255 (module doc). With ``saturation`` (the exposure, on
+    ``raw``'s scale, at which the camera first reads 255: :func:`saturation_exposure`) the
+    codes above :data:`RELIABLE_TOP` lie on the line from it to code 255's ``saturation``
+    instead: a tone curve's shoulder spreads a wide range of exposures over its last codes,
+    which the slope below them does not reach.
     """
     values = np.asarray(raw, float)
     seen = np.isfinite(values)
@@ -130,6 +142,8 @@ def scaled(raw: np.ndarray) -> CameraResponse:
             "(expected a bracket of one still scene whose photos reach from dark to bright)"
         )
     slope = (values[top] - values[top - SLOPE_CODES]) / SLOPE_CODES
+    if saturation is not None and saturation > values[top]:
+        slope = (saturation - values[top]) / (CODES - 1 - top)
     values[top + 1 :] = values[top] + slope * np.arange(1, CODES - top)
     # below the darkest kept code: the estimate where it lies above the line through the codes
     # above (a camera without a black level keeps its dark codes), the line where the estimate
@@ -139,6 +153,50 @@ def scaled(raw: np.ndarray) -> CameraResponse:
     values[:bottom] = np.maximum(values[:bottom], np.clip(line, 0.0, None))
     values = np.maximum.accumulate(values)
     return CameraResponse(values / values[-1])
+
+
+def saturation_exposure(codes: np.ndarray, exposure_s: np.ndarray, raw: np.ndarray) -> float | None:
+    """The exposure at which the camera first reads 255, on the scale of the estimate ``raw``.
+
+    Each pixel's irradiance is the median of ``raw[code] / time`` over its photos whose code lies
+    within :data:`RELIABLE_BOTTOM`-:data:`RELIABLE_TOP` (where the estimate is unbiased); its
+    exposure in each photo is that irradiance times the photo's time. The saturation exposure is
+    the threshold that best splits the exposures of the pixels reading 255 from those reading
+    above :data:`RELIABLE_TOP` but less (fewest on the wrong side; the middle of the tie). None
+    where the bracket has no pixel on either side.
+
+    Parameters
+    ----------
+    codes : ndarray (n_photos, n_pixels), uint8
+        The bracket's codes, one row a photo.
+    exposure_s : ndarray (n_photos,)
+        The photos' exposure times (s).
+    raw : ndarray (256,)
+        Relative exposure per code (any scale; finite between the reliable codes).
+    """
+    codes = np.asarray(codes)
+    times = np.asarray(exposure_s, float)[:, None]
+    reliable = (codes >= RELIABLE_BOTTOM) & (codes <= RELIABLE_TOP)
+    irradiance = np.where(reliable, raw[codes] / times, np.nan)
+    seen = reliable.any(axis=0)
+    if not seen.any():
+        return None
+    per_pixel = np.full(codes.shape[1], np.nan)
+    per_pixel[seen] = np.nanmedian(irradiance[:, seen], axis=0)
+    exposure = per_pixel[None, :] * times
+    ok = np.isfinite(exposure)
+    clipped = np.sort(exposure[ok & (codes == CODES - 1)])
+    below = np.sort(exposure[ok & (codes > RELIABLE_TOP) & (codes < CODES - 1)])
+    if clipped.size == 0 or below.size == 0:
+        return None
+    # a threshold at each candidate exposure: clipped pixels under it plus unclipped ones at or
+    # above it are on the wrong side
+    candidates = np.concatenate([clipped, below])
+    wrong = np.searchsorted(clipped, candidates, side="left") + (
+        below.size - np.searchsorted(below, candidates, side="left")
+    )
+    best = candidates[wrong == wrong.min()]
+    return float(np.sqrt(best.min() * best.max()))
 
 
 def estimate_response(photos: Sequence[np.ndarray], exposure_s: Sequence[float]) -> CameraResponse:
@@ -173,7 +231,10 @@ def estimate_response(photos: Sequence[np.ndarray], exposure_s: Sequence[float])
         raise ValueError("photos: expected 8-bit images of one size")
     images = [p if p.ndim == 3 else cv2.cvtColor(p, cv2.COLOR_GRAY2BGR) for p in images]
     response = cv2.createCalibrateDebevec().process(images, times)  # (256, 1, 3)
-    return scaled(np.asarray(response, float).reshape(CODES, 3).mean(axis=1))
+    raw = np.asarray(response, float).reshape(CODES, 3).mean(axis=1)
+    stride = max(1, images[0].size // SATURATION_SAMPLES)
+    codes = np.stack([p.reshape(-1)[::stride] for p in images])
+    return scaled(raw, saturation_exposure(codes, times, raw))
 
 
 __all__ = [
@@ -185,5 +246,6 @@ __all__ = [
     "CameraResponse",
     "estimate_response",
     "is_response",
+    "saturation_exposure",
     "scaled",
 ]
