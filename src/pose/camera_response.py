@@ -123,9 +123,9 @@ def scaled(raw: np.ndarray, saturation: float | None = None) -> CameraResponse:
     :data:`RELIABLE_BOTTOM` and :data:`RELIABLE_TOP` are extrapolated (no lower than 0), and
     the whole is scaled to 1 at code 255 (module doc). With ``saturation`` (the exposure, on
     ``raw``'s scale, at which the camera first reads 255: :func:`saturation_exposure`) the
-    codes above :data:`RELIABLE_TOP` lie on the line from it to code 255's ``saturation``
-    instead: a tone curve's shoulder spreads a wide range of exposures over its last codes,
-    which the slope below them does not reach.
+    codes above :data:`RELIABLE_TOP` lie instead on the line from that code's exposure to
+    ``saturation`` at code 255: a tone curve's shoulder spreads a wide range of exposures over
+    its last codes, which the slope below them does not reach.
     """
     values = np.asarray(raw, float)
     seen = np.isfinite(values)
