@@ -43,6 +43,13 @@ TRIAL_V1_NAMES = {
 }
 #: schema-1 keys of a trial file that are the record's, not the score's
 RECORD_V1 = ("index", "params", "camera", "result", "seconds")
+#: the summary's shares of trials, Proportion records since schema 3 (docs/validation.md)
+SHARES_OF_TRIALS = (
+    "top1_accuracy", "every_effect_accuracy", "top1_accuracy_single",
+    "top1_accuracy_appearance_single", "no_effect_correct", "no_effect_free_of_geometry",
+    "blur_only_free_of_geometry", "jpeg_crushed_recall", "outside_unexplained", "spurious_share",
+    "on_bound_share",
+)  # fmt: skip
 #: schema-1 summary keys under their schema-2 names (docs/validation.md)
 SUMMARY_V1_NAMES = {
     "reduction_median": "pose_gap_reduction_median",
@@ -115,21 +122,57 @@ def test_schema_2_trial_files_round_trip():
 
 
 def test_the_markdown_is_the_golden_one_and_the_summary_keeps_its_numbers():
-    """validation.md stays byte for byte what the code before the typed summary wrote, from
-    trial files of either schema; validation.json's summary keeps every value (schema 2 renames
-    six keys)."""
+    """validation.md is the golden one, from trial files of either schema; validation.json's
+    summary keeps every value of schema 1 (schema 2 renamed six keys; schema 3 holds each share
+    of trials as a Proportion: the same share, with its counts and interval).
+
+    The golden report's value column is byte for byte what the code before the typed summary
+    wrote (git history of ``validation_golden.md``); the counts and intervals were added since.
+    """
     trials = [TrialRecord.from_json(raw) for raw in _v1_trials()]
     summary = summarize_scores([t.score for t in trials], TRIALS_PLANNED)
     assert validation_markdown(summary, trials) == GOLDEN_MD.read_text()
     again = [TrialRecord.from_json(json.loads(json.dumps(t.to_json()))) for t in trials]
     assert validation_markdown(summary, again) == GOLDEN_MD.read_text()
     written = json.loads(json.dumps(validation_json(summary, trials)))
-    assert written["schema_version"] == 2
+    assert written["schema_version"] == 3
     expected = _renamed(json.loads(SUMMARY_V1.read_text()), SUMMARY_V1_NAMES)
     # counted since findings can be undecided; none of these trials' findings is
     expected.update(undecided_trials=0, undecided_holding_hidden=0)
-    assert written["summary"] == expected
+    got = written["summary"]
+    # schema 3: the crushed-black JPEG trials are its proportion's trials
+    assert got["jpeg_crushed_recall"]["trials"] == expected.pop("jpeg_crushed_trials") == 2
+    for key in SHARES_OF_TRIALS:
+        share = expected.pop(key)
+        proportion = got.pop(key)
+        assert proportion["share"] == pytest.approx(share), key
+        assert proportion["count"] == round(share * proportion["trials"]), key
+        low, high = proportion["interval_90"]
+        assert low <= share <= high, key
+    for name, effect in expected["per_effect"].items():
+        single = got["per_effect"][name].pop("top1_accuracy_single")
+        assert effect.pop("single_trials") == (single["trials"] if single else 0), name
+        share = effect.pop("top1_accuracy_single")
+        assert (single and single["share"]) == pytest.approx(share), name
+    assert got == expected
     assert written["trials"] == [t.to_json() for t in trials]
+
+
+def test_a_proportion_s_interval_is_the_exact_one():
+    """Clopper-Pearson's 90 % interval, checked against its beta-quantile definition."""
+    from scipy import stats
+
+    from simgap.diagnosis.validation_summary import Proportion
+
+    for count, trials in ((17, 20), (20, 20), (0, 2), (1, 26)):
+        low, high = Proportion(count=count, trials=trials).interval_90
+        want_low = stats.beta.ppf(0.05, count, trials - count + 1) if count else 0.0
+        want_high = stats.beta.ppf(0.95, count + 1, trials - count) if count < trials else 1.0
+        assert (low, high) == pytest.approx((want_low, want_high), abs=1e-9)
+    # what a run of 20 can tell: 17 of 20 reaches from 66 % to 96 %; even 20 of 20 stays below
+    # certainty of 90 %
+    assert Proportion(count=17, trials=20).interval_90 == pytest.approx((0.656, 0.958), abs=1e-3)
+    assert Proportion(count=20, trials=20).interval_90[0] == pytest.approx(0.861, abs=1e-3)
 
 
 @pytest.mark.parametrize(
@@ -165,3 +208,28 @@ def test_a_run_resumes_from_a_schema_1_trial_file(tmp_path):
         _kept_trial(path, {"blur": {"sigma_px": 1.0}}, kept.camera, "converged")
     with pytest.raises(ValueError, match="diagnosed with a converged simulation"):
         _kept_trial(path, raw["params"], kept.camera, "path")
+
+
+def test_validate_ends_with_the_headline_counts_and_intervals(tmp_path, monkeypatch):
+    """The command's last line: top-1 and no-effect trials as counts with their intervals."""
+    from typer.testing import CliRunner
+
+    import simgap.diagnosis.validate as validation
+    from simgap.cli import app
+
+    trials = [TrialRecord.from_json(raw) for raw in _v1_trials()]
+    summary = summarize_scores([t.score for t in trials], TRIALS_PLANNED)
+
+    def finished(exp, out_dir, cache_dir, settings, log, simulator):
+        (out_dir / "validation.md").write_text(validation_markdown(summary, trials))
+        return summary
+
+    monkeypatch.setattr(validation, "run_validation", finished)
+    args = ["validate", "experiments/smoke.yaml", "-o", str(tmp_path / "v"), "--no-progress"]
+    result = CliRunner().invoke(app, args + ["--cache", str(tmp_path / "cache")])
+    assert result.exit_code == 0, result.output
+    # 14 of the 20 catalogue trials and 2 of the 4 no-effect ones (the golden report's rows)
+    assert result.output.rstrip().endswith(
+        "top-1 accuracy 14 of 20 (70%; 90% interval 49-86%), "
+        "no-effect correct 2 of 4 (50%; 90% interval 10-90%)"
+    )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -29,6 +29,9 @@ from simgap.cli.outputs import (
     experiment_inputs,
     simulation_inputs,
 )
+
+if TYPE_CHECKING:
+    from simgap.diagnosis.validation_summary import Proportion
 
 
 @app.command("errormodel")
@@ -344,5 +347,17 @@ def validate(
         summary = run_validation(exp, output, cache_dir, settings, typer.echo, simulator)
     typer.echo((output / "validation.md").read_text())
     typer.echo(
-        f"top-1 accuracy {summary.top1_accuracy}, no-effect correct {summary.no_effect_correct}"
+        f"top-1 accuracy {_counted(summary.top1_accuracy)}, "
+        f"no-effect correct {_counted(summary.no_effect_correct)}"
+    )
+
+
+def _counted(proportion: Proportion | None) -> str:
+    """``17 of 20 (85%; 90% interval 66-96%)``; ``n/a`` where no trial counts."""
+    if proportion is None:
+        return "n/a"
+    low, high = proportion.interval_90
+    return (
+        f"{proportion.count} of {proportion.trials} ({proportion.share:.0%}; "
+        f"90% interval {100 * low:.0f}-{high:.0%})"
     )

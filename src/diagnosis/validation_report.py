@@ -18,11 +18,13 @@ from simgap.diagnosis.nuisance import INK_DENSITY, PAPER_REFLECTANCE
 from simgap.diagnosis.result_json import jsonable
 from simgap.diagnosis.trial import CRUSHED_BLACK_SHARE
 from simgap.diagnosis.trial_score import TrialRecord, TrialScore
-from simgap.diagnosis.validation_summary import ValidationSummary
+from simgap.diagnosis.validation_summary import Proportion, ValidationSummary
 
-#: Version of the ``validation.json`` schema written; 1 (no ``schema_version`` key) had the
-#: trials' schema-1 records and the summary keys before the typed summary (docs/validation.md).
-VALIDATION_SCHEMA_VERSION = 2
+#: Version of the ``validation.json`` schema written; 2 had its shares of trials as bare
+#: fractions (now :class:`~simgap.diagnosis.validation_summary.Proportion` records), 1 (no
+#: ``schema_version`` key) the trials' schema-1 records and the summary keys before the typed
+#: summary (docs/validation.md).
+VALIDATION_SCHEMA_VERSION = 3
 
 
 def validation_json(summary: ValidationSummary, trials: Sequence[TrialRecord]) -> dict[str, Any]:
@@ -42,6 +44,27 @@ def _camera_text(bins: dict[str, str]) -> str:
 def _percent(share: float | None) -> str:
     """A share as a whole percentage (``n/a`` for None)."""
     return "n/a" if share is None else f"{share:.0%}"
+
+
+def _share_of(proportion: Proportion | None) -> str:
+    """A proportion's share as a whole percentage (``n/a`` for None)."""
+    return _percent(None if proportion is None else proportion.share)
+
+
+def _trials(proportion: Proportion | None) -> int:
+    """The trials a proportion is over (0 for None)."""
+    return 0 if proportion is None else proportion.trials
+
+
+def _row(score: str, proportion: Proportion | None) -> str:
+    """A score table row: the share, ``count of trials`` and its 90 % interval."""
+    if proportion is None:
+        return f"| {score} | n/a | 0 | |"
+    low, high = proportion.interval_90
+    return (
+        f"| {score} | {proportion.share:.0%} | {proportion.count} of {proportion.trials} | "
+        f"{low:.0%}-{high:.0%} |"
+    )
 
 
 def _percent_1(value: float | None) -> str:
@@ -84,40 +107,54 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         "own lights light the tags unevenly, and an edge offset where its pipeline or print "
         "moves soft edges).",
         "",
-        "| score | value |",
-        "|---|---|",
-        f"| top-1 accuracy (trials with a catalogue effect) | {pct(summary.top1_accuracy)} |",
-        "| every hidden effect named, nothing spurious (strict; trials with a catalogue effect) | "
-        f"{pct(summary.every_effect_accuracy)} |",
-        f"| top-1 accuracy (single effect) | {pct(summary.top1_accuracy_single)} |",
-        "| top-1 accuracy (single appearance effect) | "
-        f"{pct(summary.top1_accuracy_appearance_single)} |",
-        f"| recall for pairs | {pct(summary.pair_recall)} |",
-        "| no-effect trials correct (nothing named but the camera's own effects) | "
-        f"{pct(summary.no_effect_correct)} |",
-        "| no-effect trials free of geometric and calibration effects | "
-        f"{pct(summary.no_effect_free_of_geometry)} |",
-        "| blur-only trials free of geometric and calibration effects | "
-        f"{pct(summary.blur_only_free_of_geometry)} |",
-        f"| JPEG named where the capture's blacks are crushed (>= "
-        f"{CRUSHED_BLACK_SHARE:.0%} of a tag at 0 DN; {summary.jpeg_crushed_trials} "
-        f"trials) | {pct(summary.jpeg_crushed_recall)} |",
-        f"| effect outside the catalogue reported unexplained | "
-        f"{pct(summary.outside_unexplained)} |",
-        f"| fitted magnitude within 25 % | {pct(summary.magnitude_within_25pct)} |",
+        "The trials column counts those a score is over; the interval is the exact 90 % "
+        "interval of the share (a run of a few dozen trials measures an accuracy to within "
+        "tens of percent: simgap.diagnosis.validation_summary.Proportion).",
+        "",
+        "| score | value | trials | 90 % interval |",
+        "|---|---|---|---|",
+        _row("top-1 accuracy (trials with a catalogue effect)", summary.top1_accuracy),
+        _row(
+            "every hidden effect named, nothing spurious (strict; trials with a catalogue effect)",
+            summary.every_effect_accuracy,
+        ),
+        _row("top-1 accuracy (single effect)", summary.top1_accuracy_single),
+        _row("top-1 accuracy (single appearance effect)", summary.top1_accuracy_appearance_single),
+        f"| recall for pairs | {pct(summary.pair_recall)} | | |",
+        _row(
+            "no-effect trials correct (nothing named but the camera's own effects)",
+            summary.no_effect_correct,
+        ),
+        _row(
+            "no-effect trials free of geometric and calibration effects",
+            summary.no_effect_free_of_geometry,
+        ),
+        _row(
+            "blur-only trials free of geometric and calibration effects",
+            summary.blur_only_free_of_geometry,
+        ),
+        _row(
+            f"JPEG named where the capture's blacks are crushed (>= {CRUSHED_BLACK_SHARE:.0%} of "
+            "a tag at 0 DN)",
+            summary.jpeg_crushed_recall,
+        ),
+        _row("effect outside the catalogue reported unexplained", summary.outside_unexplained),
+        f"| fitted magnitude within 25 % | {pct(summary.magnitude_within_25pct)} | | |",
         f"| magnitude error, median / 90th percentile | {num(summary.magnitude_error_median)} / "
-        f"{num(summary.magnitude_error_p90)} |",
+        f"{num(summary.magnitude_error_p90)} | | |",
         "| pose-gap reduction on the measure split, median (correct trials) | "
-        f"{pct(summary.pose_gap_reduction_median)} |",
-        f"| reduced >= 70 % | {pct(summary.pose_gap_reduction_at_least_70pct)} |",
-        f"| trials naming something the capture does not have | {pct(summary.spurious_share)} |",
-        "| trials with a selected parameter on the end of its searched range | "
-        f"{pct(summary.on_bound_share)} |",
+        f"{pct(summary.pose_gap_reduction_median)} | | |",
+        f"| reduced >= 70 % | {pct(summary.pose_gap_reduction_at_least_70pct)} | | |",
+        _row("trials naming something the capture does not have", summary.spurious_share),
+        _row(
+            "trials with a selected parameter on the end of its searched range",
+            summary.on_bound_share,
+        ),
     ]
     if summary.undecided_trials:  # a row only where a diagnosis left a finding undecided
         lines.append(
             "| trials with a finding undecided between look-alikes (a hidden effect among "
-            f"them) | {summary.undecided_trials} ({summary.undecided_holding_hidden}) |"
+            f"them) | {summary.undecided_trials} ({summary.undecided_holding_hidden}) | | |"
         )
     lines += [
         "",
@@ -138,7 +175,8 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         "|---|---|---|---|---|---|",
     ]
     lines += [
-        f"| {name} | {e.single_trials} | {pct(e.top1_accuracy_single)} | {e.trials} | "
+        f"| {name} | {_trials(e.top1_accuracy_single)} | {_share_of(e.top1_accuracy_single)} | "
+        f"{e.trials} | "
         f"{pct(e.recall)} | {num(e.magnitude_error_median)} / {num(e.magnitude_error_p90)} |"
         for name, e in summary.per_effect.items()
     ]

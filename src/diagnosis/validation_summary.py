@@ -7,8 +7,9 @@ and outside-the-catalogue rows; magnitude errors; pose-gap reductions; spurious 
 shares), per effect (:class:`EffectScores`), per nuisance bin (:class:`BinScores`) and the
 confusion table (:func:`confusion`). :mod:`simgap.diagnosis.validation_report` renders it.
 
-Shares are fractions of the trials they are over (0-1), None where there is none; magnitude
-errors are relative to the truth's scale (fractions).
+Shares of trials are :class:`Proportion` records (how many of how many trials, the share and
+its exact 90 % interval), None where no trial counts; magnitude errors are relative to the
+truth's scale (fractions).
 """
 
 from __future__ import annotations
@@ -18,10 +19,53 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from scipy import stats
 
 from simgap.diagnosis.hidden_effects import APPEARANCE, OUTSIDE, REPORTED_AS, found
 from simgap.diagnosis.trial import CRUSHED_BLACK_SHARE
 from simgap.diagnosis.trial_score import TrialScore
+
+#: Confidence of a share's interval (:attr:`Proportion.interval_90`), as the pose-gap
+#: reduction's bootstrap interval (:attr:`~simgap.diagnosis.trial_score.TrialScore.
+#: pose_gap_reduction_interval_90`).
+INTERVAL_CONFIDENCE = 0.9
+
+
+@dataclass(frozen=True, kw_only=True)
+class Proportion:
+    """How many of some trials have a property: the share and the interval it is known to.
+
+    A validation run of a few dozen trials measures an accuracy to within several tens of
+    percent: 17 correct of 20 is 85 %, and the exact 90 % interval is 66-96 %; even 20 of 20
+    leaves 86-100 %. The interval says what a run can and cannot tell apart (one run at 85 %
+    and one at 90 % are the same product). ``share`` and ``interval_90`` follow from the
+    counts (written to ``validation.json`` for readers).
+    """
+
+    json_derived: ClassVar[tuple[str, ...]] = ("share", "interval_90")
+
+    #: trials with the property
+    count: int
+    #: trials counted (at least one)
+    trials: int
+
+    @property
+    def share(self) -> float:
+        """``count / trials`` (0-1)."""
+        return self.count / self.trials
+
+    @property
+    def interval_90(self) -> tuple[float, float]:
+        """The exact (Clopper-Pearson) :data:`INTERVAL_CONFIDENCE` interval of the share (0-1).
+
+        ``scipy.stats.binomtest(count, trials).proportion_ci(method="exact")``: the trials
+        are taken as independent draws of one success rate (each validation trial draws its
+        effect and its camera afresh).
+        """
+        ci = stats.binomtest(self.count, self.trials).proportion_ci(
+            confidence_level=INTERVAL_CONFIDENCE, method="exact"
+        )
+        return float(ci.low), float(ci.high)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -30,10 +74,9 @@ class EffectScores:
 
     Attributes
     ----------
-    single_trials : int
-        Trials that hid it alone.
-    top1_accuracy_single : float or None
-        Share of those that are correct (:attr:`TrialScore.correct`).
+    top1_accuracy_single : Proportion or None
+        The trials that hid it alone, and those of them that are correct
+        (:attr:`TrialScore.correct`).
     trials : int
         Trials that hid it, alone or in a pair.
     recall : float or None
@@ -43,8 +86,7 @@ class EffectScores:
         those trials (:attr:`TrialScore.magnitude_error`); None where none was scored.
     """
 
-    single_trials: int
-    top1_accuracy_single: float | None
+    top1_accuracy_single: Proportion | None
     trials: int
     recall: float | None
     magnitude_error_median: float | None
@@ -79,31 +121,29 @@ class ValidationSummary:
     ----------
     trials : int
         Trials summarised (finished so far, by every shard).
-    top1_accuracy : float or None
-        Share of the trials with hidden catalogue effects that are correct.
-    every_effect_accuracy : float or None
-        The strict row: share of those trials with every hidden effect named (recall 1) and
-        nothing spurious.
-    top1_accuracy_single : float or None
-        Share of the trials with one hidden catalogue effect that are correct.
-    top1_accuracy_appearance_single : float or None
+    top1_accuracy : Proportion or None
+        The trials with hidden catalogue effects that are correct.
+    every_effect_accuracy : Proportion or None
+        The strict row: those trials with every hidden effect named (recall 1) and nothing
+        spurious.
+    top1_accuracy_single : Proportion or None
+        The trials with one hidden catalogue effect that are correct.
+    top1_accuracy_appearance_single : Proportion or None
         The same over the trials with one hidden appearance effect (:data:`APPEARANCE`).
     pair_recall : float or None
         Mean recall of the trials with two hidden catalogue effects.
-    no_effect_correct : float or None
-        Share of the trials without a hidden effect that are correct (nothing named but the
-        camera's own effects).
-    no_effect_free_of_geometry : float or None
-        Share of those with no geometric or calibration effect selected.
-    blur_only_free_of_geometry : float or None
-        Share of the trials hiding blur alone with no geometric or calibration effect selected.
-    jpeg_crushed_recall : float or None
-        Share of the trials hiding a JPEG on a capture whose blacks are crushed (at least
+    no_effect_correct : Proportion or None
+        The trials without a hidden effect that are correct (nothing named but the camera's
+        own effects).
+    no_effect_free_of_geometry : Proportion or None
+        Those with no geometric or calibration effect selected.
+    blur_only_free_of_geometry : Proportion or None
+        The trials hiding blur alone with no geometric or calibration effect selected.
+    jpeg_crushed_recall : Proportion or None
+        The trials hiding a JPEG on a capture whose blacks are crushed (at least
         :data:`~simgap.diagnosis.trial.CRUSHED_BLACK_SHARE` of a tag at 0 DN) that name it.
-    jpeg_crushed_trials : int
-        Those trials.
-    outside_unexplained : float or None
-        Share of the trials hiding an effect outside the catalogue that are correct (reported
+    outside_unexplained : Proportion or None
+        The trials hiding an effect outside the catalogue that are correct (reported
         unexplained, no geometric or calibration effect).
     magnitude_within_25pct : float or None
         Share of the scored parameters (of every trial with hidden catalogue effects) whose
@@ -115,10 +155,10 @@ class ValidationSummary:
         over the correct trials with hidden catalogue effects that measured one.
     pose_gap_reduction_at_least_70pct : float or None
         Share of those reductions that are at least 0.7.
-    spurious_share : float or None
-        Share of all trials naming something the capture does not have.
-    on_bound_share : float or None
-        Share of all trials with a selected parameter on the end of its searched range.
+    spurious_share : Proportion or None
+        The trials naming something the capture does not have.
+    on_bound_share : Proportion or None
+        The trials with a selected parameter on the end of its searched range.
     undecided_trials : int
         Trials whose diagnosis left a finding undecided between look-alikes
         (:attr:`~simgap.diagnosis.trial_score.TrialScore.undecided`).
@@ -136,24 +176,23 @@ class ValidationSummary:
     """
 
     trials: int
-    top1_accuracy: float | None
-    every_effect_accuracy: float | None
-    top1_accuracy_single: float | None
-    top1_accuracy_appearance_single: float | None
+    top1_accuracy: Proportion | None
+    every_effect_accuracy: Proportion | None
+    top1_accuracy_single: Proportion | None
+    top1_accuracy_appearance_single: Proportion | None
     pair_recall: float | None
-    no_effect_correct: float | None
-    no_effect_free_of_geometry: float | None
-    blur_only_free_of_geometry: float | None
-    jpeg_crushed_recall: float | None
-    jpeg_crushed_trials: int
-    outside_unexplained: float | None
+    no_effect_correct: Proportion | None
+    no_effect_free_of_geometry: Proportion | None
+    blur_only_free_of_geometry: Proportion | None
+    jpeg_crushed_recall: Proportion | None
+    outside_unexplained: Proportion | None
     magnitude_within_25pct: float | None
     magnitude_error_median: float | None
     magnitude_error_p90: float | None
     pose_gap_reduction_median: float | None
     pose_gap_reduction_at_least_70pct: float | None
-    spurious_share: float | None
-    on_bound_share: float | None
+    spurious_share: Proportion | None
+    on_bound_share: Proportion | None
     undecided_trials: int
     undecided_holding_hidden: int
     per_effect: dict[str, EffectScores]
@@ -162,9 +201,14 @@ class ValidationSummary:
     trials_planned: int | None = None
 
 
-def _share(flags: Sequence[bool | float]) -> float | None:
-    """The mean of ``flags`` (a share, for booleans); None when there is none."""
-    return float(np.mean(flags)) if flags else None
+def _share(values: Sequence[float]) -> float | None:
+    """The mean of ``values`` (a share of fractions, as recalls); None when there is none."""
+    return float(np.mean(values)) if values else None
+
+
+def _proportion(flags: Sequence[bool]) -> Proportion | None:
+    """How many of ``flags`` are true, of how many; None when there is none."""
+    return Proportion(count=int(sum(flags)), trials=len(flags)) if flags else None
 
 
 def _median(values: Sequence[float]) -> float | None:
@@ -195,24 +239,23 @@ def summarize_scores(
     ]
     return ValidationSummary(
         trials=len(scores),
-        top1_accuracy=_share([s.correct for s in inside]),
-        every_effect_accuracy=_share([s.recall == 1.0 and not s.spurious for s in inside]),
-        top1_accuracy_single=_share([s.correct for s in single]),
-        top1_accuracy_appearance_single=_share([s.correct for s in appearance]),
+        top1_accuracy=_proportion([s.correct for s in inside]),
+        every_effect_accuracy=_proportion([s.recall == 1.0 and not s.spurious for s in inside]),
+        top1_accuracy_single=_proportion([s.correct for s in single]),
+        top1_accuracy_appearance_single=_proportion([s.correct for s in appearance]),
         pair_recall=_share([s.recall for s in pairs if s.recall is not None]),
-        no_effect_correct=_share([s.correct for s in none]),
-        no_effect_free_of_geometry=_share([not s.geometric_selected for s in none]),
-        blur_only_free_of_geometry=_share([not s.geometric_selected for s in blur_only]),
-        jpeg_crushed_recall=_share([found("jpeg", s.decided) for s in crushed_jpeg]),
-        jpeg_crushed_trials=len(crushed_jpeg),
-        outside_unexplained=_share([s.correct for s in outside]),
+        no_effect_correct=_proportion([s.correct for s in none]),
+        no_effect_free_of_geometry=_proportion([not s.geometric_selected for s in none]),
+        blur_only_free_of_geometry=_proportion([not s.geometric_selected for s in blur_only]),
+        jpeg_crushed_recall=_proportion([found("jpeg", s.decided) for s in crushed_jpeg]),
+        outside_unexplained=_proportion([s.correct for s in outside]),
         magnitude_within_25pct=_share([m <= 0.25 for m in mags]),
         magnitude_error_median=_median(mags),
         magnitude_error_p90=_p90(mags),
         pose_gap_reduction_median=_median(red),
         pose_gap_reduction_at_least_70pct=_share([r >= 0.7 for r in red]),
-        spurious_share=_share([bool(s.spurious) for s in scores]),
-        on_bound_share=_share([bool(s.on_bound) for s in scores]),
+        spurious_share=_proportion([bool(s.spurious) for s in scores]),
+        on_bound_share=_proportion([bool(s.on_bound) for s in scores]),
         undecided_trials=sum(bool(s.undecided) for s in scores),
         undecided_holding_hidden=sum(_undecided_holds_hidden(s) for s in scores),
         per_effect=_per_effect(inside),
@@ -244,8 +287,7 @@ def _per_effect(inside: Sequence[TrialScore]) -> dict[str, EffectScores]:
             if k.split(".")[0] in (name, REPORTED_AS.get(name))
         ]
         out[name] = EffectScores(
-            single_trials=len(alone),
-            top1_accuracy_single=_share([s.correct for s in alone]),
+            top1_accuracy_single=_proportion([s.correct for s in alone]),
             trials=len(anywhere),
             recall=_share([found(name, s.decided) for s in anywhere]),
             magnitude_error_median=_median(errors),
