@@ -193,7 +193,7 @@ def test_version_prints_the_package_version(runner):
 
 def test_every_command_has_plain_help_under_h_and_help(runner):
     paths = command_paths()
-    assert len(paths) == 15  # the app and its 14 commands (see simgap.cli)
+    assert len(paths) == 16  # the app and its 15 commands (see simgap.cli)
     for path in paths:
         short = runner.invoke(app, path + ["-h"], prog_name="simgap")
         assert short.exit_code == 0, (path, short.output)
@@ -457,7 +457,7 @@ def test_plain_progress_lines_come_every_interval_with_an_estimate(monkeypatch):
 #: that take an experiment: the positional EXPERIMENT (export-bag: SOURCE, which may also be a
 #: capture folder), older option spellings kept hidden.
 WRITES = {"run", "report", "compare", "study", "ingest", "calibrate", "export-bag", "errormodel",
-          "diagnose", "report-diagnosis", "validate"}  # fmt: skip
+          "diagnose", "report-diagnosis", "validate", "report-validation"}  # fmt: skip
 PROGRESS = {
     "run",
     "report",

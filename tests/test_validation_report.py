@@ -233,3 +233,63 @@ def test_validate_ends_with_the_headline_counts_and_intervals(tmp_path, monkeypa
         "top-1 accuracy 14 of 20 (70%; 90% interval 49-86%), "
         "no-effect correct 2 of 4 (50%; 90% interval 10-90%)"
     )
+
+
+def _run(folder: Path, raws: list[dict]) -> Path:
+    """A validation run's folder keeping ``raws`` as its trial files."""
+    (folder / "trials").mkdir(parents=True)
+    for raw in raws:
+        data = TrialRecord.from_json(raw).to_json()
+        (folder / "trials" / f"trial_{raw['index']:03d}.json").write_text(json.dumps(data))
+    return folder
+
+
+def test_runs_pool_into_the_report_of_all_their_trials(tmp_path):
+    """Two runs' trials pooled: the summary of all of them, each trial named by its run."""
+    from simgap.diagnosis.validation_pool import write_pooled_report
+
+    raws = _v1_trials()
+    first, second = _run(tmp_path / "a", raws[:13]), _run(tmp_path / "b", raws[13:])
+    summary = write_pooled_report([first, second], tmp_path / "pooled")
+    trials = [TrialRecord.from_json(raw) for raw in raws]
+    assert summary == summarize_scores([t.score for t in trials])
+    assert summary.top1_accuracy is not None
+    assert (summary.top1_accuracy.count, summary.top1_accuracy.trials) == (14, 20)
+    written = json.loads((tmp_path / "pooled" / "validation.json").read_text())
+    assert written["runs"] == [str(first), str(second)]
+    assert [t["index"] for t in written["trials"]] == [raw["index"] for raw in raws]
+    text = (tmp_path / "pooled" / "validation.md").read_text()
+    assert (
+        f"| {first}/{raws[0]['index']} | " in text and f"| {second}/{raws[13]['index']} | " in text
+    )
+
+
+def test_pooling_refuses_a_draw_kept_twice_and_runs_made_otherwise(tmp_path):
+    from simgap.diagnosis.validation_pool import pooled_trials
+
+    raws = _v1_trials()
+    first = _run(tmp_path / "a", raws[:3])
+    again = _run(tmp_path / "same_seed", raws[2:4])
+    with pytest.raises(ValueError, match=r"same_seed/\d+: the same draw as .*a/\d+"):
+        pooled_trials([first, again])
+    other = json.loads(json.dumps(raws[5]))
+    other["result"]["simulation_render"] = "path 16 spp"
+    path_traced = _run(tmp_path / "path", [other])
+    with pytest.raises(ValueError, match=r"path/\d+: diagnosed otherwise than .*a/\d+"):
+        pooled_trials([first, path_traced])
+
+
+def test_report_validation_names_a_folder_that_is_no_run(tmp_path):
+    from typer.testing import CliRunner
+
+    from simgap.cli import app
+
+    run = _run(tmp_path / "a", _v1_trials()[:2])
+    (tmp_path / "empty").mkdir()
+    args = ["report-validation", str(run), str(tmp_path / "empty"), "-o", str(tmp_path / "p")]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2
+    assert "empty: no trials/trial_NNN.json; expected the output folder of simgap validate" in (
+        result.output
+    )
+    assert not (tmp_path / "p").exists()  # nothing written, the folder taken back

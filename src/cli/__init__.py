@@ -1,7 +1,7 @@
 """simgap: simulate the PASS fixture study, compare rendering options, diagnose the sim-to-real gap.
 
 Commands: run, report, compare, study, ingest, calibrate, camera-response, export-bag,
-errormodel, diagnose, report-diagnosis, validate, effects, assets.
+errormodel, diagnose, report-diagnosis, validate, report-validation, effects, assets.
 
 Every error exits with code 2 and one line naming the file, key and expectation (``--debug``
 shows the traceback instead).

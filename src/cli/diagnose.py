@@ -31,7 +31,7 @@ from simgap.cli.outputs import (
 )
 
 if TYPE_CHECKING:
-    from simgap.diagnosis.validation_summary import Proportion
+    from simgap.diagnosis.validation_summary import Proportion, ValidationSummary
 
 
 @app.command("errormodel")
@@ -345,6 +345,38 @@ def validate(
         cache_dir = cache or default_cache_dir()
         simulator = Simulator(cache_dir, scheduler, show_progress=progress)
         summary = run_validation(exp, output, cache_dir, settings, typer.echo, simulator)
+    _echo_validation(output, summary)
+
+
+@app.command("report-validation")
+def report_validation(
+    runs: Annotated[
+        list[Path],
+        typer.Argument(help="Output folders of simgap validate (their trials/ files), pooled."),
+    ],
+    output: Annotated[Path, output_option("Folder to write the pooled report to.")] = Path(
+        "validation-pooled"
+    ),
+    overwrite: OverwriteOption = False,
+) -> None:
+    """Pool finished validation runs (other seeds) into one report, with narrower intervals.
+
+    Reads every RUN/trials/trial_NNN.json and writes OUTPUT/validation.md and validation.json
+    of them all. Pool runs of one simgap version, made alike (the same simulation, with or
+    without measured responses), on different seeds.
+    """
+    from simgap.core.outputs import claimed_folder
+    from simgap.diagnosis.validation_pool import write_pooled_report
+
+    inputs = [(f"RUN ({run})", run) for run in runs]
+    check_outputs([(OUTPUT, output, VALIDATION_FOLDER)], inputs, overwrite)
+    with claimed_folder(output):
+        summary = write_pooled_report(runs, output)
+    _echo_validation(output, summary)
+
+
+def _echo_validation(output: Path, summary: ValidationSummary) -> None:
+    """Print a validation's report, then its headline counts with their intervals."""
     typer.echo((output / "validation.md").read_text())
     typer.echo(
         f"top-1 accuracy {_counted(summary.top1_accuracy)}, "

@@ -79,11 +79,19 @@ def _print_ranges() -> str:
     return f"ink {ink[0]:.1f}-{ink[1]:.0f} %, paper {paper[0]:.0f}-{paper[1]:.0f} % reflectance"
 
 
-def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord]) -> str:
+def validation_markdown(
+    summary: ValidationSummary,
+    trials: Sequence[TrialRecord],
+    labels: Sequence[str] | None = None,
+) -> str:
     """``validation.md``: the scores, per nuisance bin, per effect, the confusion table, trials.
 
-    ``trials`` are the finished trials the summary is over, in the table's order.
+    ``trials`` are the finished trials the summary is over, in the table's order; ``labels``
+    name them in the trials table (default: their indices; pooled runs:
+    :func:`simgap.diagnosis.validation_pool.write_pooled_report`).
     """
+    if labels is None:
+        labels = [str(t.index) for t in trials]
     pct, num = _percent, _percent_1
 
     lines = [
@@ -201,12 +209,12 @@ def validation_markdown(summary: ValidationSummary, trials: Sequence[TrialRecord
         "| # | hidden | selected | unexplained | correct | magnitude error | camera | seconds |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for t in trials:
+    for label, t in zip(labels, trials, strict=True):
         score = t.score
         mags = ", ".join(f"{k} {v:.1%}" for k, v in score.magnitude_error.items())
         left = ", ".join(t.result.unexplained_evidence) or "-"
         lines.append(
-            f"| {t.index} | {', '.join(score.hidden) or 'none'} | "
+            f"| {label} | {', '.join(score.hidden) or 'none'} | "
             f"{_selected_text(score)} | {left} | {'yes' if score.correct else 'no'} | "
             f"{mags or '-'} | {_camera_text(score.nuisance_bins)} | {t.seconds:.0f} |"
         )
