@@ -472,7 +472,7 @@ def test_jpeg_behind_crushed_blacks_and_blur_only_trials_are_scored_apart():
     assert jpeg is not None and (jpeg.count, jpeg.trials) == (1, 2)
     assert blur is not None and blur.share == 0.5
     text = validation_markdown(summary, [])
-    row = "crushed (>= 10% of a tag at 0 DN) | 50% | 1 of 2 | 3%-97% |"
+    row = "crushed (>= 10% of a tag at 0 DN) | 50% | 1 of 2 | 3-97% |"
     assert f"| JPEG named where the capture's blacks are {row}" in text
     assert "| blur-only trials free of geometric and calibration effects | 50% |" in text
 

@@ -31,7 +31,7 @@ from simgap.cli.outputs import (
 )
 
 if TYPE_CHECKING:
-    from simgap.diagnosis.validation_summary import Proportion, ValidationSummary
+    from simgap.diagnosis.validation_summary import ValidationSummary
 
 
 @app.command("errormodel")
@@ -377,19 +377,10 @@ def report_validation(
 
 def _echo_validation(output: Path, summary: ValidationSummary) -> None:
     """Print a validation's report, then its headline counts with their intervals."""
+    from simgap.diagnosis.validation_report import proportion_text
+
     typer.echo((output / "validation.md").read_text())
     typer.echo(
-        f"top-1 accuracy {_counted(summary.top1_accuracy)}, "
-        f"no-effect correct {_counted(summary.no_effect_correct)}"
-    )
-
-
-def _counted(proportion: Proportion | None) -> str:
-    """``17 of 20 (85%; 90% interval 66-96%)``; ``n/a`` where no trial counts."""
-    if proportion is None:
-        return "n/a"
-    low, high = proportion.interval_90
-    return (
-        f"{proportion.count} of {proportion.trials} ({proportion.share:.0%}; "
-        f"90% interval {100 * low:.0f}-{high:.0%})"
+        f"top-1 accuracy {proportion_text(summary.top1_accuracy)}, "
+        f"no-effect correct {proportion_text(summary.no_effect_correct)}"
     )

@@ -56,14 +56,29 @@ def _trials(proportion: Proportion | None) -> int:
     return 0 if proportion is None else proportion.trials
 
 
+def _interval(proportion: Proportion) -> str:
+    """A proportion's 90 % interval in whole percent: ``66-96%``."""
+    low, high = proportion.interval_90
+    return f"{100.0 * low:.0f}-{high:.0%}"
+
+
 def _row(score: str, proportion: Proportion | None) -> str:
     """A score table row: the share, ``count of trials`` and its 90 % interval."""
     if proportion is None:
         return f"| {score} | n/a | 0 | |"
-    low, high = proportion.interval_90
     return (
         f"| {score} | {proportion.share:.0%} | {proportion.count} of {proportion.trials} | "
-        f"{low:.0%}-{high:.0%} |"
+        f"{_interval(proportion)} |"
+    )
+
+
+def proportion_text(proportion: Proportion | None) -> str:
+    """``17 of 20 (85%; 90% interval 66-96%)``; ``n/a`` where no trial counts."""
+    if proportion is None:
+        return "n/a"
+    return (
+        f"{proportion.count} of {proportion.trials} ({proportion.share:.0%}; "
+        f"90% interval {_interval(proportion)})"
     )
 
 
