@@ -46,6 +46,7 @@ from simgap.analysis.candidates._gloss import (
     GlossCandidate,
     fit_levels,
     laminate_effects,
+    laminate_explains,
     predicted_levels,
 )
 from simgap.analysis.candidates._lobe import beckmann, fresnel_veil, lobe_geometry
@@ -110,6 +111,7 @@ __all__ = [
     "geometric_effects",
     "ink_exposures",
     "laminate_effects",
+    "laminate_explains",
     "lobe_geometry",
     "on_bound",
     "predicted_levels",

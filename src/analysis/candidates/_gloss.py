@@ -63,6 +63,12 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
    ``h`` above 1 (ink brighter than simulated) is what a veil, flare or transfer curve adds; the
    laminate's render adds its own veil, so it is not rendered (a brighter ink would stand in for
    the glint). The laminate is thus judged with the camera's nuisance it was fitted with.
+7. **Beyond its nuisance.** The same nuisance rendered without the laminate (the exposure, the
+   black level and the print's ink albedo times ``h``, either way) must match the levels and
+   detections worse, by :data:`GLINT_MIN_GAIN` in RMS floors (:func:`laminate_explains`): a
+   print whose ink is darker or brighter than simulated is what every drawn print is, and a
+   laminate that only carries that (its fitted light a few hundredths of a W/sr, its ink
+   factor or its veil taking the print's ink) is no laminate (docs/results/laminate.md).
 
 Only tags near the half-angle's zero (the frontal stops) sample the lobe's width: with few of
 them roughness, offset and intensity trade off (development captures: roughness within 1.6x).
@@ -121,7 +127,8 @@ MIN_INTENSITY_W_SR = 0.01 * REFERENCE_INTENSITY_W_SR
 #: searched level (:data:`~simgap.analysis.candidates._black_level.LEVEL_BOUNDS`); below it
 #: nothing is crushed.
 MIN_BLACK_LEVEL = LEVEL_BOUNDS[0]
-#: Smallest gain (floors) of the laminate over a matte light for a supported fit.
+#: Smallest gain (floors) of the laminate over a matte light for a supported fit, and of its
+#: render over its nuisance alone (:func:`laminate_explains`): the signature's smallest gain.
 GLINT_MIN_GAIN = SIGNATURE_MIN_GAIN
 
 
@@ -275,6 +282,16 @@ def glint_supported(fit: LevelFit, ratio: RatioFit | None) -> bool:
     return fit.rms_light - fit.rms_laminate >= GLINT_MIN_GAIN and fit.glint_scale > 0
 
 
+def laminate_explains(with_laminate: float, without: float) -> bool:
+    """Whether a rendered laminate explains the levels beyond its nuisance alone (step 7).
+
+    ``with_laminate`` and ``without`` are :meth:`GlossCandidate.render_misfit`'s mean squares
+    (floors^2) of the laminate's render and of its exposure, print and black level without it;
+    the laminate's RMS must be lower by :data:`GLINT_MIN_GAIN` (floors).
+    """
+    return bool(np.sqrt(without) - np.sqrt(with_laminate) >= GLINT_MIN_GAIN)
+
+
 class GlossCandidate(AppearanceCandidate):
     """A laminate under a light beside the lens, fitted on the glints (see module docstring)."""
 
@@ -318,8 +335,24 @@ class GlossCandidate(AppearanceCandidate):
         (``black_level``, fraction of full scale; where ``base`` has none of its own) the levels
         were fitted with (module docstring, step 6).
         """
+        ink_factor = min(float(params.get("ink_factor", 1.0)), 1.0)
+        return self.nuisance(base, params, ink_factor, laminate_effects(params))
+
+    def nuisance(
+        self,
+        base: VariantState,
+        params: dict[str, Any],
+        ink_factor: float,
+        laminate: dict[str, dict[str, Any]] | None = None,
+    ) -> VariantState:
+        """``base`` with the fitted nuisance (and the ``laminate``'s effects where given).
+
+        The exposure ``ev``, the print's ink albedo times ``ink_factor`` and the black level
+        (where ``base`` has none of its own) of ``params``. Without a laminate, what its fit
+        would be were the levels a print's and a camera's alone (:meth:`fit`).
+        """
         state = base
-        effects = laminate_effects(params)
+        effects = dict(laminate or {})
         black = float(params.get("black_level", 0.0))
         if black >= MIN_BLACK_LEVEL and not any(
             name == "black_level" for name, _ in base.image.ops
@@ -329,7 +362,6 @@ class GlossCandidate(AppearanceCandidate):
         # so an exposure fitted without it is another (and added to it, counts that twice)
         effects["exposure"] = {"ev": float(params.get("ev", 0.0))}
         tag = base.scene.spec.tag
-        ink_factor = min(float(params.get("ink_factor", 1.0)), 1.0)
         effects["tag_material"] = {"ink": tag.ink * ink_factor, "paper": tag.paper}
         for name, values in effects.items():
             state = make_effect(name, values).apply(state)
@@ -343,8 +375,8 @@ class GlossCandidate(AppearanceCandidate):
         params: dict[str, Any],
         fit: LevelFit,
         ratio: RatioFit | None = None,
-    ) -> float:
-        """The light's intensity (W sr^-1) whose renders match the real levels best.
+    ) -> tuple[float, float]:
+        """The light's intensity (W sr^-1) whose renders match the real levels best, and its misfit.
 
         One render with :data:`REFERENCE_INTENSITY_W_SR` gives the simulation's scales of the
         matte light and of the glint; the real ones over them give two estimates (the level
@@ -357,23 +389,13 @@ class GlossCandidate(AppearanceCandidate):
         (:func:`~simgap.analysis.gap.detection_score`, one more statistic in the mean of
         squares, capped like them) match the real best is kept: a glint too bright, its levels
         matched by an exposure too low, loses tags the capture kept (measured on a blind
-        capture: docs/results/design_evidence.md#gloss).
+        capture: docs/results/design_evidence.md#gloss). The misfit is :meth:`render_misfit`'s
+        (a mean square, floors^2; inf where nothing was rendered).
         """
-        stats = ("ink_linear", "paper_linear", "contrast")
-        groups = detection_groups(items)
 
         def misfit(intensity: float) -> tuple[float, np.ndarray]:
-            state = measuring_only(
-                self.apply(base, dict(params, light_intensity_w_sr=intensity)), ()
-            )
-            rendered = runner.stats(state, items)
-            detection = 0.0
-            if items.real_detected is not None:  # no detections: the levels alone
-                rendered_detected = runner.detected(state, items)
-                score = detection_score(items.real_detected, rendered_detected, groups)
-                detection = min(float(score), RESIDUAL_CAP)
-            levels = evidence_misfit(stats, items.required("real_stats"), rendered)
-            return (len(stats) * levels + detection**2) / (len(stats) + 1), rendered
+            state = self.apply(base, dict(params, light_intensity_w_sr=intensity))
+            return self.render_misfit(runner, state, items)
 
         ref_misfit, rendered = misfit(REFERENCE_INTENSITY_W_SR)
         geometry = tuple(fit.x[4:7])
@@ -390,7 +412,7 @@ class GlossCandidate(AppearanceCandidate):
             REFERENCE_INTENSITY_W_SR * real / sim for real, sim in scales if real > 0 and sim > 0
         ]
         if not estimates:
-            return 0.0
+            return 0.0, float("inf")
         low, high = min(estimates), max(estimates)
         tried = {REFERENCE_INTENSITY_W_SR: ref_misfit}
         for intensity in (low, high, np.sqrt(low * high), low / 2.0, high * 2.0):
@@ -398,7 +420,31 @@ class GlossCandidate(AppearanceCandidate):
             if intensity not in tried:
                 tried[intensity] = misfit(intensity)[0]
         finite = {k: v for k, v in tried.items() if np.isfinite(v)}
-        return float(min(finite, key=finite.__getitem__)) if finite else 0.0
+        if not finite:
+            return 0.0, float("inf")
+        best = min(finite, key=finite.__getitem__)
+        return float(best), float(finite[best])
+
+    @staticmethod
+    def render_misfit(
+        runner: Runner, state: VariantState, items: Items
+    ) -> tuple[float, np.ndarray]:
+        """How far ``state``'s renders of ``items`` are from the capture, and their statistics.
+
+        The ink, paper and contrast (:func:`~simgap.analysis.candidates.evidence_misfit`) and
+        the detections (:func:`~simgap.analysis.gap.detection_score`, one more statistic in
+        the mean of squares, capped like them): a mean square in floors^2.
+        """
+        stats = ("ink_linear", "paper_linear", "contrast")
+        state = measuring_only(state, ())
+        rendered = runner.stats(state, items)
+        detection = 0.0
+        if items.real_detected is not None:  # no detections: the levels alone
+            rendered_detected = runner.detected(state, items)
+            score = detection_score(items.real_detected, rendered_detected, detection_groups(items))
+            detection = min(float(score), RESIDUAL_CAP)
+        levels = evidence_misfit(stats, items.required("real_stats"), rendered)
+        return (len(stats) * levels + detection**2) / (len(stats) + 1), rendered
 
     def fit(self, runner: Runner, base: VariantState, items: Items) -> Fit:
         """The level model on the fit split, then the intensity whose renders match best."""
@@ -423,11 +469,19 @@ class GlossCandidate(AppearanceCandidate):
             "black_level": fit.black_level,
         }
         supported = glint_supported(fit, ratio)
+        with_laminate = without = float("nan")
         if supported:
-            params["light_intensity_w_sr"] = self.intensity(runner, base, items, params, fit, ratio)
+            intensity, with_laminate = self.intensity(runner, base, items, params, fit, ratio)
+            params["light_intensity_w_sr"] = intensity
             # no light is no glint: a laminate without one is only its coating's veil over ink
             # and paper, which a brighter print, flare or a transfer curve make as well
-            supported = params["light_intensity_w_sr"] >= MIN_INTENSITY_W_SR
+            supported = intensity >= MIN_INTENSITY_W_SR
+            if supported:
+                # the laminate must explain more than its nuisance alone: a print whose ink
+                # differs (either way: the veil lifts the ink as a brighter print does)
+                state = self.nuisance(base, params, float(params["ink_factor"]))
+                without = self.render_misfit(runner, state, items)[0]
+                supported = laminate_explains(with_laminate, without)
         top = INTENSITY_W_SR[1]
         at_bound = tuple(
             name
@@ -452,6 +506,8 @@ class GlossCandidate(AppearanceCandidate):
                 "level_rms_light": fit.rms_light,
                 "level_rms_laminate": fit.rms_laminate,
                 "ratio_gain": float("nan") if ratio is None else ratio.gain,
+                "misfit_laminate": with_laminate,
+                "misfit_without_laminate": without,
                 "at_bound": at_bound,
             },
         )
