@@ -466,6 +466,11 @@ class DiagnosisResult(VersionedRecord):
     seconds: float = 0.0
 
     @property
+    def simulation_mode(self) -> str:
+        """The simulation's ``render.mode`` (``converged`` or ``path``; empty where unrecorded)."""
+        return self.simulation_render.split(" ")[0]
+
+    @property
     def selected(self) -> list[str]:
         """The selected effects, most important first."""
         return [f.effect for f in self.selection.findings] if self.selection else []

@@ -352,7 +352,7 @@ def _kept_trial(
     if not path.is_file():
         return None
     record = TrialRecord.from_json(json.loads(path.read_text()), str(path))
-    kept_mode = record.result.simulation_render.split(" ")[0]
+    kept_mode = record.result.simulation_mode
     if kept_mode and kept_mode != mode:
         raise ValueError(
             f"{path}: diagnosed with a {kept_mode} simulation, this run simulates {mode}; use "

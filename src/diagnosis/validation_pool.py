@@ -49,7 +49,7 @@ class PooledTrial:
 
 def _how_diagnosed(record: TrialRecord) -> tuple[str, bool]:
     """The render mode of the trial's simulation and whether it read a measured response."""
-    return record.result.simulation_render.split(" ")[0], record.result.measured_response
+    return record.result.simulation_mode, record.result.measured_response
 
 
 def run_trials(run: Path) -> list[TrialRecord]:
