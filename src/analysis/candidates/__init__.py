@@ -38,7 +38,13 @@ from simgap.analysis.candidates._fitting import (
     on_bound,
     project_items,
 )
-from simgap.analysis.candidates._glint_ratio import HEIGHT_M, MIN_TAGS, fit_ratios
+from simgap.analysis.candidates._glint_ratio import (
+    HEIGHT_M,
+    HELD_OFFSETS_M,
+    MIN_TAGS,
+    fit_ratios,
+    held_inside,
+)
 from simgap.analysis.candidates._gloss import (
     GLINT_MIN_GAIN,
     OFFSET_M,
@@ -85,6 +91,7 @@ __all__ = [
     "GLINT_MIN_GAIN",
     "GlossCandidate",
     "HEIGHT_M",
+    "HELD_OFFSETS_M",
     "MIN_TAGS",
     "OFFSET_M",
     "ProjectionCandidate",
@@ -106,6 +113,7 @@ __all__ = [
     "evidence_misfit",
     "fit_levels",
     "fit_ratios",
+    "held_inside",
     "fit_sun",
     "fresnel_veil",
     "geometric_effects",

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from simgap.analysis.candidates._appearance import capped_rms
+from simgap.analysis.candidates._fitting import on_bound
 from simgap.analysis.candidates._lobe import MIN_COS, beckmann, fresnel_veil, lobe_geometry
 from simgap.analysis.candidates._subset_fit import fit_subset
 from simgap.analysis.candidates._tag_levels import TagLevels
@@ -48,6 +49,37 @@ STARTS: tuple[tuple[float, ...], tuple[float, ...]] = ((0.05, 0.12, 0.3), (-0.05
 #: floors of the best over +-0.15 m (a tenth of the equivalence tolerance), and a free height
 #: ran to its bound (docs/results/design_evidence.md#glint_ratio).
 HEIGHT_M = 0.0
+#: Horizontal offsets (m) at which the light is held where a fit's offset runs onto the end of
+#: its searched range (:func:`held_inside`): at the lens, and the searches' own starts.
+HELD_OFFSETS_M: tuple[float, ...] = (0.0, *STARTS[1])
+
+
+def held_inside(
+    free: tuple[np.ndarray, float], held: list[tuple[np.ndarray, float]]
+) -> tuple[np.ndarray, float]:
+    """The glint's fit, or one with its light held inside where the levels do not ask for the end.
+
+    A light's offset fitted onto the end of its searched range stands in for a light the
+    level or ratio model lacks (the capture's own key light elsewhere than the simulation's),
+    or the tags' views leave the offset undetermined (mostly frontal tags: roughness, offset
+    and intensity trade off). Where the best of the ``held`` fits (the light held at
+    :data:`HELD_OFFSETS_M` level with the lens, everything else fitted) is within the
+    signature's smallest gain (:data:`~simgap.analysis.thresholds.SIGNATURE_MIN_GAIN`, floors
+    RMS) of the ``free`` one, the levels do not ask for the end and the held fit is kept: a
+    light on the camera body.
+
+    Parameters
+    ----------
+    free : (ndarray, float)
+        The fit with a free offset and its RMS misfit (floors).
+    held : list of (ndarray, float)
+        Fits with the offset held inside and their RMS misfits; empty where the free fit's
+        offset is inside its range.
+    """
+    if not held:
+        return free
+    inside = min(held, key=lambda fit: fit[1])
+    return inside if inside[1] - free[1] < SIGNATURE_MIN_GAIN else free
 
 
 @dataclass(frozen=True)
@@ -125,7 +157,8 @@ def fit_ratios(
 
     With ``fixed`` ``(alpha, offset_x_m, offset_z_m)`` only ``h``, the flare, the glint's scale
     and the veil are fitted (the calibration render of
-    :meth:`simgap.analysis.candidates.GlossCandidate.intensity`).
+    :meth:`simgap.analysis.candidates.GlossCandidate.intensity`). A free offset fitted onto the
+    end of ``offset_range`` is kept only where the ratios ask for it (:func:`held_inside`).
     """
     tags = int(np.count_nonzero(levels.readable))
     if tags < MIN_TAGS:
@@ -161,4 +194,13 @@ def fit_ratios(
             x, rms = solve(start, free, lower, upper)
             if rms < best_rms:
                 best, best_rms = x, rms
+    held: list[tuple[np.ndarray, float]] = []
+    if on_bound(float(best[4]), *offset_range):
+        inner = np.array([1, 1, 1, 1, 0, 0, 1], bool)
+        for alpha in STARTS[0]:
+            for offset_x in HELD_OFFSETS_M:
+                start = flat_x.copy()
+                start[2:5] = scale * alpha, alpha, offset_x
+                held.append(solve(start, inner, lower[:4] + (0.0,), upper[:4] + (1.0,)))
+    best, best_rms = held_inside((best, best_rms), held)
     return RatioFit(best, rms_flat, best_rms, tags)

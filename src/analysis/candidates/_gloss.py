@@ -28,7 +28,11 @@ How it is fitted (then rendered once for scoring, like :mod:`simgap.analysis.can
    the floors of :data:`~simgap.analysis.thresholds.IMAGE_FLOORS`; bounded robust least
    squares fit exposure alone, then a matte light (``a``), then the laminate (``b``,
    ``alpha`` and the light's offset, from six starts) (:func:`fit_levels`); ``G``, ``h`` and
-   ``k`` are free in each. A black level takes the same level off ink and paper, so it crushes
+   ``k`` are free in each. A light's offset fitted onto the end of its range is kept only where
+   the levels ask for it: otherwise the fit with the light held on the camera body
+   (:func:`~simgap.analysis.candidates.held_inside`; two blind laminates on mostly frontal or
+   tone-curved captures ran to 15 cm where a light 5 cm from the lens fitted as well,
+   docs/results/laminate.md). A black level takes the same level off ink and paper, so it crushes
    the ink and leaves a glint standing on it; ``h`` alone would darken the glint with the ink and
    an exposure stops too low would make up for it (docs/results/laminate.md).
 3. **Geometry from the ink-to-paper ratios** where at least
@@ -90,7 +94,13 @@ from simgap.analysis.candidates._appearance import (
 )
 from simgap.analysis.candidates._black_level import LEVEL_BOUNDS
 from simgap.analysis.candidates._fitting import Fit, on_bound
-from simgap.analysis.candidates._glint_ratio import STARTS, RatioFit, fit_ratios
+from simgap.analysis.candidates._glint_ratio import (
+    HELD_OFFSETS_M,
+    STARTS,
+    RatioFit,
+    fit_ratios,
+    held_inside,
+)
 from simgap.analysis.candidates._lobe import LAMINATE_IOR, MIN_COS, beckmann, lobe_geometry
 from simgap.analysis.candidates._runner import Runner
 from simgap.analysis.candidates._subset_fit import fit_subset
@@ -225,7 +235,8 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
     """Robust least squares of the level model: exposure, + matte light, + laminate.
 
     With ``fixed`` (alpha, offset x, offset z) only the scales are fitted (the calibration
-    render).
+    render). A free offset fitted onto the end of :data:`OFFSET_M` (either one) is kept only
+    where the levels ask for it (:func:`~simgap.analysis.candidates.held_inside`).
     """
     if len(levels) < 4:
         nan = float("nan")
@@ -267,6 +278,16 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
             x, rms = solve(start, np.ones(8, bool), lower, upper)
             if rms < best_rms:
                 best, best_rms = x, rms
+    held: list[tuple[np.ndarray, float]] = []
+    if on_bound(float(best[5]), *OFFSET_M) or on_bound(float(best[6]), *OFFSET_M):
+        inner = np.array([1, 1, 1, 1, 1, 0, 0, 1], bool)
+        inner_lower, inner_upper = lower[:5] + lower[7:], upper[:5] + upper[7:]
+        for alpha in STARTS[0]:
+            for offset in HELD_OFFSETS_M:
+                start = x_light.copy()
+                start[3], start[4], start[5], start[6] = a_scale * alpha, alpha, offset, 0.0
+                held.append(solve(start, inner, inner_lower, inner_upper))
+    best, best_rms = held_inside((best, best_rms), held)
     return LevelFit(best, rms_exp, rms_light, best_rms, len(levels))
 
 
