@@ -183,24 +183,25 @@ def fit_ratios(
             start, np.array([1, 1, 1, 0, 0, 0, 1], bool), (-4, 0, 0, 0), (4, 1, np.inf, 1)
         )
         return RatioFit(x, rms_flat, rms, tags)
-    best, best_rms = flat_x, rms_flat
-    lower = (-4.0, 0.0, 0.0, alpha_range[0], offset_range[0], 0.0)
-    upper = (4.0, 1.0, np.inf, alpha_range[1], offset_range[1], 1.0)
-    for alpha in STARTS[0]:
-        for offset_x in STARTS[1]:
-            start = flat_x.copy()
-            start[2:5] = scale * alpha, alpha, offset_x
-            free = np.array([1, 1, 1, 1, 1, 0, 1], bool)
-            x, rms = solve(start, free, lower, upper)
-            if rms < best_rms:
-                best, best_rms = x, rms
-    held: list[tuple[np.ndarray, float]] = []
-    if on_bound(float(best[4]), *offset_range):
-        inner = np.array([1, 1, 1, 1, 0, 0, 1], bool)
+    lower = (-4.0, 0.0, 0.0, alpha_range[0], offset_range[0], 0.0, 0.0)
+    upper = (4.0, 1.0, np.inf, alpha_range[1], offset_range[1], 0.0, 1.0)
+
+    def from_starts(offsets: tuple[float, ...], free: np.ndarray) -> list[tuple[np.ndarray, float]]:
+        """The glint fitted from each roughness start x each horizontal offset (height fixed)."""
+        lo, hi = tuple(np.asarray(lower)[free]), tuple(np.asarray(upper)[free])
+        fits = []
         for alpha in STARTS[0]:
-            for offset_x in HELD_OFFSETS_M:
+            for offset_x in offsets:
                 start = flat_x.copy()
                 start[2:5] = scale * alpha, alpha, offset_x
-                held.append(solve(start, inner, lower[:4] + (0.0,), upper[:4] + (1.0,)))
+                fits.append(solve(start, free, lo, hi))
+        return fits
+
+    # the first of equal misfits: the flat ratio before any glint
+    fits = [(flat_x, rms_flat), *from_starts(STARTS[1], np.array([1, 1, 1, 1, 1, 0, 1], bool))]
+    best, best_rms = min(fits, key=lambda fit: fit[1])
+    held = []
+    if on_bound(float(best[4]), *offset_range):
+        held = from_starts(HELD_OFFSETS_M, np.array([1, 1, 1, 1, 0, 0, 1], bool))
     best, best_rms = held_inside((best, best_rms), held)
     return RatioFit(best, rms_flat, best_rms, tags)

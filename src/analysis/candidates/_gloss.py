@@ -268,25 +268,26 @@ def fit_levels(levels: TagLevels, fixed: tuple[float, float, float] | None = Non
         scales[3] = True
         x, rms = solve(start, scales, (-6, h_low, 0, 0, 0), (6, h_high, inf, inf, black_max))
         return LevelFit(x, rms_exp, rms_light, rms, len(levels))
-    best, best_rms = x_light, rms_light
     lower = (-6, h_low, 0, 0, ROUGHNESS_RANGE[0], OFFSET_M[0], OFFSET_M[0], 0)
     upper = (6, h_high, inf, inf, ROUGHNESS_RANGE[1], OFFSET_M[1], OFFSET_M[1], black_max)
-    for alpha in STARTS[0]:
-        for offset in STARTS[1]:
-            start = x_light.copy()
-            start[3], start[4], start[5], start[6] = a_scale * alpha, alpha, offset, 0.0
-            x, rms = solve(start, np.ones(8, bool), lower, upper)
-            if rms < best_rms:
-                best, best_rms = x, rms
-    held: list[tuple[np.ndarray, float]] = []
-    if on_bound(float(best[5]), *OFFSET_M) or on_bound(float(best[6]), *OFFSET_M):
-        inner = np.array([1, 1, 1, 1, 1, 0, 0, 1], bool)
-        inner_lower, inner_upper = lower[:5] + lower[7:], upper[:5] + upper[7:]
+
+    def from_starts(offsets: tuple[float, ...], free: np.ndarray) -> list[tuple[np.ndarray, float]]:
+        """The laminate fitted from each roughness start x each horizontal offset, level."""
+        lo, hi = tuple(np.asarray(lower)[free]), tuple(np.asarray(upper)[free])
+        fits = []
         for alpha in STARTS[0]:
-            for offset in HELD_OFFSETS_M:
+            for offset in offsets:
                 start = x_light.copy()
                 start[3], start[4], start[5], start[6] = a_scale * alpha, alpha, offset, 0.0
-                held.append(solve(start, inner, inner_lower, inner_upper))
+                fits.append(solve(start, free, lo, hi))
+        return fits
+
+    # the first of equal misfits: the matte light before any laminate
+    fits = [(x_light, rms_light), *from_starts(STARTS[1], np.ones(8, bool))]
+    best, best_rms = min(fits, key=lambda fit: fit[1])
+    held = []
+    if on_bound(float(best[5]), *OFFSET_M) or on_bound(float(best[6]), *OFFSET_M):
+        held = from_starts(HELD_OFFSETS_M, np.array([1, 1, 1, 1, 1, 0, 0, 1], bool))
     best, best_rms = held_inside((best, best_rms), held)
     return LevelFit(best, rms_exp, rms_light, best_rms, len(levels))
 
@@ -474,12 +475,10 @@ class GlossCandidate(AppearanceCandidate):
         levels = TagLevels.of(
             items.required("real_stats"), items.required("sim_stats"), eye_from_tag
         )
-        fit = fit_levels(levels)
         # the glint's geometry from the ink-to-paper ratios where enough papers are unclipped
         # (the capture's lights cancel in them), its scales from the levels at that geometry
         ratio = fit_ratios(levels, ROUGHNESS_RANGE, OFFSET_M)
-        if ratio is not None:
-            fit = fit_levels(levels, ratio.geometry)
+        fit = fit_levels(levels) if ratio is None else fit_levels(levels, ratio.geometry)
         params = {
             "alpha": fit.alpha,
             "light_intensity_w_sr": 0.0,
